@@ -1,0 +1,15 @@
+"""mcfric: response of friction-damped beam arrays under uncertain friction.
+
+Harmonic-balance (describing-function) responses, Monte Carlo ensembles and
+equivalent-linear response bounds, after "Predicting response bounds for friction-damped
+gas turbine blades with uncertain friction coupling".
+"""
+
+from .hbm import HBMResult, solve
+from .model import TABLE_1, Excitation, ModalTable, Model
+from .presets import eight_beam, preset, two_beam
+
+__version__ = "0.1.0"
+
+__all__ = ["HBMResult", "solve", "TABLE_1", "Excitation", "ModalTable", "Model",
+           "eight_beam", "preset", "two_beam", "__version__"]

@@ -1,0 +1,464 @@
+"""One fixed-point solve of the single-harmonic balance (physics.md section 3).
+
+Unknowns are ``x_j = log s_j`` for the active dampers (``mu0 N0 > 0`` and ``kc > 0``);
+the residual is ``f_j = log(s_j kc_j |q_j| / (mu0_j N0_j))`` with the relative contact
+displacement ``q`` solving ``(I + G diag(K)) q = q0``. Working in ``log s`` keeps
+``s > 0`` and has the same roots as ``r_j = s_j kc_j A_j - mu0_j N0_j``
+(``|r_j| / (mu0_j N0_j) = |expm1(f_j)|``).
+
+Stuck dampers (``s >= 1``) do not change ``K``; their equation is solved exactly in every
+residual evaluation (``x_j = log(mu0 N0 / (kc |q_j|))``), which keeps a stuck damper with
+tiny ``|q_j|`` from stalling the line search.
+
+Two linear-algebra paths share one Newton loop:
+
+* ``structured``: identical-index chain ``a_j = j, b_j = j + 1``; ``I + G K`` is
+  tridiagonal and the Newton step is a block-tridiagonal system with real 2x2 blocks in
+  ``w = dq``, both O(nd);
+* dense: any damper graph (rings), LU with partial pivoting, O(nd^3). Also the fallback.
+
+Fallback chain per point: Newton from the initial guess -> Newton (dense) restarted from
+all-stuck ``s = 1`` -> Levenberg-Marquardt (dense) from ``s = 1``.
+"""
+
+import math
+
+import numpy as np
+
+from ._jit import inline_jit, jit
+from .friction import kappa, kappa_dlogs
+from .linalg import block2_tridiag_solve, lu_factor, lu_solve, tridiag_solve
+
+#: Status codes of one solve.
+CONVERGED = 0           # Newton from the initial guess
+CONVERGED_RESTART = 1   # Newton restarted from the stick limit s = 1
+CONVERGED_LM = 2        # Levenberg-Marquardt
+NOT_CONVERGED = -1      # every attempt failed: outputs are NaN
+
+_ARMIJO = 1e-4
+_MAX_HALVINGS = 30
+_MAX_STEP = 5.0          # largest change of log s in one Newton step
+_LM_MAX_ITER = 200
+
+
+@inline_jit
+def _log_residual(x, c, active, q, f, nd):
+    """Residual ``f`` from ``q``; solves stuck dampers exactly (updates ``x``).
+
+    Returns ``sum f^2``, or ``inf`` when it is not finite.
+    """
+    phi = 0.0
+    for j in range(nd):
+        if not active[j]:
+            f[j] = 0.0
+            continue
+        q2 = q[j].real * q[j].real + q[j].imag * q[j].imag
+        lq = 0.5 * math.log(q2)
+        if x[j] >= 0.0:
+            t = c[j] - lq           # log s that makes damper j consistent with this q
+            if t >= 0.0:
+                x[j] = t
+                f[j] = 0.0
+            else:                   # no longer stuck: park at s = 1, K unchanged
+                x[j] = 0.0
+                f[j] = -t
+        else:
+            f[j] = x[j] + lq - c[j]
+        phi += f[j] * f[j]
+    if not math.isfinite(phi):
+        return math.inf
+    return phi
+
+
+@inline_jit
+def _damper_K(x, kc, active, K, nd):
+    for j in range(nd):
+        K[j] = kc[j] * kappa(math.exp(x[j])) if active[j] else 0.0j
+
+
+@inline_jit
+def _residual_chain(x, kc, c, active, Gd, Gu, q0, K, q, f, lo, di, up, nd):
+    """Residual on the tridiagonal chain path. Returns ``sum f^2`` (inf on failure)."""
+    _damper_K(x, kc, active, K, nd)
+    for j in range(nd):
+        di[j] = 1.0 + Gd[j] * K[j]
+        q[j] = q0[j]
+        if j > 0:
+            lo[j] = Gu[j - 1] * K[j - 1]
+        if j < nd - 1:
+            up[j] = Gu[j] * K[j + 1]
+    if tridiag_solve(lo, di, up, q, nd) != 0:
+        return math.inf
+    return _log_residual(x, c, active, q, f, nd)
+
+
+@inline_jit
+def _residual_dense(x, kc, c, active, G, q0, K, q, f, T, piv, nd):
+    """Residual on the dense path; leaves the LU factors of ``I + G K`` in ``T``."""
+    _damper_K(x, kc, active, K, nd)
+    for i in range(nd):
+        for j in range(nd):
+            T[i, j] = G[i, j] * K[j]
+        T[i, i] += 1.0
+        q[i] = q0[i]
+    if lu_factor(T, piv, nd) != 0:
+        return math.inf
+    lu_solve(T, piv, q, nd)
+    return _log_residual(x, c, active, q, f, nd)
+
+
+@inline_jit
+def _sensitivities(x, kc, active, q, h, e, nd):
+    """``h_j = dK_j/dx_j q_j`` and ``e_j = conj(q_j)/|q_j|^2`` (0 where undefined)."""
+    for j in range(nd):
+        q2 = q[j].real * q[j].real + q[j].imag * q[j].imag
+        if active[j] and q2 > 0.0:
+            h[j] = kc[j] * kappa_dlogs(math.exp(x[j])) * q[j]
+            e[j] = q[j].conjugate() / q2
+        else:
+            h[j] = 0.0j
+            e[j] = 0.0j
+
+
+@inline_jit
+def _put_block(B, i, t, m, e):
+    """Real 2x2 block of ``w_j -> t w_j - m Re(e w_j)`` (complex t, m, e)."""
+    B[i, 0, 0] = t.real - m.real * e.real
+    B[i, 0, 1] = -t.imag + m.real * e.imag
+    B[i, 1, 0] = t.imag - m.imag * e.real
+    B[i, 1, 1] = t.real + m.imag * e.imag
+
+
+@inline_jit
+def _step_chain(x, kc, active, Gd, Gu, K, q, f, dx, h, e, L, D, U, r, nd):
+    """Newton step on the chain path: block-tridiagonal in ``w = dq``. Returns info."""
+    _sensitivities(x, kc, active, q, h, e, nd)
+    for i in range(nd):
+        _put_block(D, i, 1.0 + Gd[i] * K[i], Gd[i] * h[i], e[i])
+        rhs = Gd[i] * h[i] * f[i]
+        if i > 0:
+            _put_block(L, i, Gu[i - 1] * K[i - 1], Gu[i - 1] * h[i - 1], e[i - 1])
+            rhs += Gu[i - 1] * h[i - 1] * f[i - 1]
+        if i < nd - 1:
+            _put_block(U, i, Gu[i] * K[i + 1], Gu[i] * h[i + 1], e[i + 1])
+            rhs += Gu[i] * h[i + 1] * f[i + 1]
+        r[i, 0] = rhs.real
+        r[i, 1] = rhs.imag
+    info = block2_tridiag_solve(L, D, U, r, nd)
+    if info != 0:
+        return info
+    for j in range(nd):
+        if e[j] != 0.0:
+            dx[j] = -f[j] - (e[j].real * r[j, 0] - e[j].imag * r[j, 1])
+        else:
+            dx[j] = -f[j]
+    return 0
+
+
+@inline_jit
+def _jacobian_dense(x, kc, active, G, T, piv, q, h, e, X, J, nd):
+    """Dense Jacobian ``J = df/dx`` using the LU factors of ``I + G K`` held in ``T``.
+
+    ``X`` (nd,) is scratch for one column of ``(I + G K)^-1 G diag(h)``.
+    """
+    _sensitivities(x, kc, active, q, h, e, nd)
+    for j in range(nd):
+        # column j of X = (I + G K)^-1 G e_j h_j
+        for i in range(nd):
+            X[i] = G[i, j] * h[j]
+        lu_solve(T, piv, X, nd)
+        for i in range(nd):
+            J[i, j] = (1.0 if i == j else 0.0) - (e[i] * X[i]).real
+
+
+@inline_jit
+def _step_dense(x, kc, active, G, T, piv, q, f, dx, h, e, X, J, rpiv, nd):
+    _jacobian_dense(x, kc, active, G, T, piv, q, h, e, X, J, nd)
+    for j in range(nd):
+        dx[j] = -f[j]
+    info = lu_factor(J, rpiv, nd)
+    if info != 0:
+        return info
+    lu_solve(J, rpiv, dx, nd)
+    return 0
+
+
+@inline_jit
+def _limit_step(dx, nd):
+    big = 0.0
+    for j in range(nd):
+        big = max(big, abs(dx[j]))
+    if not math.isfinite(big):
+        return False
+    if big > _MAX_STEP:
+        sc = _MAX_STEP / big
+        for j in range(nd):
+            dx[j] *= sc
+    return True
+
+
+@inline_jit
+def _max_abs(f, nd):
+    m = 0.0
+    for j in range(nd):
+        m = max(m, abs(f[j]))
+    return m
+
+
+@inline_jit
+def _copy_state(src_x, src_q, src_K, src_f, x, q, K, f, nd):
+    for j in range(nd):
+        x[j] = src_x[j]
+        q[j] = src_q[j]
+        K[j] = src_K[j]
+        f[j] = src_f[j]
+
+
+@inline_jit
+def _residual(dense, x, kc, c, active, G, Gd, Gu, q0, K, q, f, lo, di, up, T, piv, nd):
+    if dense:
+        return _residual_dense(x, kc, c, active, G, q0, K, q, f, T, piv, nd)
+    return _residual_chain(x, kc, c, active, Gd, Gu, q0, K, q, f, lo, di, up, nd)
+
+
+@jit
+def newton(x, kc, c, active, G, Gd, Gu, q0, dense, tol, max_iter, w):
+    """Damped Newton iteration in ``x = log s`` from the guess in ``x``.
+
+    Parameters
+    ----------
+    x : ndarray, shape (nd,)
+        In: initial guess of ``log s``; out: the last accepted iterate.
+    kc : ndarray, shape (nd,)
+        Tangential stiffness per damper, N/m.
+    c : ndarray, shape (nd,)
+        ``log(mu0 N0 / kc)`` per active damper, log(m).
+    active : ndarray of bool, shape (nd,)
+        Dampers that transmit force (``mu0 N0 > 0`` and ``kc > 0``).
+    G, Gd, Gu, q0 : ndarray
+        Contact-space data of this frequency: dense ``G`` (nd, nd) when ``dense``,
+        else its diagonal ``Gd`` and first super-diagonal ``Gu``; ``q0`` (nd,), m.
+    dense : bool
+        Use the dense path (any damper graph) instead of the tridiagonal chain path.
+    tol : float
+        Convergence when ``max |f_j| <= tol`` (relative force residual).
+    max_iter : int
+        Newton iterations allowed.
+    w : Workspace arrays, see :func:`workspace`.
+
+    Returns
+    -------
+    ok : bool
+    iterations : int
+    """
+    (K, q, f, xt, qt, Kt, ft, dx, h, e, lo, di, up, L, D, U, r, T, piv, X, J, rpiv) = w
+    nd = x.shape[0]
+    phi = _residual(dense, x, kc, c, active, G, Gd, Gu, q0, K, q, f, lo, di, up, T, piv, nd)
+    if not math.isfinite(phi):
+        return False, 0
+    for it in range(max_iter + 1):
+        if _max_abs(f, nd) <= tol:
+            return True, it
+        if it == max_iter:
+            break
+        if dense:
+            info = _step_dense(x, kc, active, G, T, piv, q, f, dx, h, e, X, J, rpiv, nd)
+        else:
+            info = _step_chain(x, kc, active, Gd, Gu, K, q, f, dx, h, e, L, D, U, r, nd)
+        if info != 0 or not _limit_step(dx, nd):
+            return False, it
+        lam = 1.0
+        accepted = False
+        for _ in range(_MAX_HALVINGS):
+            for j in range(nd):
+                xt[j] = x[j] + lam * dx[j]
+            phit = _residual(dense, xt, kc, c, active, G, Gd, Gu, q0, Kt, qt, ft,
+                             lo, di, up, T, piv, nd)
+            if phit <= (1.0 - 2.0 * _ARMIJO * lam) * phi:
+                accepted = True
+                break
+            lam *= 0.5
+        if not accepted:
+            return False, it + 1
+        _copy_state(xt, qt, Kt, ft, x, q, K, f, nd)
+        phi = phit
+    return False, max_iter
+
+
+@jit
+def levenberg_marquardt(x, kc, c, active, G, q0, tol, w):
+    """Levenberg-Marquardt on ``0.5 |f|^2`` in ``x = log s`` (dense), the last resort.
+
+    Same arguments and returns as :func:`newton` (always the dense path).
+    """
+    (K, q, f, xt, qt, Kt, ft, dx, h, e, lo, di, up, L, D, U, r, T, piv, X, J, rpiv) = w
+    nd = x.shape[0]
+    A = np.empty((nd, nd))
+    g = np.empty(nd)
+    phi = _residual_dense(x, kc, c, active, G, q0, K, q, f, T, piv, nd)
+    if not math.isfinite(phi):
+        return False, 0
+    lam = 1e-3
+    for it in range(_LM_MAX_ITER + 1):
+        if _max_abs(f, nd) <= tol:
+            return True, it
+        if it == _LM_MAX_ITER:
+            break
+        # T holds the LU of the accepted point: build J there
+        _jacobian_dense(x, kc, active, G, T, piv, q, h, e, X, J, nd)
+        for i in range(nd):
+            acc = 0.0
+            for k in range(nd):
+                acc += J[k, i] * f[k]
+            g[i] = acc
+        improved = False
+        for _ in range(40):
+            for i in range(nd):
+                for j in range(nd):
+                    acc = 0.0
+                    for k in range(nd):
+                        acc += J[k, i] * J[k, j]
+                    A[i, j] = acc
+                A[i, i] += lam * (1.0 + A[i, i])
+                dx[i] = -g[i]
+            if lu_factor(A, rpiv, nd) != 0:
+                lam *= 10.0
+                continue
+            lu_solve(A, rpiv, dx, nd)
+            if not _limit_step(dx, nd):
+                lam *= 10.0
+                continue
+            for j in range(nd):
+                xt[j] = x[j] + dx[j]
+            phit = _residual_dense(xt, kc, c, active, G, q0, Kt, qt, ft, T, piv, nd)
+            if phit < phi:
+                improved = True
+                break
+            lam *= 4.0
+        if not improved:
+            return False, it + 1
+        _copy_state(xt, qt, Kt, ft, x, q, K, f, nd)
+        phi = phit
+        lam = max(lam / 3.0, 1e-12)
+        # T now holds the LU at the accepted point (it was the last evaluation)
+    return False, _LM_MAX_ITER
+
+
+@jit
+def workspace(nd):
+    """Scratch arrays for :func:`newton` and :func:`levenberg_marquardt` (one per thread)."""
+    c16 = np.complex128
+    return (np.zeros(nd, c16), np.zeros(nd, c16), np.zeros(nd), np.zeros(nd),
+            np.zeros(nd, c16), np.zeros(nd, c16), np.zeros(nd), np.zeros(nd),
+            np.zeros(nd, c16), np.zeros(nd, c16),
+            np.zeros(nd, c16), np.zeros(nd, c16), np.zeros(nd, c16),
+            np.zeros((nd, 2, 2)), np.zeros((nd, 2, 2)), np.zeros((nd, 2, 2)),
+            np.zeros((nd, 2)),
+            np.zeros((nd, nd), c16), np.zeros(nd, np.int64), np.zeros(nd, c16),
+            np.zeros((nd, nd)), np.zeros(nd, np.int64))
+
+
+# --- one damper (two beams): scalar specialisation, ~2x faster than the general path ---
+
+@inline_jit
+def _scalar_eval(x, kc, c, g, q0):
+    """Residual of the one-damper problem. Returns (f, x, q, K); updates x when stuck."""
+    K = kc * kappa(math.exp(x))
+    q = q0 / (1.0 + g * K)
+    lq = 0.5 * math.log(q.real * q.real + q.imag * q.imag)
+    if x >= 0.0:
+        t = c - lq
+        if t >= 0.0:
+            return 0.0, t, q, K
+        return -t, 0.0, q, K
+    return x + lq - c, x, q, K
+
+
+@inline_jit
+def newton_scalar(x, kc, c, g, q0, tol, max_iter):
+    """Damped Newton for one damper: ``f(x) = x + log|q0 / (1 + g K(e^x))| - log(mu0 N0/kc)``.
+
+    Parameters
+    ----------
+    x : float
+        Initial guess of ``log s``.
+    kc : float
+        Tangential stiffness, N/m (> 0).
+    c : float
+        ``log(mu0 N0 / kc)``.
+    g : complex
+        ``G = d11_a + d11_b``, m/N.
+    q0 : complex
+        Relative contact displacement of the uncoupled beams, m.
+    tol, max_iter : float, int
+        As :func:`newton`.
+
+    Returns
+    -------
+    ok, iterations, x, q, K, f
+    """
+    f, x, q, K = _scalar_eval(x, kc, c, g, q0)
+    if not math.isfinite(f):
+        return False, 0, x, q, K, f
+    for it in range(max_iter + 1):
+        if abs(f) <= tol:
+            return True, it, x, q, K, f
+        if it == max_iter:
+            break
+        d = 1.0 - (g * kc * kappa_dlogs(math.exp(x)) / (1.0 + g * K)).real
+        dx = -f / d
+        if not math.isfinite(dx):
+            return False, it, x, q, K, f
+        dx = max(-_MAX_STEP, min(_MAX_STEP, dx))
+        lam = 1.0
+        accepted = False
+        for _ in range(_MAX_HALVINGS):
+            ft, xt, qt, Kt = _scalar_eval(x + lam * dx, kc, c, g, q0)
+            if ft * ft <= (1.0 - 2.0 * _ARMIJO * lam) * f * f:
+                accepted = True
+                break
+            lam *= 0.5
+        if not accepted:
+            return False, it + 1, x, q, K, f
+        f, x, q, K = ft, xt, qt, Kt
+    return False, max_iter, x, q, K, f
+
+
+@jit
+def bracket_scalar(kc, c, g, q0, tol):
+    """Last resort for one damper: bisection-safeguarded secant on a sign bracket.
+
+    ``f`` is continuous in ``x``; ``f(0) > 0`` when the stuck state is inconsistent
+    and ``f -> -inf`` as ``x -> -inf`` (``K -> 0``), so a bracket always exists.
+
+    Returns
+    -------
+    ok, iterations, x, q, K, f
+    """
+    fh, xh, qh, Kh = _scalar_eval(0.0, kc, c, g, q0)
+    if fh <= tol:                       # stuck solution (f == 0 after the exact update)
+        return math.isfinite(fh), 0, xh, qh, Kh, fh
+    lo = -1.0
+    fl, _, ql, Kl = _scalar_eval(lo, kc, c, g, q0)
+    it = 0
+    while fl > 0.0 and it < 200:       # walk down until the sign changes
+        lo *= 2.0
+        fl, _, ql, Kl = _scalar_eval(lo, kc, c, g, q0)
+        it += 1
+    if not (fl <= 0.0):
+        return False, it, lo, ql, Kl, fl
+    hi = 0.0
+    for k in range(300):
+        mid = 0.5 * (lo + hi)
+        fm, _, qm, Km = _scalar_eval(mid, kc, c, g, q0)
+        if abs(fm) <= tol:
+            return True, it + k + 1, mid, qm, Km, fm
+        if not math.isfinite(fm):
+            return False, it + k + 1, mid, qm, Km, fm
+        if fm > 0.0:
+            hi = mid
+        else:
+            lo = mid
+        if hi - lo <= 4e-16 * max(1.0, abs(lo)):
+            return False, it + k + 1, mid, qm, Km, fm
+    return False, it + 300, mid, qm, Km, fm

@@ -1,0 +1,252 @@
+"""Harmonic-balance solves of a model: validate, call the kernel, wrap the result.
+
+This is the Python layer above :mod:`mcfric.core.sweep`: it checks every input once,
+so that a user sees a ``ValueError`` naming the argument rather than a numba typing error,
+and it owns the output arrays.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+
+from .core import sweep as _sweep
+from .core.newton import NOT_CONVERGED
+from .model import Model
+
+#: Default relative residual tolerance ``|s kc A - mu0 N0| <= tol mu0 N0``.
+TOL = 1e-12
+MAX_ITER = 50
+QUANTITIES = ("displacement", "velocity", "acceleration")
+
+
+@dataclass
+class HBMResult:
+    """Responses of ``n_s`` samples at ``n_f`` frequencies.
+
+    Attributes
+    ----------
+    freq_hz : ndarray, shape (n_f,)
+        Frequencies, Hz.
+    response : ndarray of complex, shape (n_s, n_f, n_beams)
+        Displacement amplitude at the output position of every beam, m
+        (``x(t) = Re{X e^{i omega t}}``). NaN where not converged.
+    s : ndarray, shape (n_s, n_f, nd)
+        Slip ratio ``mu0 N0 / (kc A)`` per damper (>= 1: stuck). NaN where not converged;
+        0 for a damper with ``mu0 N0 = 0``, inf for one with ``kc = 0``.
+    status : ndarray of int8, shape (n_s, n_f)
+        0 converged, 1 converged after a restart, 2 by the last-resort solver,
+        -1 not converged.
+    iterations : ndarray of int16, shape (n_s, n_f)
+    residual : ndarray, shape (n_s, n_f)
+        ``max_j |s_j kc_j A_j / (mu0_j N0_j) - 1|`` of the returned point.
+    mu0, kc, N0 : ndarray, shape (n_s, nd)
+        The parameters solved for (N0 in N, kc in N/m).
+    """
+
+    freq_hz: np.ndarray
+    response: np.ndarray
+    s: np.ndarray
+    status: np.ndarray
+    iterations: np.ndarray
+    residual: np.ndarray
+    mu0: np.ndarray
+    kc: np.ndarray
+    N0: np.ndarray
+
+    @property
+    def converged(self):
+        """Boolean mask (n_s, n_f) of converged points."""
+        return self.status > NOT_CONVERGED
+
+    @property
+    def n_not_converged(self):
+        return int(np.count_nonzero(~self.converged))
+
+    def metric(self, quantity="displacement", beams=None):
+        """Response metric ``M`` (physics.md section 5), shape (n_s, n_f).
+
+        Parameters
+        ----------
+        quantity : {"displacement", "velocity", "acceleration"}
+            ``M`` in m, m/s or m/s^2 (``omega^k`` times the displacement amplitude).
+        beams : sequence of int, optional
+            0-based beams to take the maximum over; default all.
+        """
+        return response_metric(self.response, self.freq_hz, quantity, beams)
+
+    def summary(self):
+        n = self.status.size
+        bad = self.n_not_converged
+        return (f"{self.status.shape[0]} samples x {self.status.shape[1]} frequencies = {n} "
+                f"points; not converged: {bad} ({100.0 * bad / max(n, 1):.4g} %)")
+
+
+def response_metric(response, freq_hz, quantity="displacement", beams=None):
+    """``max_b |y_b| omega^k`` over the chosen beams (NaN propagates), shape response[..., 0]."""
+    if quantity not in QUANTITIES:
+        raise ValueError(f"quantity: expected one of {QUANTITIES}, got {quantity!r}")
+    amp = np.abs(response if beams is None else response[..., list(beams)])
+    m = amp.max(axis=-1)
+    power = QUANTITIES.index(quantity)
+    if power:
+        m = m * (2 * np.pi * np.asarray(freq_hz)) ** power
+    return m
+
+
+def check_frequencies(freq_hz):
+    """Validated frequencies (1-d, finite, > 0), Hz."""
+    try:
+        f = np.ascontiguousarray(freq_hz, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"freq_hz: expected numbers, got {freq_hz!r}") from None
+    if f.ndim == 0:
+        f = f[None]
+    if f.ndim != 1 or f.size == 0:
+        raise ValueError(f"freq_hz: expected a non-empty 1-d array, got shape {f.shape}")
+    if not np.all(np.isfinite(f)):
+        raise ValueError("freq_hz: frequencies must be finite (no NaN or inf)")
+    if not np.all(f > 0):
+        raise ValueError("freq_hz: frequencies must be > 0 Hz")
+    return f
+
+
+def check_parameters(nd, **params):
+    """Broadcast per-damper parameters to a common (n_s, nd) float array each.
+
+    Each parameter may be a scalar (all samples and dampers), shape (nd,) (one sample),
+    shape (n_s, 1) (same for every damper of a sample) or (n_s, nd). Values must be
+    finite and >= 0.
+    """
+    out = {}
+    n_s = 1
+    for name, value in params.items():
+        try:
+            arr = np.array(value, dtype=float)
+        except (TypeError, ValueError):
+            raise ValueError(f"{name}: expected numbers, got {value!r}") from None
+        if arr.ndim == 0:
+            arr = np.full((1, nd), float(arr))
+        elif arr.ndim == 1:
+            if arr.shape[0] != nd:
+                raise ValueError(f"{name}: a 1-d array must have one value per damper "
+                                 f"({nd}), got {arr.shape[0]}")
+            arr = arr[None, :]
+        elif arr.ndim == 2:
+            if arr.shape[1] not in (1, nd):
+                raise ValueError(f"{name}: expected shape (n_samples, {nd}), "
+                                 f"got {arr.shape}")
+            arr = np.broadcast_to(arr, (arr.shape[0], nd))
+        else:
+            raise ValueError(f"{name}: expected at most 2 dimensions, got shape {arr.shape}")
+        if not np.all(np.isfinite(arr)):
+            raise ValueError(f"{name}: values must be finite (no NaN or inf)")
+        if np.any(arr < 0):
+            raise ValueError(f"{name}: values must be >= 0")
+        if arr.shape[0] != 1:
+            if n_s not in (1, arr.shape[0]):
+                raise ValueError(f"{name}: {arr.shape[0]} samples do not match the "
+                                 f"{n_s} samples of the other parameters")
+            n_s = arr.shape[0]
+        out[name] = arr
+    return {k: np.ascontiguousarray(np.broadcast_to(v, (n_s, nd))) for k, v in out.items()}
+
+
+@contextlib.contextmanager
+def threads(n):
+    """Run numba parallel kernels with ``n`` threads (None: leave as is)."""
+    if n is None:
+        yield
+        return
+    n = int(n)
+    if not 1 <= n <= numba.config.NUMBA_NUM_THREADS:
+        raise ValueError(f"threads: expected 1..{numba.config.NUMBA_NUM_THREADS}, got {n}")
+    old = numba.get_num_threads()
+    numba.set_num_threads(n)
+    try:
+        yield
+    finally:
+        numba.set_num_threads(old)
+
+
+def solve(model, freq_hz, mu0, kc, N0=0.5, *, modal_freq_hz=None, tol=TOL,
+          max_iter=MAX_ITER, n_threads=None):
+    """Single-harmonic balance of a friction-coupled array for many parameter sets.
+
+    Each sample sweeps the frequencies in the order given (upward for a sorted grid),
+    warm-starting every point from the previous ones: like a slow stepped sine, so on a
+    branch with several solutions the one continued from below is returned.
+
+    Parameters
+    ----------
+    model : Model
+        The array, its dampers and its excitation.
+    freq_hz : array_like, shape (n_f,)
+        Excitation frequencies, Hz (> 0, finite).
+    mu0, kc, N0 : array_like
+        Friction coefficient (-), tangential stiffness (N/m) and normal preload (N) per
+        damper: scalar, (nd,), (n_s, 1) or (n_s, nd); all >= 0.
+    modal_freq_hz : array_like, shape (n_s, n_beams, n_modes), optional
+        Per-sample modal frequencies in Hz (mistuned rigs); default the model's.
+    tol : float
+        Relative residual tolerance, default 1e-12.
+    max_iter : int
+        Newton iterations per attempt (default 50).
+    n_threads : int, optional
+        numba threads for this call.
+
+    Returns
+    -------
+    HBMResult
+    """
+    if not isinstance(model, Model):
+        raise ValueError(f"model: expected a mcfric Model, got {type(model).__name__}")
+    f = check_frequencies(freq_hz)
+    nd = model.n_dampers
+    p = check_parameters(nd, mu0=mu0, kc=kc, N0=N0)
+    n_s = p["mu0"].shape[0]
+    if not (np.isfinite(tol) and 0 < tol < 1):
+        raise ValueError(f"tol: expected a number in (0, 1), got {tol!r}")
+    if not (isinstance(max_iter, (int, np.integer)) and 1 <= max_iter <= 10000):
+        raise ValueError(f"max_iter: expected an integer in 1..10000, got {max_iter!r}")
+    omega = 2 * np.pi * f
+    if modal_freq_hz is not None:
+        mf = np.array(modal_freq_hz, dtype=float)
+        expect = (n_s, model.n_beams, max(t.n_modes for t in model.beams))
+        if mf.shape != expect:
+            raise ValueError(f"modal_freq_hz: expected shape {expect}, got {mf.shape}")
+        if not (np.all(np.isfinite(mf)) and np.all(mf > 0)):
+            raise ValueError("modal_freq_hz: values must be finite and > 0 Hz")
+        modal_freq_hz = mf
+    rec = model.receptances(omega, modal_freq_hz)
+    out = allocate(n_s, len(f), model.n_beams, nd)
+    with threads(n_threads):
+        run_kernel(model, rec, omega, p["mu0"], p["N0"], p["kc"], tol, max_iter, *out)
+    return HBMResult(f, *out, mu0=p["mu0"], kc=p["kc"], N0=p["N0"])
+
+
+def allocate(n_s, n_f, n_beams, nd):
+    """Output arrays of the kernel: response, s, status, iterations, residual."""
+    return (np.empty((n_s, n_f, n_beams), np.complex128), np.empty((n_s, n_f, nd)),
+            np.empty((n_s, n_f), np.int8), np.empty((n_s, n_f), np.int16),
+            np.empty((n_s, n_f)))
+
+
+def run_kernel(model, rec, omega, mu0, N0, kc, tol, max_iter, y, s, status, iterations,
+               residual):
+    """Dispatch to the kernel for this model (validated, contiguous inputs)."""
+    a, b = model.dampers
+    a = a.astype(np.int64)
+    b = b.astype(np.int64)
+    force = np.ascontiguousarray(model.force, dtype=np.complex128)
+    args = (np.ascontiguousarray(rec), force, a, b, np.ascontiguousarray(omega), mu0, N0, kc)
+    if model.n_dampers == 1:
+        _sweep.sweep_one_damper(*args, float(tol), int(max_iter),
+                                y, s, status, iterations, residual)
+    else:
+        structured = model.topology == "linear"
+        _sweep.sweep(*args, structured, float(tol), int(max_iter),
+                     y, s, status, iterations, residual)

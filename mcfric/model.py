@@ -1,0 +1,265 @@
+"""The friction-coupled beam array: modal tables, dampers and excitation (physics.md 1, 2, 4).
+
+Everything here is validated once, at construction, so that the kernels downstream never
+see a bad value. Units are SI: Hz for modal frequencies, kg^-1/2 for mass-normalised mode
+shapes, N for forces.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .core.receptance import beam_receptances
+
+TOPOLOGIES = ("linear", "circular")
+PATTERNS = ("single", "mode", "travelling")
+
+
+def _finite_array(name, value, ndim, positive=False, nonnegative=False):
+    try:
+        arr = np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name}: expected numbers, got {value!r}") from None
+    if arr.ndim != ndim:
+        raise ValueError(f"{name}: expected a {ndim}-d array, got shape {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name}: values must be finite (no NaN or inf)")
+    if positive and not np.all(arr > 0):
+        raise ValueError(f"{name}: values must be > 0")
+    if nonnegative and not np.all(arr >= 0):
+        raise ValueError(f"{name}: values must be >= 0")
+    arr.setflags(write=False)
+    return arr
+
+
+@dataclass(frozen=True)
+class ModalTable:
+    """Modes of one beam (paper Table 1 layout).
+
+    Parameters
+    ----------
+    freq_hz : array_like, shape (n_modes,)
+        Natural frequencies, Hz (> 0).
+    zeta : array_like, shape (n_modes,)
+        Modal damping ratios (>= 0).
+    shapes : array_like, shape (n_modes, n_positions)
+        Mass-normalised mode shapes at the measurement positions, kg^-1/2.
+    positions : tuple of int
+        Label of each column of ``shapes`` (the paper's positions 1, 2, 3, or UFF node
+        numbers).
+    """
+
+    freq_hz: np.ndarray
+    zeta: np.ndarray
+    shapes: np.ndarray
+    positions: tuple = (1, 2, 3)
+
+    def __post_init__(self):
+        f = _finite_array("freq_hz", self.freq_hz, 1, positive=True)
+        z = _finite_array("zeta", self.zeta, 1, nonnegative=True)
+        u = _finite_array("shapes", self.shapes, 2)
+        if len(f) == 0:
+            raise ValueError("freq_hz: a modal table needs at least one mode")
+        if z.shape != f.shape:
+            raise ValueError(f"zeta: expected {len(f)} values (one per mode), got {len(z)}")
+        if u.shape[0] != len(f):
+            raise ValueError(f"shapes: expected {len(f)} rows (one per mode), got {u.shape[0]}")
+        pos = tuple(int(p) for p in self.positions)
+        if len(pos) != u.shape[1]:
+            raise ValueError(f"positions: expected {u.shape[1]} labels (one per shape column), "
+                             f"got {len(pos)}")
+        if len(set(pos)) != len(pos):
+            raise ValueError(f"positions: labels must be distinct, got {pos}")
+        object.__setattr__(self, "freq_hz", f)
+        object.__setattr__(self, "zeta", z)
+        object.__setattr__(self, "shapes", u)
+        object.__setattr__(self, "positions", pos)
+
+    @property
+    def n_modes(self):
+        return len(self.freq_hz)
+
+    def column(self, position):
+        """Mode shapes (n_modes,) at a position label."""
+        try:
+            return self.shapes[:, self.positions.index(int(position))]
+        except ValueError:
+            raise ValueError(f"position {position} is not in the modal table "
+                             f"(positions: {list(self.positions)})") from None
+
+    def with_frequency(self, mode, freq_hz):
+        """A copy with mode ``mode`` (1-based) moved to ``freq_hz`` (e.g. Fig. 10b's 108 Hz)."""
+        f = np.array(self.freq_hz)
+        f[mode - 1] = freq_hz
+        return dataclasses.replace(self, freq_hz=f)
+
+
+#: The paper's Table 1 (beam 6): two bending modes, positions 1 (top, contact),
+#: 2 (mid-point, output), 3 (drive).
+TABLE_1 = ModalTable(freq_hz=[16.20, 105.8], zeta=[0.0017, 0.0071],
+                     shapes=[[2.55, 0.99, 0.48], [-1.84, 2.18, 1.42]], positions=(1, 2, 3))
+
+
+@dataclass(frozen=True)
+class Excitation:
+    """Harmonic force at the drive position of each beam (physics.md section 4).
+
+    Parameters
+    ----------
+    pattern : {"single", "mode", "travelling"}
+        ``single``: only beam ``beam`` is driven, ``F = F0`` there.
+        ``mode``: free-chain mode ``m``, ``F_b = F0 cos(m pi (b - 1/2) / n)``, b = 1..n.
+        ``travelling``: engine-order ``E`` wave, ``F_b = F0 exp(-2 pi i E (b-1) / n)``.
+    F0 : float
+        Force amplitude, N (> 0).
+    beam : int
+        Driven beam for ``single`` (1-based).
+    mode : int
+        ``m`` for ``mode`` (>= 0).
+    engine_order : int
+        ``E`` for ``travelling``.
+    """
+
+    pattern: str = "single"
+    F0: float = 1.0
+    beam: int = 1
+    mode: int = 2
+    engine_order: int = 2
+
+    def __post_init__(self):
+        if self.pattern not in PATTERNS:
+            raise ValueError(f"pattern: expected one of {PATTERNS}, got {self.pattern!r}")
+        F0 = float(self.F0)
+        if not (np.isfinite(F0) and F0 > 0):
+            raise ValueError(f"F0: expected a positive force in N, got {self.F0!r}")
+        object.__setattr__(self, "F0", F0)
+        if self.mode < 0:
+            raise ValueError(f"mode: expected an integer >= 0, got {self.mode!r}")
+
+    def force(self, n_beams):
+        """Complex force amplitudes (n_beams,), N."""
+        b = np.arange(1, n_beams + 1)
+        if self.pattern == "single":
+            if not 1 <= self.beam <= n_beams:
+                raise ValueError(f"beam: expected 1..{n_beams}, got {self.beam}")
+            F = np.zeros(n_beams, dtype=complex)
+            F[self.beam - 1] = self.F0
+            return F
+        if self.pattern == "mode":
+            return (self.F0 * np.cos(self.mode * np.pi * (b - 0.5) / n_beams)).astype(complex)
+        return self.F0 * np.exp(-2j * np.pi * self.engine_order * (b - 1) / n_beams)
+
+
+@dataclass(frozen=True)
+class Model:
+    """A friction-coupled beam array.
+
+    Parameters
+    ----------
+    beams : tuple of ModalTable
+        One modal table per beam (may differ: mistuning, measured tables).
+    excitation : Excitation
+        Drive pattern and amplitude.
+    topology : {"linear", "circular"}
+        ``linear``: dampers between neighbours (the rig, ``n - 1`` dampers);
+        ``circular``: also between the last and the first beam (a bladed disk).
+    contact, output, drive : int
+        Position labels of the friction contact, the response output and the drive.
+    name : str
+        Free text used in plots and files.
+    """
+
+    beams: tuple
+    excitation: Excitation = field(default_factory=Excitation)
+    topology: str = "linear"
+    contact: int = 1
+    output: int = 2
+    drive: int = 3
+    name: str = "custom"
+
+    def __post_init__(self):
+        beams = tuple(self.beams)
+        if len(beams) < 2:
+            raise ValueError(f"n_beams: expected at least 2 beams, got {len(beams)}")
+        if not all(isinstance(t, ModalTable) for t in beams):
+            raise ValueError("beams: expected ModalTable objects")
+        if self.topology not in TOPOLOGIES:
+            raise ValueError(f"topology: expected one of {TOPOLOGIES}, got {self.topology!r}")
+        if self.topology == "circular" and len(beams) < 3:
+            raise ValueError("topology: a circular array needs at least 3 beams")
+        if not isinstance(self.excitation, Excitation):
+            raise ValueError("excitation: expected an Excitation")
+        for t in beams:
+            for label in (self.contact, self.output, self.drive):
+                t.column(label)
+        object.__setattr__(self, "beams", beams)
+        self.excitation.force(len(beams))  # validates the driven beam index
+
+    @classmethod
+    def identical(cls, table, n_beams, **kwargs):
+        """An array of ``n_beams`` identical beams with modal table ``table``."""
+        return cls(beams=(table,) * int(n_beams), **kwargs)
+
+    @property
+    def n_beams(self):
+        return len(self.beams)
+
+    @property
+    def n_dampers(self):
+        return self.n_beams - 1 if self.topology == "linear" else self.n_beams
+
+    @property
+    def dampers(self):
+        """Beams coupled by each damper, 0-based: ``(a, b)`` int arrays, shape (nd,)."""
+        a = np.arange(self.n_dampers)
+        return a, (a + 1) % self.n_beams
+
+    @property
+    def force(self):
+        """Complex force amplitudes at the drive positions (n_beams,), N."""
+        return self.excitation.force(self.n_beams)
+
+    def with_F0(self, F0):
+        """The same model driven with amplitude ``F0`` (N)."""
+        return dataclasses.replace(self, excitation=dataclasses.replace(self.excitation, F0=F0))
+
+    def modal_arrays(self):
+        """Modal data as arrays, padded to the largest mode count.
+
+        Returns
+        -------
+        freq_hz, zeta : ndarray, shape (n_beams, n_modes)
+        u : ndarray, shape (n_beams, n_modes, 3)
+            Shapes at the contact, output and drive positions, kg^-1/2. Padding modes
+            have zero shape and contribute nothing.
+        """
+        n_modes = max(t.n_modes for t in self.beams)
+        f = np.ones((self.n_beams, n_modes))
+        z = np.ones((self.n_beams, n_modes))
+        u = np.zeros((self.n_beams, n_modes, 3))
+        for i, t in enumerate(self.beams):
+            m = t.n_modes
+            f[i, :m] = t.freq_hz
+            z[i, :m] = t.zeta
+            for p, label in enumerate((self.contact, self.output, self.drive)):
+                u[i, :m, p] = t.column(label)
+        return f, z, u
+
+    def receptances(self, omega, modal_freq_hz=None):
+        """Per-beam receptances for the kernel, shape (n_r, n_f, 4, n_beams), m/N.
+
+        Parameters
+        ----------
+        omega : ndarray, shape (n_f,)
+            Angular frequencies, rad/s.
+        modal_freq_hz : ndarray, shape (n_r, n_beams, n_modes), optional
+            Per-sample modal frequencies (mistuning); default the model's own (n_r = 1).
+        """
+        f, z, u = self.modal_arrays()
+        if modal_freq_hz is None:
+            modal_freq_hz = f[None]
+        zeta = np.broadcast_to(z, np.shape(modal_freq_hz))
+        return beam_receptances(omega, modal_freq_hz, zeta, u)
