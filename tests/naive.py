@@ -155,7 +155,9 @@ def solve_point(omega, beams, pairs, F, mu0, N0, kc, contact=0, output=1, drive=
     r_j = s_j kc_j A_j(s) - mu0_j N0_j checked directly (solver flags are ignored).
     starts: optional list of s-vectors over the active dampers (or over all dampers).
     Returns a list of distinct roots dict(s, y_output, y_contact, residual); s is 0 for
-    mu0 N0 == 0 dampers (also when kc == 0 too) and inf for kc == 0 dampers with mu0 N0 > 0."""
+    mu0 N0 == 0 dampers (also when kc == 0 too) and inf for kc == 0 dampers with mu0 N0 > 0.
+    Note: if q_j vanishes identically (e.g. identical beams driven in phase) the stuck root is s = inf;
+    rounding then makes A_j ~ 1e-21 and a huge finite s (~1e16) is returned; the response is still right."""
     mu0, N0, kc = (np.asarray(v, dtype=float) for v in (mu0, N0, kc))
     nd = len(pairs)
     fl = mu0 * N0                                   # friction limits mu0 N0

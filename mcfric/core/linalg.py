@@ -75,12 +75,19 @@ def lu_solve(A, piv, b, n):
 
 
 @inline_jit
+def cinv(z):
+    """``1/z`` as ``conj(z)/|z|^2``: one real division instead of numba's scaled complex one."""
+    r = 1.0 / (z.real * z.real + z.imag * z.imag)
+    return complex(z.real * r, -z.imag * r)
+
+
+@inline_jit
 def tridiag_solve(lower, diag, upper, rhs, n):
-    """Thomas algorithm (no pivoting) for a tridiagonal system, in place.
+    """Thomas algorithm (no pivoting) for a tridiagonal complex system, in place.
 
     Row ``i`` reads ``lower[i] x[i-1] + diag[i] x[i] + upper[i] x[i+1] = rhs[i]``
     (``lower[0]`` and ``upper[n-1]`` are ignored). ``diag`` is overwritten with the
-    eliminated pivots and ``rhs`` with the solution.
+    reciprocals of the eliminated pivots and ``rhs`` with the solution.
 
     Returns
     -------
@@ -90,15 +97,17 @@ def tridiag_solve(lower, diag, upper, rhs, n):
     """
     for i in range(n):
         if i > 0:
-            m = lower[i] / diag[i - 1]
+            m = lower[i] * diag[i - 1]
             diag[i] -= m * upper[i - 1]
             rhs[i] -= m * rhs[i - 1]
         d = diag[i]
-        if d == 0.0 or not (math.isfinite(d.real) and math.isfinite(d.imag)):
+        a2 = d.real * d.real + d.imag * d.imag
+        if not (a2 > 0.0 and a2 < math.inf):
             return i + 1
-    rhs[n - 1] = rhs[n - 1] / diag[n - 1]
+        diag[i] = cinv(d)
+    rhs[n - 1] *= diag[n - 1]
     for i in range(n - 2, -1, -1):
-        rhs[i] = (rhs[i] - upper[i] * rhs[i + 1]) / diag[i]
+        rhs[i] = (rhs[i] - upper[i] * rhs[i + 1]) * diag[i]
     return 0
 
 

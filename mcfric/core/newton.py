@@ -27,7 +27,7 @@ import numpy as np
 
 from ._jit import inline_jit, jit
 from .friction import kappa, kappa_dlogs
-from .linalg import block2_tridiag_solve, lu_factor, lu_solve, tridiag_solve
+from .linalg import block2_tridiag_solve, cinv, lu_factor, lu_solve, tridiag_solve
 
 #: Status codes of one solve.
 CONVERGED = 0           # Newton from the initial guess
@@ -39,6 +39,9 @@ _ARMIJO = 1e-4
 _MAX_HALVINGS = 30
 _MAX_STEP = 5.0          # largest change of log s in one Newton step
 _LM_MAX_ITER = 200
+# Iterate towards tol * _TARGET; a solve that stalls (rounding floor near a lightly
+# damped resonance) is still converged if it is within tol.
+_TARGET = 1e-2
 
 
 @inline_jit
@@ -73,7 +76,12 @@ def _log_residual(x, c, active, q, f, nd):
 @inline_jit
 def _damper_K(x, kc, active, K, nd):
     for j in range(nd):
-        K[j] = kc[j] * kappa(math.exp(x[j])) if active[j] else 0.0j
+        if not active[j]:
+            K[j] = 0.0j
+        elif x[j] >= 0.0:           # stuck: no exp/acos needed
+            K[j] = kc[j]
+        else:
+            K[j] = kc[j] * kappa(math.exp(x[j]))
 
 
 @inline_jit
@@ -113,8 +121,12 @@ def _sensitivities(x, kc, active, q, h, e, nd):
     for j in range(nd):
         q2 = q[j].real * q[j].real + q[j].imag * q[j].imag
         if active[j] and q2 > 0.0:
-            h[j] = kc[j] * kappa_dlogs(math.exp(x[j])) * q[j]
-            e[j] = q[j].conjugate() / q2
+            if x[j] > 0.0:          # stuck: K does not move
+                h[j] = 0.0j
+            else:
+                h[j] = kc[j] * kappa_dlogs(math.exp(x[j])) * q[j]
+            r2 = 1.0 / q2
+            e[j] = complex(q[j].real * r2, -q[j].imag * r2)
         else:
             h[j] = 0.0j
             e[j] = 0.0j
@@ -241,7 +253,8 @@ def newton(x, kc, c, active, G, Gd, Gu, q0, dense, tol, max_iter, w):
     dense : bool
         Use the dense path (any damper graph) instead of the tridiagonal chain path.
     tol : float
-        Convergence when ``max |f_j| <= tol`` (relative force residual).
+        Accepted relative force residual ``max |f_j|``; iterations aim at ``tol / 100``
+        and stop early only at a stall within ``tol``.
     max_iter : int
         Newton iterations allowed.
     w : Workspace arrays, see :func:`workspace`.
@@ -253,11 +266,12 @@ def newton(x, kc, c, active, G, Gd, Gu, q0, dense, tol, max_iter, w):
     """
     (K, q, f, xt, qt, Kt, ft, dx, h, e, lo, di, up, L, D, U, r, T, piv, X, J, rpiv) = w
     nd = x.shape[0]
+    target = _TARGET * tol
     phi = _residual(dense, x, kc, c, active, G, Gd, Gu, q0, K, q, f, lo, di, up, T, piv, nd)
     if not math.isfinite(phi):
         return False, 0
     for it in range(max_iter + 1):
-        if _max_abs(f, nd) <= tol:
+        if _max_abs(f, nd) <= target:
             return True, it
         if it == max_iter:
             break
@@ -266,7 +280,7 @@ def newton(x, kc, c, active, G, Gd, Gu, q0, dense, tol, max_iter, w):
         else:
             info = _step_chain(x, kc, active, Gd, Gu, K, q, f, dx, h, e, L, D, U, r, nd)
         if info != 0 or not _limit_step(dx, nd):
-            return False, it
+            return _max_abs(f, nd) <= tol, it
         lam = 1.0
         accepted = False
         for _ in range(_MAX_HALVINGS):
@@ -278,11 +292,11 @@ def newton(x, kc, c, active, G, Gd, Gu, q0, dense, tol, max_iter, w):
                 accepted = True
                 break
             lam *= 0.5
-        if not accepted:
-            return False, it + 1
+        if not accepted:            # stalled at the rounding floor, or a genuine failure
+            return _max_abs(f, nd) <= tol, it + 1
         _copy_state(xt, qt, Kt, ft, x, q, K, f, nd)
         phi = phit
-    return False, max_iter
+    return _max_abs(f, nd) <= tol, max_iter
 
 
 @jit
@@ -299,8 +313,9 @@ def levenberg_marquardt(x, kc, c, active, G, q0, tol, w):
     if not math.isfinite(phi):
         return False, 0
     lam = 1e-3
+    target = _TARGET * tol
     for it in range(_LM_MAX_ITER + 1):
-        if _max_abs(f, nd) <= tol:
+        if _max_abs(f, nd) <= target:
             return True, it
         if it == _LM_MAX_ITER:
             break
@@ -336,12 +351,12 @@ def levenberg_marquardt(x, kc, c, active, G, q0, tol, w):
                 break
             lam *= 4.0
         if not improved:
-            return False, it + 1
+            return _max_abs(f, nd) <= tol, it + 1
         _copy_state(xt, qt, Kt, ft, x, q, K, f, nd)
         phi = phit
         lam = max(lam / 3.0, 1e-12)
         # T now holds the LU at the accepted point (it was the last evaluation)
-    return False, _LM_MAX_ITER
+    return _max_abs(f, nd) <= tol, _LM_MAX_ITER
 
 
 @jit
@@ -363,8 +378,8 @@ def workspace(nd):
 @inline_jit
 def _scalar_eval(x, kc, c, g, q0):
     """Residual of the one-damper problem. Returns (f, x, q, K); updates x when stuck."""
-    K = kc * kappa(math.exp(x))
-    q = q0 / (1.0 + g * K)
+    K = kc * kappa(math.exp(x)) if x < 0.0 else complex(kc, 0.0)
+    q = q0 * cinv(1.0 + g * K)
     lq = 0.5 * math.log(q.real * q.real + q.imag * q.imag)
     if x >= 0.0:
         t = c - lq
@@ -400,15 +415,16 @@ def newton_scalar(x, kc, c, g, q0, tol, max_iter):
     f, x, q, K = _scalar_eval(x, kc, c, g, q0)
     if not math.isfinite(f):
         return False, 0, x, q, K, f
+    target = _TARGET * tol
     for it in range(max_iter + 1):
-        if abs(f) <= tol:
+        if abs(f) <= target:
             return True, it, x, q, K, f
         if it == max_iter:
             break
-        d = 1.0 - (g * kc * kappa_dlogs(math.exp(x)) / (1.0 + g * K)).real
+        d = 1.0 - (g * kc * kappa_dlogs(math.exp(x)) * cinv(1.0 + g * K)).real
         dx = -f / d
         if not math.isfinite(dx):
-            return False, it, x, q, K, f
+            return abs(f) <= tol, it, x, q, K, f
         dx = max(-_MAX_STEP, min(_MAX_STEP, dx))
         lam = 1.0
         accepted = False
@@ -419,9 +435,9 @@ def newton_scalar(x, kc, c, g, q0, tol, max_iter):
                 break
             lam *= 0.5
         if not accepted:
-            return False, it + 1, x, q, K, f
+            return abs(f) <= tol, it + 1, x, q, K, f
         f, x, q, K = ft, xt, qt, Kt
-    return False, max_iter, x, q, K, f
+    return abs(f) <= tol, max_iter, x, q, K, f
 
 
 @jit
@@ -448,10 +464,11 @@ def bracket_scalar(kc, c, g, q0, tol):
     if not (fl <= 0.0):
         return False, it, lo, ql, Kl, fl
     hi = 0.0
+    target = _TARGET * tol
     for k in range(300):
         mid = 0.5 * (lo + hi)
         fm, _, qm, Km = _scalar_eval(mid, kc, c, g, q0)
-        if abs(fm) <= tol:
+        if abs(fm) <= target:
             return True, it + k + 1, mid, qm, Km, fm
         if not math.isfinite(fm):
             return False, it + k + 1, mid, qm, Km, fm
@@ -460,5 +477,5 @@ def bracket_scalar(kc, c, g, q0, tol):
         else:
             lo = mid
         if hi - lo <= 4e-16 * max(1.0, abs(lo)):
-            return False, it + k + 1, mid, qm, Km, fm
-    return False, it + 300, mid, qm, Km, fm
+            return abs(fm) <= tol, it + k + 1, mid, qm, Km, fm
+    return abs(fm) <= tol, it + 300, mid, qm, Km, fm

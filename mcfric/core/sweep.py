@@ -19,6 +19,7 @@ from ._jit import inline_jit, jit
 from .newton import (CONVERGED, CONVERGED_LM, CONVERGED_RESTART, NOT_CONVERGED,
                      bracket_scalar, levenberg_marquardt, newton, newton_scalar,
                      workspace)
+from .linalg import cinv
 from .receptance import D11, D13, D21, D23
 
 
@@ -119,10 +120,12 @@ def sweep(rec, force, a, b, omega, mu0, N0, kc, structured, tol, max_iter,
         _damper_constants(mu0[i], N0[i], kc[i], kc_i, c, active, nd)
         have = 0
         for k in range(n_f):
-            rk = rec[r, k]
+            # index rec/y in full, never through views: a view's refcount is shared by all
+            # threads, and its atomic updates stop the prange from scaling
             for j in range(nd):
-                q0[j] = rk[D13, a[j]] * force[a[j]] - rk[D13, b[j]] * force[b[j]]
-            _contact_matrix(rk, a, b, structured, G, Gd, Gu, nd)
+                q0[j] = (rec[r, k, D13, a[j]] * force[a[j]]
+                         - rec[r, k, D13, b[j]] * force[b[j]])
+            _contact_matrix(rec, r, k, a, b, structured, G, Gd, Gu, nd)
             _initial_guess(x, x1, x2, omega[k], omega[k - 1], omega[k - 2] if k > 1 else 0.0,
                            have, nd)
             ok, its = newton(x, kc_i, c, active, G, Gd, Gu, q0, not structured, tol,
@@ -130,7 +133,7 @@ def sweep(rec, force, a, b, omega, mu0, N0, kc, structured, tol, max_iter,
             st = CONVERGED
             if not ok:
                 if structured:   # the restart uses the pivoting dense path
-                    _contact_matrix(rk, a, b, False, G, Gd, Gu, nd)
+                    _contact_matrix(rec, r, k, a, b, False, G, Gd, Gu, nd)
                 for j in range(nd):
                     x[j] = 0.0
                 ok, its2 = newton(x, kc_i, c, active, G, Gd, Gu, q0, True, tol,
@@ -158,7 +161,7 @@ def sweep(rec, force, a, b, omega, mu0, N0, kc, structured, tol, max_iter,
                 have = 0
                 continue
             status[i, k] = st
-            _output(rk, force, a, b, K, q, fb, y[i, k], n_beams, nd)
+            _output(rec, r, k, force, a, b, K, q, fb, y, i, n_beams, nd)
             for j in range(nd):
                 s[i, k, j] = math.exp(x[j]) if active[j] else _inactive_s(mu0[i], N0[i], j)
                 x2[j] = x1[j]
@@ -167,30 +170,30 @@ def sweep(rec, force, a, b, omega, mu0, N0, kc, structured, tol, max_iter,
 
 
 @inline_jit
-def _contact_matrix(rk, a, b, structured, G, Gd, Gu, nd):
+def _contact_matrix(rec, r, k, a, b, structured, G, Gd, Gu, nd):
     """``G = B diag(d11) B^T``: tridiagonal parts for a chain, else dense."""
     if structured:
         for j in range(nd):
-            Gd[j] = rk[D11, a[j]] + rk[D11, b[j]]
+            Gd[j] = rec[r, k, D11, a[j]] + rec[r, k, D11, b[j]]
             if j < nd - 1:
-                Gu[j] = -rk[D11, b[j]]     # damper j and j+1 share beam b_j = a_{j+1}
+                Gu[j] = -rec[r, k, D11, b[j]]     # damper j and j+1 share beam b_j = a_{j+1}
         return
     for j in range(nd):
         for m in range(nd):
             g = 0.0j
             if a[j] == a[m]:
-                g += rk[D11, a[j]]
+                g += rec[r, k, D11, a[j]]
             if a[j] == b[m]:
-                g -= rk[D11, a[j]]
+                g -= rec[r, k, D11, a[j]]
             if b[j] == b[m]:
-                g += rk[D11, b[j]]
+                g += rec[r, k, D11, b[j]]
             if b[j] == a[m]:
-                g -= rk[D11, b[j]]
+                g -= rec[r, k, D11, b[j]]
             G[j, m] = g
 
 
 @inline_jit
-def _output(rk, force, a, b, K, q, fb, yk, n_beams, nd):
+def _output(rec, r, k, force, a, b, K, q, fb, y, i, n_beams, nd):
     """``y2 = D23 F + D21 B^T f`` with damper forces ``f_j = -K_j q_j``."""
     for bb in range(n_beams):
         fb[bb] = 0.0j
@@ -199,7 +202,7 @@ def _output(rk, force, a, b, K, q, fb, yk, n_beams, nd):
         fb[a[j]] += fj
         fb[b[j]] -= fj
     for bb in range(n_beams):
-        yk[bb] = rk[D23, bb] * force[bb] + rk[D21, bb] * fb[bb]
+        y[i, k, bb] = rec[r, k, D23, bb] * force[bb] + rec[r, k, D21, bb] * fb[bb]
 
 
 @jit(parallel=True)
@@ -227,9 +230,8 @@ def sweep_one_damper(rec, force, a, b, omega, mu0, N0, kc, tol, max_iter,
         x2 = 0.0
         have = 0
         for k in range(n_f):
-            rk = rec[r, k]
-            g = rk[D11, ia] + rk[D11, ib]
-            q0 = rk[D13, ia] * force[ia] - rk[D13, ib] * force[ib]
+            g = rec[r, k, D11, ia] + rec[r, k, D11, ib]
+            q0 = rec[r, k, D13, ia] * force[ia] - rec[r, k, D13, ib] * force[ib]
             if not active:
                 st = CONVERGED
                 its = 0
@@ -267,7 +269,7 @@ def sweep_one_damper(rec, force, a, b, omega, mu0, N0, kc, tol, max_iter,
                 have = 0
                 continue
             status[i, k] = st
-            qk = q0 / (1.0 + g * K)
+            qk = q0 * cinv(1.0 + g * K)
             fj = -K * qk
             for bb in range(n_beams):
                 fb = 0.0j
@@ -275,7 +277,7 @@ def sweep_one_damper(rec, force, a, b, omega, mu0, N0, kc, tol, max_iter,
                     fb += fj
                 if bb == ib:
                     fb -= fj
-                y[i, k, bb] = rk[D23, bb] * force[bb] + rk[D21, bb] * fb
+                y[i, k, bb] = rec[r, k, D23, bb] * force[bb] + rec[r, k, D21, bb] * fb
             if active:
                 s[i, k, 0] = math.exp(xs)
                 x2 = x1
