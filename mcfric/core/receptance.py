@@ -40,7 +40,9 @@ def receptance(omega, freq_hz, zeta, u_p, u_q):
     zk = np.asarray(zeta, dtype=float)[..., None, :]
     w = omega[:, None]
     num = (np.asarray(u_p, dtype=float) * np.asarray(u_q, dtype=float))[..., None, :]
-    return np.sum(num / (wk * wk + 2j * zk * wk * w - w * w), axis=-1)
+    # an undamped mode hit exactly gives inf/nan: the kernel flags such points
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.sum(num / (wk * wk + 2j * zk * wk * w - w * w), axis=-1)
 
 
 def beam_receptances(omega, freq_hz, zeta, u):

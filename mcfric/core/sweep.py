@@ -58,7 +58,7 @@ def _initial_guess(x, x1, x2, w, w1, w2, have, nd):
             x[j] = 0.0
 
 
-@jit(parallel=True)
+@jit(parallel=True, nogil=True)
 def sweep(rec, force, a, b, omega, mu0, N0, kc, structured, tol, max_iter,
           y, s, status, iterations, residual):
     """Harmonic-balance solves for every (sample, frequency) of an array with dampers.
@@ -205,7 +205,7 @@ def _output(rec, r, k, force, a, b, K, q, fb, y, i, n_beams, nd):
         y[i, k, bb] = rec[r, k, D23, bb] * force[bb] + rec[r, k, D21, bb] * fb[bb]
 
 
-@jit(parallel=True)
+@jit(parallel=True, nogil=True)
 def sweep_one_damper(rec, force, a, b, omega, mu0, N0, kc, tol, max_iter,
                      y, s, status, iterations, residual):
     """:func:`sweep` specialised to one damper (scalar Newton, ~2x faster).

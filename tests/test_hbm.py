@@ -1,0 +1,232 @@
+"""The harmonic-balance kernel against the plain physical-space reference in naive.py."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+import mcfric
+from mcfric.model import TABLE_1, Excitation, Model
+
+from . import naive
+from .conftest import naive_beams, naive_pairs
+
+N_POINTS = 500          # per F0: 2 x 500 = 1000 random points per array size
+F_BAND = (10.0, 150.0)
+KC_MAX = 15000.0
+N0 = 0.5
+
+
+def _random_points(model, n, seed):
+    rng = np.random.default_rng(seed)
+    nd = model.n_dampers
+    return (rng.uniform(*F_BAND, n), rng.uniform(0, 1, (n, nd)),
+            rng.uniform(0, KC_MAX, (n, nd)))
+
+
+def _assert_matches_a_reference_root(model, f, mu0, kc, y, s, rtol=1e-8):
+    roots = naive.solve_point(2 * np.pi * f, naive_beams(model), naive_pairs(model),
+                              model.force, mu0, np.full(len(mu0), N0), kc,
+                              starts=[np.ones(len(mu0))])
+    assert roots, f"reference found no root at f={f}"
+    errs = []
+    for root in roots:
+        ey = np.max(np.abs(root["y_output"] - y)) / np.max(np.abs(root["y_output"]))
+        finite = np.isfinite(root["s"]) & (root["s"] < 1e12)
+        es = np.max(np.abs(root["s"][finite] - s[finite]) / root["s"][finite], initial=0.0)
+        errs.append(max(ey, es))
+    assert min(errs) <= rtol, (f, mu0, kc, min(errs))
+
+
+@pytest.mark.parametrize("n_beams", [2, 8])
+def test_random_points_match_reference(n_beams):
+    """1000 random cold-started points per array size agree with fsolve on the full equations."""
+    worst = 0.0
+    for F0, seed in ((0.22, 1), (1.1, 2)):
+        model = mcfric.two_beam(F0) if n_beams == 2 else mcfric.eight_beam(F0)
+        f, mu0, kc = _random_points(model, N_POINTS, seed + 10 * n_beams)
+        for i in range(N_POINTS):
+            r = mcfric.solve(model, f[i], mu0[i], kc[i], N0)
+            assert r.status[0, 0] >= 0, (f[i], mu0[i], kc[i], r.residual[0, 0])
+            assert r.residual[0, 0] <= 1e-10
+            _assert_matches_a_reference_root(model, f[i], mu0[i], kc[i],
+                                             r.response[0, 0], r.s[0, 0])
+            worst = max(worst, r.residual[0, 0])
+    assert worst <= 1e-10
+
+
+@pytest.mark.parametrize("n_beams", [2, 8])
+def test_warm_started_sweeps_match_reference(n_beams):
+    """Sample i swept over all frequencies, checked at frequency i (the warm-start path)."""
+    model = mcfric.two_beam(0.22) if n_beams == 2 else mcfric.eight_beam(0.25)
+    n = 60
+    f, mu0, kc = _random_points(model, n, 7 + n_beams)
+    f = np.sort(f)
+    r = mcfric.solve(model, f, mu0, kc, N0)
+    assert r.n_not_converged == 0
+    for i in range(n):
+        _assert_matches_a_reference_root(model, f[i], mu0[i], kc[i], r.response[i, i],
+                                         r.s[i, i])
+
+
+def test_circular_mistuned_array_matches_reference():
+    """Dense path: a ring with per-beam modal data, travelling-wave drive."""
+    rng = np.random.default_rng(3)
+    beams = tuple(TABLE_1.with_frequency(1, 16.2 * (1 + 0.02 * rng.standard_normal()))
+                  .with_frequency(2, 105.8 * (1 + 0.02 * rng.standard_normal()))
+                  for _ in range(6))
+    model = Model(beams, Excitation("travelling", 0.8, engine_order=1), topology="circular")
+    assert model.n_dampers == 6
+    f, mu0, kc = _random_points(model, 80, 4)
+    for i in range(80):
+        r = mcfric.solve(model, f[i], mu0[i], kc[i], N0)
+        assert r.status[0, 0] >= 0
+        _assert_matches_a_reference_root(model, f[i], mu0[i], kc[i], r.response[0, 0],
+                                         r.s[0, 0])
+
+
+def test_per_sample_modal_frequencies_match_reference(eight_beam):
+    rng = np.random.default_rng(5)
+    n = 20
+    f, mu0, kc = _random_points(eight_beam, n, 6)
+    fm, _, _ = eight_beam.modal_arrays()
+    modal = fm[None] * (1 + 0.03 * rng.standard_normal((n,) + fm.shape))
+    r = mcfric.solve(eight_beam, np.sort(f), mu0, kc, N0, modal_freq_hz=modal)
+    for i in range(n):
+        beams = tuple(TABLE_1.with_frequency(1, modal[i, b, 0]).with_frequency(2, modal[i, b, 1])
+                      for b in range(8))
+        m_i = dataclasses.replace(eight_beam, beams=beams)
+        _assert_matches_a_reference_root(m_i, np.sort(f)[i], mu0[i], kc[i], r.response[i, i],
+                                         r.s[i, i])
+
+
+@pytest.mark.parametrize("maker", [mcfric.two_beam, mcfric.eight_beam])
+def test_stuck_limit_is_the_linear_system_with_K_equal_kc(maker):
+    model = maker(1.1)
+    f = np.linspace(10, 150, 141)
+    kc = np.linspace(1000, 14000, model.n_dampers)
+    r = mcfric.solve(model, f, mu0=1e9, kc=kc, N0=N0)
+    assert r.n_not_converged == 0
+    assert np.all(r.s >= 1)
+    for k in range(0, len(f), 7):
+        ref = naive.linear_stuck_response(2 * np.pi * f[k], naive_beams(model),
+                                          naive_pairs(model), model.force, kc)
+        np.testing.assert_allclose(r.response[0, k], ref, rtol=1e-11,
+                                   atol=1e-11 * np.abs(ref).max())
+
+
+@pytest.mark.parametrize("maker", [mcfric.two_beam, mcfric.eight_beam])
+@pytest.mark.parametrize("free", ["mu0", "kc"])
+def test_free_limit_is_the_uncoupled_beams(maker, free):
+    model = maker(0.22)
+    f = np.linspace(10, 150, 141)
+    params = dict(mu0=0.7, kc=9000.0, N0=N0)
+    params[free] = 0.0
+    r = mcfric.solve(model, f, **params)
+    assert r.n_not_converged == 0
+    ref = np.array([naive.uncoupled_response(2 * np.pi * fk, naive_beams(model), model.force)
+                    for fk in f])
+    np.testing.assert_allclose(r.response[0], ref, rtol=1e-13, atol=1e-16)
+    expected_s = 0.0 if free == "mu0" else np.inf
+    assert np.all(r.s == expected_s)
+
+
+def test_ensemble_convergence_eight_beam(eight_beam):
+    """2000 samples x 1000 frequencies, paper's distributions: >= 99.99 % converged."""
+    rng = np.random.default_rng(2024)
+    n_s, nd = 2000, eight_beam.n_dampers
+    f = np.linspace(*F_BAND, 1000)
+    r = mcfric.solve(eight_beam, f, rng.uniform(0, 1, (n_s, nd)),
+                     rng.uniform(0, KC_MAX, (n_s, nd)), N0)
+    ok = r.converged
+    n_bad = r.n_not_converged
+    print(f"\neight-beam 2000 x 1000: not converged {n_bad} of {ok.size}; "
+          f"status counts {np.unique(r.status, return_counts=True)}; "
+          f"max residual of converged {r.residual[ok].max():.3g}")
+    assert n_bad <= 1e-4 * ok.size
+    assert np.all(r.residual[ok] <= 1e-10)
+    # flagged points carry no numbers
+    assert np.all(np.isnan(r.response[~ok])) and np.all(np.isnan(r.s[~ok]))
+
+
+@pytest.mark.parametrize("n_beams", [2, 8])
+def test_non_converged_points_are_flagged_never_numbers(n_beams):
+    """An undamped mode hit exactly has no finite solution: flagged, NaN, counted."""
+    table = dataclasses.replace(TABLE_1, zeta=[0.0, 0.0071])
+    model = Model.identical(table, n_beams, excitation=Excitation("mode", 0.5, mode=1))
+    f = np.array([12.0, 16.0, 16.2, 16.4, 30.0])
+    r = mcfric.solve(model, f, mu0=0.3, kc=8000.0, N0=N0)
+    bad = ~r.converged
+    assert bad[0].tolist() == [False, False, True, False, False]
+    assert np.all(np.isnan(r.response[bad])) and np.all(np.isnan(r.s[bad]))
+    assert np.all(r.status[bad] == -1)
+    assert np.all(np.isfinite(r.response[~bad]))
+    assert r.n_not_converged == 1
+    assert "not converged: 1 " in r.summary()
+
+
+@pytest.mark.parametrize("maker", [mcfric.two_beam, mcfric.eight_beam])
+def test_bitwise_identical_with_one_and_two_threads(maker):
+    model = maker(0.22)
+    rng = np.random.default_rng(11)
+    nd = model.n_dampers
+    args = (np.linspace(10, 150, 300), rng.uniform(0, 1, (64, nd)),
+            rng.uniform(0, KC_MAX, (64, nd)), N0)
+    r1 = mcfric.solve(model, *args, n_threads=1)
+    r2 = mcfric.solve(model, *args, n_threads=2)
+    for name in ("response", "s", "status", "iterations", "residual"):
+        a, b = getattr(r1, name), getattr(r2, name)
+        assert a.tobytes() == b.tobytes(), name
+    # and a sample's result does not depend on the other samples of the call
+    r_one = mcfric.solve(model, args[0], args[1][17:18], args[2][17:18], N0)
+    assert r_one.response.tobytes() == r1.response[17:18].tobytes()
+
+
+BAD = [
+    (dict(freq_hz=[10.0, np.nan]), "freq_hz"),
+    (dict(freq_hz=[10.0, -5.0]), "freq_hz"),
+    (dict(freq_hz=[0.0, 5.0]), "freq_hz"),
+    (dict(freq_hz=[[10.0]]), "freq_hz"),
+    (dict(freq_hz="abc"), "freq_hz"),
+    (dict(kc=-1.0), "kc"),
+    (dict(mu0=-0.1), "mu0"),
+    (dict(N0=-0.5), "N0"),
+    (dict(mu0=np.inf), "mu0"),
+    (dict(kc=np.nan), "kc"),
+    (dict(mu0=np.ones(3)), "mu0"),                       # 7 dampers expected
+    (dict(mu0=np.ones((4, 7)), kc=np.ones((5, 7))), "kc"),
+    (dict(mu0=np.ones((2, 3, 7))), "mu0"),
+    (dict(tol=0.0), "tol"),
+    (dict(max_iter=0), "max_iter"),
+    (dict(modal_freq_hz=np.ones((1, 8, 3))), "modal_freq_hz"),
+    (dict(modal_freq_hz=np.full((1, 8, 2), np.nan)), "modal_freq_hz"),
+    (dict(n_threads=99), "threads"),
+]
+
+
+@pytest.mark.parametrize("change, name", BAD)
+def test_bad_input_names_the_argument(eight_beam, change, name):
+    args = dict(freq_hz=[20.0, 30.0], mu0=0.5, kc=5000.0, N0=N0)
+    args.update(change)
+    with pytest.raises(ValueError, match=name):
+        mcfric.solve(eight_beam, **args)
+
+
+@pytest.mark.parametrize("build, name", [
+    (lambda: mcfric.ModalTable([16.2, np.nan], [0.01, 0.01], [[1, 2, 3], [1, 2, 3]]), "freq_hz"),
+    (lambda: mcfric.ModalTable([16.2, 100.0], [0.01, 0.01], [[1, np.inf, 3], [1, 2, 3]]),
+     "shapes"),
+    (lambda: mcfric.ModalTable([16.2, 100.0], [0.01], [[1, 2, 3], [1, 2, 3]]), "zeta"),
+    (lambda: mcfric.ModalTable([-16.2], [0.01], [[1, 2, 3]]), "freq_hz"),
+    (lambda: mcfric.ModalTable([16.2], [-0.01], [[1, 2, 3]]), "zeta"),
+    (lambda: Model.identical(TABLE_1, 1), "n_beams"),
+    (lambda: Model.identical(TABLE_1, 2, topology="circular"), "topology"),
+    (lambda: Model.identical(TABLE_1, 3, topology="ring"), "topology"),
+    (lambda: Model.identical(TABLE_1, 3, contact=7), "position 7"),
+    (lambda: Excitation("single", -1.0), "F0"),
+    (lambda: Excitation("wave", 1.0), "pattern"),
+    (lambda: Model.identical(TABLE_1, 3, excitation=Excitation("single", 1.0, beam=5)), "beam"),
+])
+def test_bad_model_names_the_argument(build, name):
+    with pytest.raises(ValueError, match=name):
+        build()
