@@ -1,0 +1,453 @@
+"""Monte Carlo ensembles: sample -> kernel -> store, chunk by chunk, resumable.
+
+:func:`run` draws the parameters of a chunk of samples (:mod:`mcfric.sampling`, one
+``SeedSequence`` child per sample), solves them (:func:`mcfric.hbm.solve`, numba threads,
+the GIL released) and hands the result to a writer thread, which computes the metric and
+writes the chunk into the store (:mod:`mcfric.store`) while the kernel already solves the
+next chunk. A queue of one chunk bounds the memory to about three chunks, whatever the
+number of samples.
+
+Every sample's result depends only on its own parameters, so the results are bitwise
+identical for any thread count, chunk size, interruption and resume.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import platform
+import queue
+import sys
+import threading
+import time
+from dataclasses import dataclass
+from datetime import datetime, timezone
+from pathlib import Path
+
+import numpy as np
+
+from . import config as _config
+from . import hbm
+from .store import Store, StoreError, iter_records, partial_path, read_attrs
+
+RECORD = "sample"
+#: Kernel output per chunk when run.chunk = 0 (auto).
+CHUNK_TARGET_BYTES = 32 << 20
+METRIC_UNITS = {"displacement": "m", "velocity": "m/s", "acceleration": "m/s^2"}
+#: Source files whose change can change a result: a resume across such a change is refused.
+FINGERPRINT_FILES = ("core/*.py", "hbm.py", "model.py", "sampling.py")
+
+
+class RunError(Exception):
+    """The run cannot start as asked (existing files, a resume that does not match)."""
+
+
+class Interrupted(Exception):
+    """Ctrl-C: the chunks written so far are committed; ``summary`` says where."""
+
+    def __init__(self, summary):
+        super().__init__("interrupted")
+        self.summary = summary
+
+
+@dataclass
+class Summary:
+    """What a run did.
+
+    Attributes
+    ----------
+    path : Path
+        The results file (``FILE``, or ``FILE.partial`` if interrupted).
+    samples, n_freq : int
+        Ensemble size and frequencies per sample.
+    samples_done : int
+        Samples stored (== samples when complete).
+    samples_this_session : int
+        Samples computed by this call (0 if the file was already complete).
+    not_converged : int
+        Points (sample, frequency) that did not converge, over all stored samples.
+    wall_s, kernel_s : float
+        Time of this call, and of it the time spent in the kernel, s.
+    complete, already_complete : bool
+    """
+
+    path: Path
+    samples: int
+    n_freq: int
+    samples_done: int
+    samples_this_session: int
+    not_converged: int
+    wall_s: float
+    kernel_s: float
+    complete: bool
+    already_complete: bool = False
+
+    @property
+    def points(self):
+        return self.samples_done * self.n_freq
+
+    def text(self):
+        pts = self.points
+        pct = 100.0 * self.not_converged / max(pts, 1)
+        rate = self.samples_this_session * self.n_freq / max(self.wall_s, 1e-9)
+        lines = [f"samples: {self.samples_done} of {self.samples}, "
+                 f"{self.n_freq} frequencies each: {pts:,} points",
+                 f"not converged: {self.not_converged:,} points ({pct:.3g} %)"]
+        if self.samples_this_session:
+            lines.append(f"wall time: {self.wall_s:.2f} s for {self.samples_this_session} "
+                         f"samples (kernel {self.kernel_s:.2f} s), {rate:,.0f} points/s")
+        lines.append(f"results: {self.path}")
+        return "\n".join(lines)
+
+
+def fingerprint():
+    """sha256 of the sources that determine results, plus numpy/scipy/numba versions."""
+    import numba
+    import scipy
+
+    h = hashlib.sha256()
+    root = Path(__file__).parent
+    for pattern in FINGERPRINT_FILES:
+        for p in sorted(root.glob(pattern)):
+            h.update(p.relative_to(root).as_posix().encode())
+            h.update(p.read_bytes())
+    h.update(f"numpy {np.__version__} scipy {scipy.__version__} numba {numba.__version__}"
+             .encode())
+    return h.hexdigest()[:16]
+
+
+def auto_chunk(cfg, model):
+    """Samples per chunk for ``run.chunk = 0``: a power of two giving ~32 MB of output."""
+    n_f = cfg["frequency"]["n"]
+    nb, nd = model.n_beams, model.n_dampers
+    per_sample = n_f * (16 * nb + 8 * nd + 1 + 2 + 8 + 8 + 1)   # kernel outputs + metric
+    if cfg["sampling"]["mistuning"] > 0:
+        per_sample += n_f * 4 * nb * 16                           # per-sample receptances
+    k = max(1, CHUNK_TARGET_BYTES // per_sample)
+    return int(min(1 << (k.bit_length() - 1), cfg.samples))
+
+
+def layout(cfg, model, freq):
+    """The store layout of a run: coords, variables, root attrs, summary placeholders."""
+    import h5py
+    import numba
+    import scipy
+
+    from . import __version__
+
+    nb, nd = model.n_beams, model.n_dampers
+    a, b = model.dampers
+    q = cfg["metric"]["quantity"]
+    coords = {
+        "frequency": (freq, {"units": "Hz", "long_name": "excitation frequency"}),
+        "beam": (np.arange(1, nb + 1), {"long_name": "beam number (1-based)"}),
+        "damper": (np.arange(1, nd + 1),
+                   {"long_name": "damper number (1-based); couples beam_a and beam_b",
+                    "beam_a": a + 1, "beam_b": b + 1}),
+    }
+    P = (RECORD, "damper")
+    variables = {
+        "metric": ((RECORD, "frequency"), np.float64,
+                   {"units": METRIC_UNITS[q],
+                    "long_name": f"max over beams of the {q} amplitude at the output "
+                                 f"position (physics.md 5); NaN where not converged",
+                    "quantity": q, "beams": json.dumps(cfg["metric"]["beams"])}),
+        "converged": ((RECORD, "frequency"), np.bool_,
+                      {"long_name": "true where the harmonic balance converged"}),
+        "mu0": (P, np.float64, {"units": "1", "long_name": "friction coefficient"}),
+        "kc": (P, np.float64, {"units": "N/m", "long_name": "tangential contact stiffness"}),
+        "N0": (P, np.float64, {"units": "N", "long_name": "normal preload"}),
+    }
+    if cfg["output"]["keep_response"]:
+        variables = {"response": ((RECORD, "frequency", "beam"), np.complex128,
+                                  {"units": "m", "long_name":
+                                   "complex displacement amplitude at the output position, "
+                                   "x(t) = Re{X exp(i omega t)}; NaN where not converged"}),
+                     **variables}
+    if cfg["sampling"]["mistuning"] > 0:
+        n_modes = model.modal_arrays()[0].shape[1]
+        coords["mode"] = (np.arange(1, n_modes + 1), {"long_name": "mode number (1-based)"})
+        variables["modal_freq_hz"] = ((RECORD, "beam", "mode"), np.float64,
+                                      {"units": "Hz", "long_name": "mistuned modal frequency"})
+    attrs = {
+        "title": f"mcfric Monte Carlo ensemble: {model.name}",
+        "model_name": model.name,
+        "config": cfg.toml(comments=False),
+        "config_json": cfg.json(),
+        "seed": np.int64(cfg.seed),
+        "samples": np.int64(cfg.samples),
+        "sampling_contract": "sample i draws from Generator(PCG64(SeedSequence(seed, "
+                             "spawn_key=(i,)))); see mcfric.sampling",
+        "solver_fingerprint": fingerprint(),
+        "mcfric_version": __version__,
+        "numba_version": numba.__version__,
+        "numpy_version": np.__version__,
+        "scipy_version": scipy.__version__,
+        "h5py_version": h5py.__version__,
+        "hdf5_version": h5py.version.hdf5_version,
+        "python_version": platform.python_version(),
+        "created_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+    }
+    placeholders = {"n_not_converged": np.int64(-1), "wall_time_s": np.float64(np.nan),
+                    "kernel_time_s": np.float64(np.nan),
+                    "finished_unix": np.float64(np.nan)}
+    return coords, variables, attrs, placeholders
+
+
+def _stored_config(attrs, path):
+    try:
+        return json.loads(attrs["config_json"])
+    except (KeyError, ValueError, TypeError):
+        raise RunError(f"{path}: not an mcfric results file (no readable config)") from None
+
+
+def _same_run(cfg, attrs, path):
+    """None if ``attrs`` describe the same run as ``cfg``, else the first differing key."""
+    stored = _stored_config(attrs, path)
+    stored = {k: v for k, v in stored.items() if k not in _config.NOT_IDENTITY}
+    return _config.first_difference(cfg.identity(), json.loads(json.dumps(stored)))
+
+
+def _count_not_converged(path):
+    n = 0
+    for _, arrays in iter_records(path, ["converged"]):
+        n += int(np.count_nonzero(~arrays["converged"]))
+    return n
+
+
+def _pending_chunks(done, chunk):
+    """Contiguous ranges of records not done, split into chunks of at most ``chunk``."""
+    idx = np.flatnonzero(~done)
+    if idx.size == 0:
+        return []
+    breaks = np.flatnonzero(np.diff(idx) != 1)
+    starts = np.concatenate([[idx[0]], idx[breaks + 1]])
+    stops = np.concatenate([idx[breaks] + 1, [idx[-1] + 1]])
+    out = []
+    for a, b in zip(starts.tolist(), stops.tolist()):
+        for s in range(a, b, chunk):
+            out.append((s, min(b, s + chunk)))
+    return out
+
+
+def prepare(cfg, path, *, resume=False, force=False):
+    """Decide what a run must do with ``path``: returns ``("complete", attrs)``,
+    ``("resume", store)`` or ``("new", None)``. Raises :class:`RunError` when it must not
+    proceed (nothing is written in that case)."""
+    final = Path(path)
+    part = partial_path(final)
+    if not final.parent.is_dir():
+        raise RunError(f"{final.parent}: output directory does not exist")
+    if final.exists() and not force:
+        try:
+            attrs = read_attrs(final)
+        except StoreError as e:
+            raise RunError(f"{e}; use --force to replace it") from None
+        diff = _same_run(cfg, attrs, final)
+        if diff is None and attrs.get("complete") == 1:
+            return "complete", attrs
+        raise RunError(f"{final} exists and holds a different run (first difference: "
+                       f"{diff}); use --force to replace it, or choose another -o")
+    if part.exists() and not force:
+        try:
+            attrs = read_attrs(part)
+            done = int(np.count_nonzero(iter_done(part)))
+        except StoreError as e:
+            if resume:
+                raise RunError(f"cannot resume: {e}; use --force to start again") from None
+            raise RunError(f"{e}; use --force to start again") from None
+        if not resume:
+            raise RunError(f"{part} exists (an interrupted run, {done} of "
+                           f"{attrs.get('samples')} samples done): add --resume to "
+                           f"continue it, or --force to start again")
+        diff = _same_run(cfg, attrs, part)
+        if diff is not None:
+            raise RunError(f"cannot resume {part}: it was started with a different "
+                           f"configuration (first difference: {diff}); use --force to "
+                           f"start again")
+        fp = fingerprint()
+        if attrs.get("solver_fingerprint") != fp:
+            raise RunError(f"cannot resume {part}: the solver code or numpy/scipy/numba "
+                           f"changed since it was started (fingerprint "
+                           f"{attrs.get('solver_fingerprint')} vs {fp}), so results would "
+                           f"mix two versions; use --force to start again")
+        try:
+            return "resume", Store.reopen(final, RECORD)
+        except StoreError as e:
+            raise RunError(f"cannot resume: {e}; use --force to start again") from None
+    return "new", None
+
+
+def iter_done(path):
+    from .store import read
+    return read(path, "done").astype(bool)
+
+
+def _put(q, item, writer, err):
+    """``q.put`` that gives up if the writer died (its exception is re-raised)."""
+    while True:
+        if err:
+            raise err[0]
+        try:
+            q.put(item, timeout=0.2)
+            return
+        except queue.Full:
+            if not writer.is_alive():
+                raise err[0] if err else RuntimeError("the writer thread stopped")
+
+
+def run(cfg, path, *, resume=False, force=False, progress=True):
+    """Run (or continue) the Monte Carlo ensemble of ``cfg`` into the results file ``path``.
+
+    Parameters
+    ----------
+    cfg : mcfric.config.Config
+        Validated configuration (model, frequencies, sampling, solver, output, run).
+    path : str or Path
+        Results file. The run writes ``path + ".partial"`` and renames it when complete.
+    resume : bool
+        Continue ``path + ".partial"`` (its configuration and solver fingerprint must
+        match; ``[run]`` settings may differ). Without one, a fresh run starts.
+    force : bool
+        Replace an existing results file or partial file that holds another run.
+    progress : bool
+        Show a tqdm progress bar on stderr.
+
+    Returns
+    -------
+    Summary
+
+    Raises
+    ------
+    RunError
+        Existing files do not allow the run as asked (nothing was written).
+    Interrupted
+        Ctrl-C: the samples finished so far are committed in ``path + ".partial"``.
+    """
+    t_start = time.perf_counter()
+    model = cfg.model()
+    freq = cfg.frequencies()
+    n_f = len(freq)
+    final = Path(path)
+    what, store = prepare(cfg, final, resume=resume, force=force)
+    if what == "complete":
+        return Summary(final, cfg.samples, n_f, cfg.samples, 0,
+                       int(store.get("n_not_converged", -1)), time.perf_counter() - t_start,
+                       0.0, True, already_complete=True)
+    if store is None:
+        coords, variables, attrs, placeholders = layout(cfg, model, freq)
+        store = Store.create(final, record_dim=RECORD, n_records=cfg.samples, coords=coords,
+                             variables=variables, attrs=attrs, placeholders=placeholders)
+        done = np.zeros(cfg.samples, bool)
+        not_conv_before = 0
+    else:
+        done = store.done()
+        not_conv_before = _count_not_converged(store.path) if done.any() else 0
+    try:
+        return _drive(cfg, model, freq, store, done, not_conv_before, progress, t_start)
+    finally:
+        store.close()
+
+
+def _drive(cfg, model, freq, store, done, not_conv_before, progress, t_start):
+    from tqdm import tqdm
+
+    n_f = len(freq)
+    sampler = cfg.sampler(model)
+    chunk = cfg["run"]["chunk"] or auto_chunk(cfg, model)
+    threads = cfg["run"]["threads"] or None
+    tol, max_iter = cfg["solver"]["tol"], cfg["solver"]["max_iter"]
+    keep_response = cfg["output"]["keep_response"]
+    quantity, beams = cfg["metric"]["quantity"], cfg.metric_beams()
+    checkpoint_s = cfg["run"]["checkpoint_s"]
+    chunks = _pending_chunks(done, chunk)
+    n_before = int(np.count_nonzero(done))
+
+    bar = tqdm(total=cfg.samples, initial=n_before, unit="sample", disable=not progress,
+               dynamic_ncols=True, smoothing=0.1, file=sys.stderr)
+    q = queue.Queue(maxsize=1)      # one chunk in flight: memory stays flat
+    err = []
+    stats = {"not_converged": 0, "written": 0}
+
+    def writer():
+        pending = []
+        last = time.monotonic()
+        try:
+            while True:
+                item = q.get()
+                if item is None:
+                    break
+                start, d, res = item
+                n = len(d.index)
+                conv = res.converged
+                arrays = {"metric": hbm.response_metric(res.response, freq, quantity, beams),
+                          "converged": conv, "mu0": d.mu0, "kc": d.kc, "N0": d.N0}
+                if keep_response:
+                    arrays["response"] = res.response
+                if d.modal_freq_hz is not None:
+                    arrays["modal_freq_hz"] = d.modal_freq_hz
+                store.write(start, arrays)
+                del item, res, arrays
+                pending.append((start, start + n))
+                stats["not_converged"] += int(np.count_nonzero(~conv))
+                if time.monotonic() - last >= checkpoint_s:
+                    store.commit(pending)
+                    stats["written"] += sum(b - a for a, b in pending)
+                    pending = []
+                    last = time.monotonic()
+                bar.update(n)
+            store.commit(pending)
+            stats["written"] += sum(b - a for a, b in pending)
+        except BaseException as e:   # re-raised by the main thread, which stops feeding
+            err.append(e)
+
+    w = threading.Thread(target=writer, name="mcfric-writer", daemon=True)
+    w.start()
+    kernel_s = 0.0
+    interrupted = False
+    try:
+        for a, b in chunks:
+            d = sampler.draw(np.arange(a, b))
+            t0 = time.perf_counter()
+            res = hbm.solve(model, freq, d.mu0, d.kc, d.N0, modal_freq_hz=d.modal_freq_hz,
+                            tol=tol, max_iter=max_iter, n_threads=threads)
+            kernel_s += time.perf_counter() - t0
+            _put(q, (a, d, res), w, err)
+            del res, d
+    except KeyboardInterrupt:
+        interrupted = True
+    finally:
+        if w.is_alive():
+            try:
+                _put(q, None, w, err)
+            except BaseException:
+                pass
+        w.join()
+        bar.close()
+    if err:
+        raise err[0]
+    n_done = n_before + stats["written"]
+    not_conv = not_conv_before + stats["not_converged"]
+    wall = time.perf_counter() - t_start
+    if interrupted or n_done < cfg.samples:
+        s = Summary(store.path, cfg.samples, n_f, n_done, stats["written"], not_conv, wall,
+                    kernel_s, False)
+        if interrupted:
+            raise Interrupted(s)
+        return s
+    final = store.finish({"n_not_converged": np.int64(not_conv),
+                          "wall_time_s": np.float64(wall),
+                          "kernel_time_s": np.float64(kernel_s),
+                          "finished_unix": np.float64(time.time())})
+    return Summary(final, cfg.samples, n_f, n_done, stats["written"], not_conv,
+                   time.perf_counter() - t_start, kernel_s, True)
+
+
+def summary_of_file(path):
+    """Counts of a results file without loading it: samples, done, non-converged points."""
+    attrs = read_attrs(path)
+    done = iter_done(path)
+    return {"attrs": attrs, "samples": int(attrs.get("samples", len(done))),
+            "done": int(np.count_nonzero(done)),
+            "not_converged": _count_not_converged(path),
+            "complete": attrs.get("complete") == 1}
