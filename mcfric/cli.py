@@ -33,6 +33,10 @@ class UsageError(Exception):
 
 
 class _Parser(argparse.ArgumentParser):
+    def __init__(self, *args, **kwargs):
+        kwargs.setdefault("allow_abbrev", False)   # --sample must not mean --samples
+        super().__init__(*args, **kwargs)
+
     def error(self, message):
         raise UsageError(f"{message} (see `{self.prog} --help`)")
 
@@ -299,6 +303,8 @@ def cmd_hbm(args):
 
 def main(argv=None):
     """Entry point of ``mcfric``; returns the exit code."""
+    from .store import StoreError
+
     argv = list(sys.argv[1:] if argv is None else argv)
     if not argv or (argv[0] not in COMMANDS and argv[0] not in ("-h", "--help", "--version")):
         argv = ["run"] + argv        # `mcfric` alone (or `mcfric two-beam`) means `mcfric run`
@@ -312,7 +318,7 @@ def main(argv=None):
     except KeyboardInterrupt:
         print("mcfric: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
-    except OSError as e:
+    except (OSError, StoreError) as e:   # disk full, unreadable file: one line, no traceback
         print(f"mcfric: error: {e}", file=sys.stderr)
         return EXIT_FAIL
 

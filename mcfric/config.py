@@ -49,10 +49,11 @@ MAX_FREQ = 10 ** 7
 class ConfigError(ValueError):
     """A configuration problem: ``key`` (dotted TOML path or CLI flag) and a message."""
 
-    def __init__(self, key, message):
+    def __init__(self, key, message, alt=None):
         super().__init__(f"{key}: {message}")
         self.key = key
         self.message = message
+        self.alt = alt   # (key, message): the same problem blamed on the other key
 
 
 # ----------------------------------------------------------------------------- defaults
@@ -403,9 +404,11 @@ def validate(raw, labels=None):
     try:
         return _validate(raw)
     except ConfigError as e:
+        if e.alt and e.key not in labels and e.alt[0] in labels:
+            e = ConfigError(*e.alt)    # blame the key the user changed on the command line
         if e.key in labels:
             raise ConfigError(labels[e.key], e.message) from None
-        raise
+        raise e from None
 
 
 def _validate(raw):
@@ -498,7 +501,9 @@ def _cross_checks(c):
     fr = c["frequency"]
     if not fr["f_max"] > fr["f_min"]:
         raise ConfigError("frequency.f_max", f"expected a number > f_min ({fr['f_min']:g}), "
-                          f"got {fr['f_max']:g}")
+                          f"got {fr['f_max']:g}",
+                          alt=("frequency.f_min", f"expected a number < f_max "
+                                                  f"({fr['f_max']:g}), got {fr['f_min']:g}"))
     beams = c["metric"]["beams"]
     if beams != "all":
         for b in beams:

@@ -231,9 +231,12 @@ def _pending_chunks(done, chunk):
 
 
 def prepare(cfg, path, *, resume=False, force=False):
-    """Decide what a run must do with ``path``: returns ``("complete", attrs)``,
-    ``("resume", store)`` or ``("new", None)``. Raises :class:`RunError` when it must not
-    proceed (nothing is written in that case)."""
+    """Decide what a run must do with ``path``.
+
+    Returns ``("complete", attrs)``, ``("resume", (store, not_converged_so_far))`` or
+    ``("new", None)``. Raises :class:`RunError` when it must not proceed (nothing is
+    written in that case).
+    """
     final = Path(path)
     part = partial_path(final)
     if not final.parent.is_dir():
@@ -272,7 +275,9 @@ def prepare(cfg, path, *, resume=False, force=False):
                            f"{attrs.get('solver_fingerprint')} vs {fp}), so results would "
                            f"mix two versions; use --force to start again")
         try:
-            return "resume", Store.reopen(final, RECORD)
+            # read before reopening: HDF5 refuses a second handle with other locking flags
+            not_conv = _count_not_converged(part)
+            return "resume", (Store.reopen(final, RECORD), not_conv)
         except StoreError as e:
             raise RunError(f"cannot resume: {e}; use --force to start again") from None
     return "new", None
@@ -329,20 +334,20 @@ def run(cfg, path, *, resume=False, force=False, progress=True):
     freq = cfg.frequencies()
     n_f = len(freq)
     final = Path(path)
-    what, store = prepare(cfg, final, resume=resume, force=force)
+    what, found = prepare(cfg, final, resume=resume, force=force)
     if what == "complete":
         return Summary(final, cfg.samples, n_f, cfg.samples, 0,
-                       int(store.get("n_not_converged", -1)), time.perf_counter() - t_start,
+                       int(found.get("n_not_converged", -1)), time.perf_counter() - t_start,
                        0.0, True, already_complete=True)
-    if store is None:
+    if what == "new":
         coords, variables, attrs, placeholders = layout(cfg, model, freq)
         store = Store.create(final, record_dim=RECORD, n_records=cfg.samples, coords=coords,
                              variables=variables, attrs=attrs, placeholders=placeholders)
         done = np.zeros(cfg.samples, bool)
         not_conv_before = 0
     else:
+        store, not_conv_before = found
         done = store.done()
-        not_conv_before = _count_not_converged(store.path) if done.any() else 0
     try:
         return _drive(cfg, model, freq, store, done, not_conv_before, progress, t_start)
     finally:

@@ -102,7 +102,7 @@ class Normal:
     def __post_init__(self):
         mean = _number("mean", self.mean, lo=0)
         std = _number("std", self.std, lo=0)
-        if mean < NORMAL_MIN_MEAN_OVER_STD * std:
+        if mean < NORMAL_MIN_MEAN_OVER_STD * std * (1 - 1e-12):   # 0.3 vs 3 * 0.1 is equal
             raise ValueError(f"std: expected <= mean/3 ({mean / 3:g}) so that negative values "
                              f"are negligible, got {self.std!r}; for a wider spread use "
                              f'dist = "truncnormal" with low = 0')
@@ -186,11 +186,11 @@ def distribution(dist, **params):
     cls, names = DISTRIBUTIONS[dist]
     for k in params:
         if k not in names:
-            raise ValueError(f"{k}: not a parameter of dist {dist!r} "
+            raise ValueError(f'{k}: not a parameter of dist "{dist}" '
                              f"(allowed: {', '.join(names)})")
     for k in names:
         if k not in params:
-            raise ValueError(f"{k}: missing; dist {dist!r} needs {', '.join(names)}")
+            raise ValueError(f'{k}: missing; dist "{dist}" needs {", ".join(names)}')
     return cls(**params)
 
 

@@ -1,0 +1,147 @@
+"""Configuration: defaults = the paper, round trip of the printed TOML, merging, overrides,
+and that errors name the key. (Every bad-config row of the README runs in test_cli.py.)"""
+
+import json
+import tomllib
+
+import numpy as np
+import pytest
+
+from mcfric import config, presets
+from mcfric.config import ConfigError
+
+
+def same_model(a, b):
+    fa, za, ua = a.modal_arrays()
+    fb, zb, ub = b.modal_arrays()
+    return (np.array_equal(fa, fb) and np.array_equal(za, zb) and np.array_equal(ua, ub)
+            and np.array_equal(a.force, b.force) and a.topology == b.topology
+            and a.n_dampers == b.n_dampers)
+
+
+@pytest.mark.parametrize("name", presets.PRESETS)
+def test_printed_template_is_complete_and_round_trips(name):
+    text = config.template(name)
+    raw = tomllib.loads(text)
+    # every key of the schema is in the printed file, nothing else
+    for sec, spec in config.SPEC.items():
+        assert sec in raw
+        for k in spec:
+            if k != "beam" or sec != "model":
+                assert k in raw[sec], f"{sec}.{k} missing from the template"
+    cfg = config.validate(raw)              # complete on its own: no defaults needed
+    assert cfg.data == config.load(name).data
+    assert cfg.toml() == text
+
+
+@pytest.mark.parametrize("name", presets.PRESETS)
+def test_defaults_are_the_presets_and_the_paper(name):
+    cfg = config.load(name)
+    assert same_model(cfg.model(), presets.preset(name))
+    s = cfg["sampling"]
+    assert s["mu0"] == {"dist": "uniform", "low": 0.0, "high": 1.0}
+    assert s["kc"] == {"dist": "uniform", "low": 0.0, "high": 15000.0}
+    assert s["N0"] == {"dist": "fixed", "value": 0.5}
+    assert s["samples"] == 2000 and s["mistuning"] == 0.0
+    f = cfg.frequencies()
+    assert len(f) == 1000 and f[0] == 10.0 and f[-1] == 150.0
+
+
+def test_embedded_default_is_eight_beam_at_1_1_newton():
+    cfg = config.load(None)
+    assert cfg["model"]["preset"] == "eight-beam"
+    assert cfg.model().excitation.F0 == 1.1
+    assert cfg.model().excitation.pattern == "mode" and cfg.model().n_beams == 8
+
+
+def test_overrides_apply_and_name_their_flag():
+    cfg = config.load("two-beam", {"excitation.F0": (0.72, "--F0"),
+                                   "frequency.n": (50, "--n-freq"),
+                                   "sampling.samples": (None, "--samples")})
+    assert cfg.model().excitation.F0 == 0.72
+    assert cfg.model().excitation.pattern == "single"     # the preset's pattern is kept
+    assert len(cfg.frequencies()) == 50 and cfg.samples == 2000
+    with pytest.raises(ConfigError) as e:
+        config.load("two-beam", {"excitation.F0": (-1.0, "--F0")})
+    assert e.value.key == "--F0"
+
+
+def test_file_merges_key_by_key_and_replaces_distribution_tables(tmp_path):
+    p = tmp_path / "c.toml"
+    p.write_text('[model]\npreset = "two-beam"\n[frequency]\nn = 40\n'
+                 '[sampling.kc]\ndist = "normal"\nmean = 6000.0\nstd = 500.0\n')
+    cfg = config.load(p)
+    assert cfg["frequency"] == {"f_min": 10.0, "f_max": 150.0, "n": 40, "spacing": "linear"}
+    assert cfg["sampling"]["kc"] == {"dist": "normal", "mean": 6000.0, "std": 500.0}
+    assert cfg.model().n_beams == 2
+
+
+def test_per_beam_override_fig_10b(tmp_path):
+    p = tmp_path / "c.toml"
+    p.write_text('[model]\npreset = "two-beam"\n[[model.beam]]\nbeam = 2\n'
+                 'freq_hz = [16.2, 108.0]\n')
+    m = config.load(p).model()
+    assert m.beams[0].freq_hz.tolist() == [16.2, 105.8]
+    assert m.beams[1].freq_hz.tolist() == [16.2, 108.0]
+    # the override survives the printed form
+    again = config.validate(tomllib.loads(config.load(p).toml()))
+    assert again.model().beams[1].freq_hz.tolist() == [16.2, 108.0]
+
+
+def test_log_spacing_and_metric_beams():
+    cfg = config.load({"frequency": {"spacing": "log", "n": 5, "f_min": 10.0,
+                                     "f_max": 1000.0}, "metric": {"beams": [2, 3]}})
+    np.testing.assert_allclose(cfg.frequencies(), [10, 10 ** 1.5, 100, 10 ** 2.5, 1000])
+    assert cfg.metric_beams() == [1, 2]
+
+
+def test_identity_ignores_run_and_bounds():
+    a = config.load("two-beam")
+    b = a.replace("run.threads", 1).replace("run.chunk", 7).replace("bounds.k_max", 1.0)
+    assert a.json(identity=True) == b.json(identity=True)
+    assert a.json() != b.json()
+    c = a.replace("sampling.seed", 1)
+    assert config.first_difference(a.identity(), c.identity()) == "sampling.seed"
+
+
+def test_config_json_round_trips_floats_exactly():
+    cfg = config.load("eight-beam", {"excitation.F0": (0.1 + 0.2, "--F0")})
+    back = json.loads(cfg.json())
+    assert back["excitation"]["F0"] == 0.1 + 0.2
+
+
+@pytest.mark.parametrize("raw, key", [
+    ({"sampling": {"samples": 0}}, "sampling.samples"),
+    ({"sampling": {"samples": 2.5}}, "sampling.samples"),
+    ({"sampling": {"samples": True}}, "sampling.samples"),
+    ({"frequency": {"f_min": float("nan")}}, "frequency.f_min"),
+    ({"frequency": 3}, "frequency"),
+    ({"bogus": {}}, "bogus"),
+    ({"model": {"table": {"shapes": [[1.0, 2.0], [3.0]]}}}, "model.table.shapes"),
+    ({"model": {"table": {"positions": [1, 2]}}}, "model.table.positions"),
+    ({"model": {"beam": [{"beam": 1, "zeta": [0.01]}]}}, "model.beam[1].zeta"),
+    ({"model": {"beam": [{"beam": 1}, {"beam": 1}]}}, "model.beam[2].beam"),
+    ({"model": {"beam": [{"freq_hz": [16.0, 100.0]}]}}, "model.beam[1].beam"),
+    ({"model": {"beam": {"beam": 1}}}, "model.beam"),
+    ({"sampling": {"mu0": 0.5}}, "sampling.mu0"),
+    ({"sampling": {"mu0": {"low": 0.0, "high": 1.0}}}, "sampling.mu0.dist"),
+    ({"sampling": {"kc": {"dist": "uniform", "low": "0", "high": 1.0}}}, "sampling.kc.low"),
+    ({"metric": {"beams": "some"}}, "metric.beams"),
+    ({"metric": {"beams": [1, 1]}}, "metric.beams"),
+    ({"excitation": {"mode": -1}}, "excitation.mode"),
+    ({"run": {"threads": 10 ** 6}}, "run.threads"),
+    ({"model": "eight-beam"}, "model"),
+])
+def test_errors_name_the_key(raw, key):
+    with pytest.raises(ConfigError) as e:
+        config.load(raw)
+    assert e.value.key == key
+    assert "\n" not in str(e.value)
+
+
+def test_validate_without_defaults_reports_missing_keys():
+    raw = config.defaults("two-beam")
+    del raw["solver"]["tol"]
+    with pytest.raises(ConfigError) as e:
+        config.validate(raw)
+    assert e.value.key == "solver.tol"

@@ -1,0 +1,156 @@
+"""The results store: layout readable by h5py and xarray, the partial -> final protocol,
+and the crash-safety premise (writing records never touches HDF5 metadata)."""
+
+import h5py
+import numpy as np
+import pytest
+import xarray as xr
+
+from mcfric import store
+from mcfric.store import Store, StoreError, partial_path
+
+
+def make(path, n=50, nf=7, nb=3):
+    coords = {"frequency": (np.linspace(10, 20, nf), {"units": "Hz"}),
+              "beam": (np.arange(1, nb + 1), {})}
+    variables = {"y": (("sample", "frequency", "beam"), np.complex128, {"units": "m"}),
+                 "m": (("sample", "frequency"), np.float64, {}),
+                 "ok": (("sample", "frequency"), np.bool_, {}),
+                 "p": (("sample",), np.float64, {})}
+    return Store.create(path, record_dim="sample", n_records=n, coords=coords,
+                        variables=variables, attrs={"title": "t", "seed": np.int64(3)},
+                        placeholders={"count": np.int64(-1), "wall": np.float64(np.nan)})
+
+
+def records(a, b, nf=7, nb=3):
+    rng = np.random.default_rng(a)
+    y = rng.normal(size=(b - a, nf, nb)) + 1j * rng.normal(size=(b - a, nf, nb))
+    return {"y": y, "m": np.abs(y).max(axis=2), "ok": np.abs(y).max(axis=2) < 2,
+            "p": np.arange(a, b) * 0.5}
+
+
+def raw_ranges(h5):
+    """Byte ranges of every allocated chunk of every chunked dataset of an open file."""
+    out = []
+    for ds in h5.values():
+        if isinstance(ds, h5py.Dataset) and ds.chunks is not None:
+            for i in range(ds.id.get_num_chunks()):
+                info = ds.id.get_chunk_info(i)
+                out.append((info.byte_offset, info.byte_offset + info.size))
+    return out
+
+
+def test_full_protocol_and_readers(tmp_path):
+    path = tmp_path / "r.h5"
+    s = make(path)
+    assert not path.exists() and partial_path(path).exists()
+    for a in range(0, 50, 16):
+        b = min(50, a + 16)
+        s.write(a, records(a, b))
+        s.commit([(a, b)])
+    final = s.finish({"count": np.int64(4), "wall": np.float64(1.5)})
+    assert final == path and path.exists() and not partial_path(path).exists()
+
+    with h5py.File(path, "r") as h5:
+        assert h5.attrs["complete"] == 1 and h5.attrs["count"] == 4
+        assert h5.attrs["layout_version"] == store.LAYOUT_VERSION
+        assert h5["y"].compression is None and h5["y"].chunks[1:] == (7, 3)
+        np.testing.assert_array_equal(h5["y"][20:30], records(16, 32)["y"][4:14])
+        assert h5["done"][...].all()
+    ds = store.open_results(path)
+    assert ds["y"].dims == ("sample", "frequency", "beam")
+    assert ds["p"].dims == ("sample",)
+    assert ds["y"].dtype == np.complex128 and ds["ok"].dtype == bool
+    np.testing.assert_array_equal(ds["sample"].values, np.arange(50))
+    np.testing.assert_array_equal(ds["y"].values[48:], records(48, 50)["y"])
+    assert ds.frequency.attrs["units"] == "Hz" and ds.attrs["seed"] == 3
+    ds.close()
+    with xr.open_dataset(path, engine="h5netcdf") as ds2:
+        assert set(ds2.dims) == {"sample", "frequency", "beam"}
+
+
+def test_writing_records_never_touches_metadata(tmp_path):
+    """The premise of crash safety: after creation only raw chunk bytes change."""
+    path = tmp_path / "r.h5"
+    nf, nb = 2000, 3                                 # ~96 kB per record: many chunks
+    s = make(path, n=120, nf=nf, nb=nb)
+    before = partial_path(path).read_bytes()
+    ranges = raw_ranges(s._h5)
+    assert len(ranges) >= 20
+    for a in (0, 37, 70, 119):                       # unaligned, partial chunks too
+        b = min(120, a + 30)
+        s.write(a, records(a, b, nf, nb))
+        s.commit([(a, b)])
+    after = partial_path(path).read_bytes()
+    assert raw_ranges(s._h5) == ranges          # the chunk index did not move
+    s.close()
+    assert len(after) == len(before)
+    keep = np.ones(len(before), bool)
+    for a, b in ranges:
+        keep[a:b] = False
+    diff = np.frombuffer(before, np.uint8) != np.frombuffer(after, np.uint8)
+    assert diff.any()                                # data did land in the file
+    assert not np.any(diff & keep), "bytes outside the raw data chunks changed"
+
+
+def test_partial_file_is_not_complete_and_reopens(tmp_path):
+    path = tmp_path / "r.h5"
+    s = make(path)
+    s.write(0, records(0, 10))
+    s.commit([(0, 10)])
+    s.write(10, records(10, 20))                     # written, not committed
+    s.close()
+    assert not path.exists()
+    assert store.read_attrs(partial_path(path))["complete"] == 0
+    with pytest.raises(StoreError, match="incomplete"):
+        store.open_results(partial_path(path))
+    store.open_results(partial_path(path), allow_incomplete=True).close()
+    blocks = list(store.iter_records(partial_path(path), ["p"], block=8))
+    got = np.concatenate([b["p"] for _, b in blocks])
+    np.testing.assert_array_equal(got, np.arange(10) * 0.5)   # only committed records
+    s2 = Store.reopen(path, "sample")
+    assert s2.done().sum() == 10 and s2.attrs["seed"] == 3
+    s2.write(10, records(10, 50))
+    s2.commit([(10, 50)])
+    s2.finish({"count": np.int64(0), "wall": np.float64(0.0)})
+    with h5py.File(path, "r") as h5:
+        np.testing.assert_array_equal(h5["p"][...], np.arange(50) * 0.5)
+
+
+def test_create_replaces_a_stale_partial_and_reopen_checks_layout(tmp_path):
+    path = tmp_path / "r.h5"
+    partial_path(path).write_bytes(b"not hdf5")
+    with pytest.raises(StoreError):
+        Store.reopen(path, "sample")
+    make(path).close()
+    assert store.read_attrs(partial_path(path))["complete"] == 0
+
+
+def test_add_group_for_later_stages(tmp_path):
+    path = tmp_path / "r.h5"
+    s = make(path, n=4)
+    s.write(0, records(0, 4))
+    s.commit([(0, 4)])
+    s.finish({"count": np.int64(0), "wall": np.float64(0.0)})
+    lower, upper = np.arange(7.0), np.arange(7.0) + 1
+    store.add_group(path, "bounds", {"lower": (("frequency",), lower, {"units": "m"}),
+                                     "upper": (("frequency",), upper, {"units": "m"})},
+                    attrs={"method": "test"})
+    with xr.open_dataset(path, engine="h5netcdf", group="bounds") as g:
+        assert g["upper"].dims == ("frequency",)
+        np.testing.assert_array_equal(g["lower"].values, lower)
+        assert g.attrs["method"] == "test"
+    with pytest.raises(ValueError, match="does not match"):
+        store.add_group(path, "bounds", {"x": (("frequency",), np.arange(3.0), {})})
+    # the root is untouched
+    with store.open_results(path) as ds:
+        assert ds["y"].shape == (4, 7, 3)
+
+
+def test_reading_a_missing_or_foreign_file(tmp_path):
+    with pytest.raises(StoreError, match="no such file"):
+        store.read_attrs(tmp_path / "nope.h5")
+    with h5py.File(tmp_path / "foreign.h5", "w") as h5:
+        h5["x"] = 1
+    with pytest.raises(StoreError, match="not an mcfric results file"):
+        store.open_results(tmp_path / "foreign.h5")
