@@ -105,9 +105,12 @@ def _model_flags(p):
 
 
 def _overrides(args):
-    o = {"excitation.F0": (args.F0, "--F0"), "frequency.f_min": (args.f_min, "--f-min"),
-         "frequency.f_max": (args.f_max, "--f-max"), "frequency.n": (args.n_freq, "--n-freq")}
-    for key, attr, flag in (("sampling.samples", "samples", "--samples"),
+    o = {}
+    for key, attr, flag in (("excitation.F0", "F0", "--F0"),
+                            ("frequency.f_min", "f_min", "--f-min"),
+                            ("frequency.f_max", "f_max", "--f-max"),
+                            ("frequency.n", "n_freq", "--n-freq"),
+                            ("sampling.samples", "samples", "--samples"),
                             ("sampling.seed", "seed", "--seed"),
                             ("run.threads", "threads", "--threads"),
                             ("run.chunk", "chunk", "--chunk")):
@@ -226,7 +229,8 @@ def cmd_info(args):
     pts = done * fr["n"]
     lines = [
         f"file:        {path} ({state})",
-        f"model:       {m['name']}: {m['n_beams']} beams, {nd} dampers, {m['topology']}; "
+        f"model:       {m['name']}: {m['n_beams']} beams, {nd} damper{'s' * (nd != 1)}, "
+        f"{m['topology']}; "
         f"excitation {ex['pattern']}, F0 = {ex['F0']:g} N",
         f"frequencies: {fr['n']}, {fr['f_min']:g} to {fr['f_max']:g} Hz ({fr['spacing']})",
         f"sampling:    {n} samples, seed {sa['seed']}; mu0 ~ {dist(sa['mu0'])}, "

@@ -1,0 +1,227 @@
+"""The command line: every bad-configuration row of the README table, the commands'
+outputs, and the wiring of `mcfric` with no arguments."""
+
+import csv
+import os
+import re
+import shlex
+import subprocess
+import sys
+import tomllib
+from pathlib import Path
+
+import h5py
+import numba
+import numpy as np
+import pytest
+
+from mcfric import cli, config, ensemble, hbm, plot
+
+ROOT = Path(__file__).resolve().parents[1]
+MARK = "<!-- bad-config-table -->"
+
+
+def bad_config_rows():
+    """Rows (input, message) of the README's bad-configuration table."""
+    for doc in (ROOT / "README.md", ROOT / "docs" / "README-run.md"):
+        if doc.exists() and MARK in doc.read_text():
+            text = doc.read_text()
+            break
+    else:
+        raise AssertionError("no bad-configuration table in README.md or docs/README-run.md")
+    table = text.split(MARK, 1)[1].split("<!-- /bad-config-table -->", 1)[0]
+    rows = []
+    for line in table.splitlines():
+        cells = [c.strip() for c in re.split(r"(?<!\\)\|", line.strip())[1:-1]]
+        if len(cells) != 3 or cells[0] in ("case", "---"):
+            continue
+        rows.append((cells[0], _code(cells[1]), _code(cells[2])))
+    assert len(rows) >= 30
+    return rows
+
+
+def _code(cell):
+    m = re.fullmatch(r"(`+)\s?(.*?)\s?\1", cell)
+    assert m, f"not a code cell: {cell}"
+    return m.group(2)
+
+
+def call(argv, capsys):
+    rc = cli.main(argv)
+    out, err = capsys.readouterr()
+    return rc, out, err
+
+
+@pytest.mark.parametrize("case, given, message", bad_config_rows(),
+                         ids=[r[0] for r in bad_config_rows()])
+def test_readme_bad_config_row(case, given, message, tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    if given.startswith("toml: "):
+        (tmp_path / "bad.toml").write_text(given[len("toml: "):] + "\n")
+        argv = ["run", "bad.toml", "-o", "out.h5"]
+    else:
+        argv = shlex.split(given)
+        assert argv[0] == "mcfric"
+        argv = argv[1:]
+    before = sorted(os.listdir(tmp_path))
+    rc, out, err = call(argv, capsys)
+    assert rc == 2
+    assert err == message + "\n"                       # exactly one line
+    assert sorted(os.listdir(tmp_path)) == before      # nothing written
+
+
+def test_too_many_threads(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    n = numba.config.NUMBA_NUM_THREADS
+    rc, _, err = call(["run", "--threads", str(n + 1)], capsys)
+    assert rc == 2
+    assert err == (f"mcfric: error: --threads: expected an integer in 0..{n} (0 = all {n}), "
+                   f"got {n + 1}\n")
+    assert os.listdir(tmp_path) == []
+
+
+def test_real_process_exit_code_and_no_traceback(tmp_path):
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    (tmp_path / "bad.toml").write_text("sampling.mu0 = {dist = 'gamma'}\n")
+    for args in (["run", "--samples", "0"], ["run", "bad.toml"], ["info", "nope.h5"],
+                 ["run", "--bogus"]):
+        r = subprocess.run([sys.executable, "-m", "mcfric", *args], cwd=tmp_path, env=env,
+                           capture_output=True, text=True, timeout=300)
+        assert r.returncode == 2, (args, r.stderr)
+        assert r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
+        assert r.stderr.startswith("mcfric: error: ")
+    assert sorted(os.listdir(tmp_path)) == ["bad.toml"]
+
+
+@pytest.mark.parametrize("name", ["two-beam", "eight-beam"])
+def test_config_prints_complete_toml(name, capsys):
+    rc, out, _ = call(["config", name], capsys)
+    assert rc == 0
+    assert config.validate(tomllib.loads(out)).data == config.load(name).data
+    assert "# " in out                                  # commented
+
+
+def test_config_of_a_file_prints_its_complete_form(tmp_path, capsys):
+    p = tmp_path / "c.toml"
+    p.write_text('[model]\npreset = "two-beam"\n[sampling]\nsamples = 77\n')
+    rc, out, _ = call(["config", str(p)], capsys)
+    assert rc == 0
+    cfg = config.validate(tomllib.loads(out))
+    assert cfg.samples == 77 and cfg.model().n_beams == 2
+
+
+def test_run_info_and_figure(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    rc, out, err = call(["run", "two-beam", "--samples", "40", "--n-freq", "25", "--seed", "3",
+                         "--F0", "0.72", "-o", "r.h5", "--no-progress"], capsys)
+    assert rc == 0, err
+    for text in ("samples: 40 of 40, 25 frequencies each: 1,000 points",
+                 "not converged: 0 points", "wall time:", "results: r.h5",
+                 "figure: r.png"):
+        assert text in out
+    assert (tmp_path / "r.png").stat().st_size > 10000
+    with h5py.File(tmp_path / "r.h5") as h5:
+        cfg = config.validate(tomllib.loads(h5.attrs["config"]))
+        assert cfg.model().excitation.F0 == 0.72 and cfg.seed == 3
+        assert h5.attrs["numba_version"] == numba.__version__
+    rc, out, _ = call(["info", "r.h5"], capsys)
+    assert rc == 0
+    assert "(complete)" in out and "two-beam: 2 beams, 1 damper, linear" in out
+    assert "converged:   1,000 of 1,000 points (0 not converged)" in out
+    assert re.search(r"response\s+\(sample, frequency, beam\)\s+40 x 25 x 2", out)
+    # the same run again: nothing to do; another seed: refused, exit 2, file untouched
+    rc, out, _ = call(["run", "two-beam", "--samples", "40", "--n-freq", "25", "--seed", "3",
+                       "--F0", "0.72", "-o", "r.h5", "--no-progress"], capsys)
+    assert rc == 0 and "already holds this run" in out
+    mtime = (tmp_path / "r.h5").stat().st_mtime_ns
+    rc, _, err = call(["run", "two-beam", "--samples", "40", "--n-freq", "25", "-o", "r.h5"],
+                      capsys)
+    assert rc == 2 and err.count("\n") == 1 and "--force" in err
+    assert (tmp_path / "r.h5").stat().st_mtime_ns == mtime
+
+
+def test_info_of_a_partial_file(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    real = hbm.solve
+    calls = {"n": 0}
+
+    def stop(*a, **k):
+        calls["n"] += 1
+        if calls["n"] == 3:
+            raise KeyboardInterrupt
+        return real(*a, **k)
+
+    monkeypatch.setattr(ensemble.hbm, "solve", stop)
+    rc, _, err = call(["run", "two-beam", "--samples", "50", "--n-freq", "10", "--chunk", "10",
+                       "-o", "p.h5", "--no-progress"], capsys)
+    assert rc == 130 and "20 of 50 samples saved" in err and "--resume" in err
+    assert not (tmp_path / "p.h5").exists() and not (tmp_path / "p.png").exists()
+    rc, out, _ = call(["info", "p.h5"], capsys)
+    assert rc == 0 and "INCOMPLETE: 20 of 50 samples done" in out
+
+
+def test_no_arguments_runs_the_embedded_default(tmp_path, monkeypatch, capsys):
+    seen = {}
+
+    def fake_run(cfg, path, **kw):
+        seen.update(cfg=cfg, path=path, **kw)
+        return ensemble.Summary(Path(path), cfg.samples, 1000, cfg.samples, cfg.samples, 0,
+                                1.0, 0.9, True)
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(ensemble, "run", fake_run)
+    monkeypatch.setattr(plot, "ensemble_figure", lambda h5, png: seen.update(png=png))
+    rc, out, _ = call([], capsys)
+    assert rc == 0
+    cfg = seen["cfg"]
+    assert cfg.data == config.load(None).data
+    m = cfg.model()
+    assert (m.name, m.n_beams, m.excitation.F0, cfg.samples) == ("eight-beam", 8, 1.1, 2000)
+    assert (cfg["frequency"]["f_min"], cfg["frequency"]["f_max"]) == (10.0, 150.0)
+    assert seen["path"] == Path("mcfric-results/default.h5")
+    assert seen["png"] == Path("mcfric-results/default.png")
+    assert "results: mcfric-results/default.h5" in out
+    assert "figure: mcfric-results/default.png" in out
+    assert seen["resume"] is False and seen["force"] is False
+
+
+def read_csv(path):
+    with open(path, newline="") as fh:
+        rows = list(csv.reader(fh))
+    return rows[0], np.array(rows[1:], dtype=float)
+
+
+def test_hbm_csv_and_png(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    rc, out, err = call(["hbm", "eight-beam", "--mu0", "0.6", "--kc", "5000", "--N0", "0.4",
+                         "--F0", "0.25", "--n-freq", "60", "-o", "h.csv"], capsys)
+    assert rc == 0, err
+    header, t = read_csv(tmp_path / "h.csv")
+    assert header == (["frequency_hz"] + [f"abs_y{b}_m" for b in range(1, 9)]
+                      + ["metric_m", "converged"] + [f"s{j}" for j in range(1, 8)])
+    assert t.shape == (60, 1 + 8 + 2 + 7)
+    f = np.linspace(10, 150, 60)
+    np.testing.assert_allclose(t[:, 0], f, rtol=1e-9)
+    r = hbm.solve(config.load("eight-beam", {"excitation.F0": (0.25, "")}).model(), f,
+                  0.6, 5000.0, 0.4)
+    np.testing.assert_allclose(t[:, 1:9], np.abs(r.response[0]), rtol=1e-9)
+    np.testing.assert_allclose(t[:, 9], t[:, 1:9].max(axis=1), rtol=1e-9)
+    np.testing.assert_array_equal(t[:, 10], 1.0)
+    np.testing.assert_allclose(t[:, 11:], r.s[0], rtol=1e-9)
+    assert "not converged: 0 of 60 points" in out
+    assert (tmp_path / "h.png").stat().st_size > 10000
+
+
+def test_hbm_counts_non_converged_points(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    # a tolerance below rounding: some points cannot converge
+    (tmp_path / "c.toml").write_text('model.preset = "eight-beam"\nsolver.tol = 1e-17\n')
+    rc, out, _ = call(["hbm", "c.toml", "--n-freq", "300", "--mu0", "0.1", "--kc", "6000"],
+                      capsys)
+    assert rc == 0
+    _, t = read_csv(tmp_path / "mcfric-results" / "hbm-c.csv")
+    bad = int(np.count_nonzero(t[:, 10] == 0))
+    assert bad > 0
+    assert f"not converged: {bad} of 300 points" in out
+    assert np.all(np.isnan(t[t[:, 10] == 0, 1:10]))
+    assert (tmp_path / "mcfric-results" / "hbm-c.png").exists()

@@ -1,0 +1,273 @@
+"""The ensemble driver: identical results for any threads / chunking / interruption,
+stored values equal to independent re-solves, honest non-convergence counts, refusals."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+import tracemalloc
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from mcfric import config, ensemble, hbm
+from mcfric.ensemble import Interrupted, RunError
+from mcfric.store import partial_path
+
+DATASETS = ("response", "metric", "converged", "mu0", "kc", "N0")
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def two_beam(samples=130, n=30, **sections):
+    raw = {"model": {"preset": "two-beam"}, "frequency": {"n": n},
+           "sampling": {"samples": samples, "seed": 11}}
+    for dotted, v in sections.items():
+        sec, key = dotted.split("__")
+        raw.setdefault(sec, {})[key] = v
+    return config.load(raw)
+
+
+def run(cfg, path, **kw):
+    return ensemble.run(cfg, path, progress=False, **kw)
+
+
+def load(path, names=DATASETS):
+    with h5py.File(path, "r") as h5:
+        return {k: h5[k][...] for k in names if k in h5}
+
+
+def assert_bitwise(a, b):
+    assert a.keys() == b.keys()
+    for k in a:
+        assert a[k].dtype == b[k].dtype and a[k].shape == b[k].shape, k
+        assert a[k].tobytes() == b[k].tobytes(), f"{k} differs"
+
+
+def contract_uniforms(seed, i, n):
+    child = np.random.SeedSequence(seed).spawn(i + 1)[i]
+    return np.random.Generator(np.random.PCG64(child)).random(n) + 2.0 ** -54
+
+
+def test_threads_and_chunk_sizes_do_not_change_results(tmp_path):
+    base = two_beam()
+    ref = run(base.replace("run.threads", 1), tmp_path / "ref.h5")
+    assert ref.complete and ref.samples_done == 130
+    want = load(tmp_path / "ref.h5")
+    for i, (threads, chunk) in enumerate([(2, 0), (2, 1), (1, 64), (2, 64), (2, 1000)]):
+        cfg = base.replace("run.threads", threads).replace("run.chunk", chunk)
+        run(cfg, tmp_path / f"r{i}.h5")
+        assert_bitwise(load(tmp_path / f"r{i}.h5"), want)
+
+
+def test_eight_beam_mistuned_threads_chunks_and_independent_resolve(tmp_path):
+    raw = {"frequency": {"n": 20}, "sampling": {"samples": 24, "seed": 5, "mistuning": 0.02,
+                                                "mistuning_per": "mode"}}
+    base = config.load(raw)
+    run(base.replace("run.threads", 1).replace("run.chunk", 24), tmp_path / "a.h5")
+    run(base.replace("run.threads", 2).replace("run.chunk", 5), tmp_path / "b.h5")
+    names = DATASETS + ("modal_freq_hz",)
+    a, b = load(tmp_path / "a.h5", names), load(tmp_path / "b.h5", names)
+    assert_bitwise(a, b)
+    # sample 17 solved on its own, from its stored parameters
+    m, f = base.model(), base.frequencies()
+    i = 17
+    r = hbm.solve(m, f, a["mu0"][i:i + 1], a["kc"][i:i + 1], a["N0"][i:i + 1],
+                  modal_freq_hz=a["modal_freq_hz"][i:i + 1])
+    assert r.response[0].tobytes() == a["response"][i].tobytes()
+    nominal = m.modal_arrays()[0]
+    assert not np.allclose(a["modal_freq_hz"][i], nominal)
+
+
+def test_stored_sample_equals_its_contract_parameters_and_a_lone_solve(tmp_path):
+    cfg = two_beam()
+    run(cfg, tmp_path / "r.h5")
+    d = load(tmp_path / "r.h5")
+    m, f = cfg.model(), cfg.frequencies()
+    with h5py.File(tmp_path / "r.h5", "r") as h5:
+        np.testing.assert_array_equal(h5["frequency"][...], np.linspace(10, 150, 30))
+    for i in (0, 57, 129):
+        u = contract_uniforms(11, i, 3)                 # mu0, kc, N0 of one damper
+        assert d["mu0"][i, 0] == u[0]
+        assert d["kc"][i, 0] == 15000.0 * u[1]
+        assert d["N0"][i, 0] == 0.5
+        r = hbm.solve(m, f, u[0], 15000.0 * u[1], 0.5)
+        assert r.response[0].tobytes() == d["response"][i].tobytes()
+        # the metric is max over beams of |y| (physics.md 5), computed here independently
+        y = d["response"][i]
+        np.testing.assert_allclose(d["metric"][i], np.sqrt(y.real ** 2 + y.imag ** 2)
+                                   .max(axis=1), rtol=1e-15)
+        np.testing.assert_array_equal(d["converged"][i], r.status[0] >= 0)
+
+
+def test_metric_only_and_other_metric(tmp_path):
+    full = two_beam(metric__quantity="velocity", metric__beams=[2])
+    run(full, tmp_path / "full.h5")
+    slim = full.replace("output.keep_response", False)
+    run(slim, tmp_path / "slim.h5")
+    a, b = load(tmp_path / "full.h5"), load(tmp_path / "slim.h5")
+    assert "response" in a and "response" not in b
+    assert a["metric"].tobytes() == b["metric"].tobytes()
+    omega = 2 * np.pi * full.frequencies()
+    np.testing.assert_allclose(a["metric"], np.abs(a["response"][:, :, 1]) * omega,
+                               rtol=1e-15)
+    with h5py.File(tmp_path / "slim.h5") as h5:
+        assert h5["metric"].attrs["units"] == "m/s"
+
+
+def test_non_converged_points_are_flagged_and_counted(tmp_path):
+    cfg = two_beam(samples=60, n=40, solver__tol=1e-17)   # below rounding: some must fail
+    s = run(cfg, tmp_path / "r.h5")
+    d = load(tmp_path / "r.h5")
+    bad = int(np.count_nonzero(~d["converged"]))
+    assert bad > 0
+    assert s.not_converged == bad
+    assert np.isnan(d["metric"]).sum() == bad
+    assert np.all(np.isnan(d["response"][~d["converged"]]))
+    with h5py.File(tmp_path / "r.h5") as h5:
+        assert h5.attrs["n_not_converged"] == bad
+    assert f"not converged: {bad:,} points" in s.text()
+
+
+def test_ctrl_c_keeps_finished_chunks_and_resume_is_bitwise(tmp_path, monkeypatch):
+    cfg = two_beam(samples=100, run__chunk=10, run__checkpoint_s=0.0)
+    run(cfg.replace("run.chunk", 1000), tmp_path / "straight.h5")
+    calls = {"n": 0}
+    real = hbm.solve
+
+    def flaky(*a, **k):
+        calls["n"] += 1
+        if calls["n"] == 4:
+            raise KeyboardInterrupt
+        return real(*a, **k)
+
+    monkeypatch.setattr(ensemble.hbm, "solve", flaky)
+    out = tmp_path / "r.h5"
+    with pytest.raises(Interrupted) as e:
+        run(cfg, out)
+    assert e.value.summary.samples_done == 30 and not e.value.summary.complete
+    assert not out.exists() and partial_path(out).exists()
+    monkeypatch.setattr(ensemble.hbm, "solve", real)
+    with pytest.raises(RunError, match="--resume"):
+        run(cfg, out)
+    s = run(cfg.replace("run.chunk", 7), out, resume=True)
+    assert s.complete and s.samples_this_session == 70
+    assert_bitwise(load(out), load(tmp_path / "straight.h5"))
+
+
+def test_writer_failure_surfaces_and_leaves_only_a_partial(tmp_path, monkeypatch):
+    from mcfric import store
+
+    def full(self, start, arrays):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(store.Store, "write", full)
+    with pytest.raises(OSError, match="No space"):
+        run(two_beam(samples=40, run__chunk=10), tmp_path / "r.h5")
+    assert not (tmp_path / "r.h5").exists()
+
+
+def test_refusals_and_the_already_done_case(tmp_path):
+    cfg = two_beam(samples=20, n=10)
+    out = tmp_path / "r.h5"
+    run(cfg, out)
+    again = run(cfg.replace("run.threads", 1), out)        # [run] differs: same run
+    assert again.already_complete and again.samples_this_session == 0
+    with pytest.raises(RunError, match="first difference: sampling.seed"):
+        run(cfg.replace("sampling.seed", 1), out)
+    s = run(cfg.replace("sampling.seed", 1), out, force=True)
+    assert s.complete
+    assert json.loads(h5py.File(out, "r").attrs["config_json"])["sampling"]["seed"] == 1
+    with pytest.raises(RunError, match="does not exist"):
+        run(cfg, tmp_path / "nodir" / "r.h5")
+
+
+def test_resume_refuses_other_config_or_other_solver_code(tmp_path, monkeypatch):
+    cfg = two_beam(samples=50, n=10, run__chunk=10, run__checkpoint_s=0.0)
+    out = tmp_path / "r.h5"
+    real = hbm.solve
+    calls = {"n": 0}
+
+    def stop_at_3(*a, **k):
+        calls["n"] += 1
+        if calls["n"] == 3:
+            raise KeyboardInterrupt
+        return real(*a, **k)
+
+    monkeypatch.setattr(ensemble.hbm, "solve", stop_at_3)
+    with pytest.raises(Interrupted):
+        run(cfg, out)
+    monkeypatch.setattr(ensemble.hbm, "solve", real)
+    with pytest.raises(RunError, match="different configuration.*frequency.n"):
+        run(cfg.replace("frequency.n", 11), out, resume=True)
+    monkeypatch.setattr(ensemble, "fingerprint", lambda: "0000")
+    with pytest.raises(RunError, match="solver code"):
+        run(cfg, out, resume=True)
+    monkeypatch.undo()
+    assert run(cfg, out, resume=True).complete
+
+
+def test_resume_without_a_partial_file_just_runs(tmp_path):
+    s = run(two_beam(samples=10, n=10), tmp_path / "r.h5", resume=True)
+    assert s.complete and s.samples_this_session == 10
+
+
+def test_memory_does_not_grow_with_samples(tmp_path):
+    def peak(samples):
+        cfg = two_beam(samples=samples, n=50, run__chunk=64)
+        run(cfg, tmp_path / "warm.h5", force=True)       # imports and caches first
+        tracemalloc.start()
+        run(cfg, tmp_path / f"m{samples}.h5")
+        _, p = tracemalloc.get_traced_memory()
+        tracemalloc.stop()
+        return p
+
+    small, large = peak(256), peak(4096)
+    assert large < 1.5 * small + 2e6, (small, large)
+
+
+def test_sigkill_mid_run_then_resume_is_bitwise_identical(tmp_path):
+    """A real `kill -9` of `python -m mcfric run` after some chunks, then --resume."""
+    toml = tmp_path / "cfg.toml"
+    toml.write_text('[model]\npreset = "two-beam"\n[frequency]\nn = 200\n'
+                    '[sampling]\nsamples = 3000\nseed = 7\n'
+                    '[run]\nchunk = 1\ncheckpoint_s = 0.0\n')
+    out = tmp_path / "k.h5"
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    cmd = [sys.executable, "-m", "mcfric", "run", str(toml), "-o", str(out),
+           "--no-progress", "--no-figure"]
+    err = tmp_path / "stderr.txt"
+    with open(err, "wb") as fh:
+        p = subprocess.Popen(cmd, cwd=tmp_path, env=env, stdout=subprocess.DEVNULL, stderr=fh)
+    done, deadline = 0, time.monotonic() + 600        # allows a numba compile
+    try:
+        while p.poll() is None and time.monotonic() < deadline:
+            try:
+                with h5py.File(partial_path(out), "r", locking=False) as h5:
+                    done = int(h5["done"][...].sum())
+            except (OSError, KeyError):
+                pass
+            if done >= 150:
+                p.send_signal(signal.SIGKILL)
+                break
+            time.sleep(0.01)
+    finally:
+        if p.poll() is None and done < 150:
+            p.kill()
+        p.wait()
+    assert p.returncode == -signal.SIGKILL, err.read_text()
+    assert not out.exists()                            # nothing that looks complete
+    with h5py.File(partial_path(out), "r") as h5:
+        assert h5.attrs["complete"] == 0
+        left = int(h5["done"][...].sum())
+    assert 150 <= left < 3000
+    r = subprocess.run(cmd + ["--resume", "--chunk", "64", "--threads", "1"], cwd=tmp_path,
+                       env=env, capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr
+    assert "wall time" in r.stdout and str(out) in r.stdout
+    cfg = config.load(toml, {"run.chunk": (5000, "--chunk")})
+    run(cfg, tmp_path / "straight.h5")
+    assert_bitwise(load(out), load(tmp_path / "straight.h5"))
