@@ -245,9 +245,9 @@ def run_kernel(model, rec, omega, mu0, N0, kc, tol, max_iter, y, s, status, iter
     force = np.ascontiguousarray(model.force, dtype=np.complex128)
     args = (np.ascontiguousarray(rec), force, a, b, np.ascontiguousarray(omega), mu0, N0, kc)
     if model.n_dampers == 1:
-        _sweep.sweep_one_damper(*args, float(tol), int(max_iter),
-                                y, s, status, iterations, residual)
+        kernel = _sweep.sweep_one_damper
+    elif model.topology == "linear":
+        kernel = _sweep.sweep_chain
     else:
-        structured = model.topology == "linear"
-        _sweep.sweep(*args, structured, float(tol), int(max_iter),
-                     y, s, status, iterations, residual)
+        kernel = _sweep.sweep_dense
+    kernel(*args, float(tol), int(max_iter), y, s, status, iterations, residual)

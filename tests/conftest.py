@@ -7,7 +7,7 @@ from . import naive  # noqa: F401  (tests import it as tests.naive)
 
 
 def naive_beams(model):
-    """A model's beams in the plain-dict form of tests/naive.py (positions contact, output, drive)."""
+    """A model's beams as tests/naive.py takes them (positions contact, output, drive)."""
     out = []
     for t in model.beams:
         cols = [t.positions.index(p) for p in (model.contact, model.output, model.drive)]

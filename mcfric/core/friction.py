@@ -24,6 +24,21 @@ _SMALL_S = 0.02
 
 
 @inline_jit
+def _re_kappa(s, r):
+    """``Re K / kc`` for ``0 < s < 1`` given ``r = sqrt(s (1 - s))``."""
+    if s < _SMALL_S:
+        # arccos(1-2s) - 2(1-2s)sqrt(s(1-s)) = (u - sin u)/2 with u = 4 asin(sqrt s):
+        # the closed form cancels to ~s^1.5 here, so sum the series of u - sin u instead
+        u = 4.0 * math.asin(math.sqrt(s))
+        u2 = u * u
+        series = u * u2 / 6.0 * (1.0 - u2 / 20.0 * (1.0 - u2 / 42.0 * (1.0 - u2 / 72.0 * (
+            1.0 - u2 / 110.0 * (1.0 - u2 / 156.0)))))
+        return 0.5 * _INV_PI * series
+    t = 1.0 - 2.0 * s
+    return _INV_PI * (math.acos(t) - 2.0 * t * r)
+
+
+@inline_jit
 def kappa(s):
     """Normalised describing function ``K / kc`` at slip ratio ``s``.
 
@@ -41,18 +56,8 @@ def kappa(s):
         return 1.0 + 0.0j
     if s <= 0.0:
         return 0.0j
-    im = 4.0 * _INV_PI * s * (1.0 - s)
-    if s < _SMALL_S:
-        # arccos(1-2s) - 2(1-2s)sqrt(s(1-s)) = (u - sin u)/2 with u = 4 asin(sqrt s):
-        # the closed form cancels to ~s^1.5 here, so sum the series of u - sin u instead
-        u = 4.0 * math.asin(math.sqrt(s))
-        u2 = u * u
-        series = u * u2 / 6.0 * (1.0 - u2 / 20.0 * (1.0 - u2 / 42.0 * (1.0 - u2 / 72.0 * (
-            1.0 - u2 / 110.0 * (1.0 - u2 / 156.0)))))
-        return complex(0.5 * _INV_PI * series, im)
-    t = 1.0 - 2.0 * s
     r = math.sqrt(s * (1.0 - s))
-    return complex(_INV_PI * (math.acos(t) - 2.0 * t * r), im)
+    return complex(_re_kappa(s, r), 4.0 * _INV_PI * s * (1.0 - s))
 
 
 @inline_jit
@@ -76,6 +81,33 @@ def kappa_dlogs(s):
         return 0.0j
     return complex(8.0 * _INV_PI * s * math.sqrt(s * (1.0 - s)),
                    4.0 * _INV_PI * s * (1.0 - 2.0 * s))
+
+
+@inline_jit
+def kappa_logs(x):
+    """``K / kc`` and its derivative with respect to ``x = log s``, sharing one exp and sqrt.
+
+    Parameters
+    ----------
+    x : float
+        ``log s``; ``x >= 0`` is the stuck region (at ``x = 0`` the derivative is the
+        slip-side one, as in :func:`kappa_dlogs`).
+
+    Returns
+    -------
+    (complex, complex)
+        ``K / kc`` and ``d(K/kc)/dx``, dimensionless.
+    """
+    if x > 0.0:
+        return 1.0 + 0.0j, 0.0j
+    if x == 0.0:
+        return 1.0 + 0.0j, complex(0.0, -4.0 * _INV_PI)
+    s = math.exp(x)
+    if s <= 0.0:
+        return 0.0j, 0.0j
+    r = math.sqrt(s * (1.0 - s))
+    k = complex(_re_kappa(s, r), 4.0 * _INV_PI * s * (1.0 - s))
+    return k, complex(8.0 * _INV_PI * s * r, 4.0 * _INV_PI * s * (1.0 - 2.0 * s))
 
 
 @jit

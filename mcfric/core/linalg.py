@@ -81,90 +81,103 @@ def cinv(z):
     return complex(z.real * r, -z.imag * r)
 
 
-@inline_jit
-def tridiag_solve(lower, diag, upper, rhs, n):
-    """Thomas algorithm (no pivoting) for a tridiagonal complex system, in place.
-
-    Row ``i`` reads ``lower[i] x[i-1] + diag[i] x[i] + upper[i] x[i+1] = rhs[i]``
-    (``lower[0]`` and ``upper[n-1]`` are ignored). ``diag`` is overwritten with the
-    reciprocals of the eliminated pivots and ``rhs`` with the solution.
-
-    Returns
-    -------
-    int
-        0 on success, ``i + 1`` if pivot ``i`` is zero or not finite (the caller then
-        falls back to :func:`lu_factor`, which pivots).
-    """
-    for i in range(n):
-        if i > 0:
-            m = lower[i] * diag[i - 1]
-            diag[i] -= m * upper[i - 1]
-            rhs[i] -= m * rhs[i - 1]
-        d = diag[i]
-        a2 = d.real * d.real + d.imag * d.imag
-        if not (a2 > 0.0 and a2 < math.inf):
-            return i + 1
-        diag[i] = cinv(d)
-    rhs[n - 1] *= diag[n - 1]
-    for i in range(n - 2, -1, -1):
-        rhs[i] = (rhs[i] - upper[i] * rhs[i + 1]) * diag[i]
-    return 0
+#: Samples solved in lockstep by the batched kernels: the O(nd) eliminations below are
+#: latency-bound chains, and interleaving independent systems fills the pipeline
+#: (measured for nd = 7: 250 ns per system alone, 72 ns with 4 lanes, 60 ns with 8).
+LANES = 4
 
 
 @inline_jit
-def block2_tridiag_solve(L, D, U, r, n):
-    """Block-tridiagonal solve with real 2x2 blocks (block Thomas, no block pivoting).
+def tridiag_solve_lanes(lower, diag, upper, rhs, mask, bad, n):
+    """Thomas algorithm (no pivoting) for ``LANES`` tridiagonal complex systems, in place.
 
-    Block row ``i``: ``L[i] x[i-1] + D[i] x[i] + U[i] x[i+1] = r[i]`` with
-    ``L, D, U`` of shape (n, 2, 2) and ``r`` of shape (n, 2); ``D`` and ``r`` are
-    overwritten (``r`` becomes the solution).
-
-    Returns
-    -------
-    int
-        0 on success, ``i + 1`` if block pivot ``i`` is singular or not finite.
+    Arrays have shape (n, LANES), the lane last. Row ``i`` of lane ``l`` reads
+    ``lower[i,l] x[i-1,l] + diag[i,l] x[i,l] + upper[i,l] x[i+1,l] = rhs[i,l]``.
+    Only lanes with ``mask[l]`` are touched; ``diag`` is overwritten with the reciprocals
+    of the pivots and ``rhs`` with the solution. ``bad[l]`` is set when a pivot of lane
+    ``l`` is zero or not finite (its solution is then garbage; the caller falls back to a
+    pivoting LU).
     """
+    for l in range(LANES):
+        bad[l] = False
     for i in range(n):
-        if i > 0:
-            # D[i] -= L[i] @ X[i-1] with X[i-1] = inv(D[i-1]) U[i-1], stored in U[i-1]
-            l00 = L[i, 0, 0]
-            l01 = L[i, 0, 1]
-            l10 = L[i, 1, 0]
-            l11 = L[i, 1, 1]
-            x00 = U[i - 1, 0, 0]
-            x01 = U[i - 1, 0, 1]
-            x10 = U[i - 1, 1, 0]
-            x11 = U[i - 1, 1, 1]
-            D[i, 0, 0] -= l00 * x00 + l01 * x10
-            D[i, 0, 1] -= l00 * x01 + l01 * x11
-            D[i, 1, 0] -= l10 * x00 + l11 * x10
-            D[i, 1, 1] -= l10 * x01 + l11 * x11
-            r[i, 0] -= l00 * r[i - 1, 0] + l01 * r[i - 1, 1]
-            r[i, 1] -= l10 * r[i - 1, 0] + l11 * r[i - 1, 1]
-        d00 = D[i, 0, 0]
-        d01 = D[i, 0, 1]
-        d10 = D[i, 1, 0]
-        d11 = D[i, 1, 1]
-        det = d00 * d11 - d01 * d10
-        scale = abs(d00) + abs(d01) + abs(d10) + abs(d11)
-        if not (abs(det) > 1e-300 * scale * scale) or not math.isfinite(det):
-            return i + 1
-        inv = 1.0 / det
-        # y[i] = inv(D[i]) r[i]
-        y0 = (d11 * r[i, 0] - d01 * r[i, 1]) * inv
-        y1 = (d00 * r[i, 1] - d10 * r[i, 0]) * inv
-        r[i, 0] = y0
-        r[i, 1] = y1
-        if i < n - 1:
-            u00 = U[i, 0, 0]
-            u01 = U[i, 0, 1]
-            u10 = U[i, 1, 0]
-            u11 = U[i, 1, 1]
-            U[i, 0, 0] = (d11 * u00 - d01 * u10) * inv
-            U[i, 0, 1] = (d11 * u01 - d01 * u11) * inv
-            U[i, 1, 0] = (d00 * u10 - d10 * u00) * inv
-            U[i, 1, 1] = (d00 * u11 - d10 * u01) * inv
+        for l in range(LANES):
+            if mask[l]:
+                if i > 0:
+                    m = lower[i, l] * diag[i - 1, l]
+                    diag[i, l] -= m * upper[i - 1, l]
+                    rhs[i, l] -= m * rhs[i - 1, l]
+                d = diag[i, l]
+                a2 = d.real * d.real + d.imag * d.imag
+                if not (a2 > 0.0 and a2 < math.inf):
+                    bad[l] = True
+                diag[i, l] = cinv(d)
+    for l in range(LANES):
+        if mask[l]:
+            rhs[n - 1, l] *= diag[n - 1, l]
     for i in range(n - 2, -1, -1):
-        r[i, 0] -= U[i, 0, 0] * r[i + 1, 0] + U[i, 0, 1] * r[i + 1, 1]
-        r[i, 1] -= U[i, 1, 0] * r[i + 1, 0] + U[i, 1, 1] * r[i + 1, 1]
-    return 0
+        for l in range(LANES):
+            if mask[l]:
+                rhs[i, l] = (rhs[i, l] - upper[i, l] * rhs[i + 1, l]) * diag[i, l]
+
+
+@inline_jit
+def block2_tridiag_solve_lanes(L, D, U, r, mask, bad, n):
+    """Block-tridiagonal solves with real 2x2 blocks for ``LANES`` systems (block Thomas).
+
+    Block row ``i`` of lane ``l``: ``L[i] x[i-1] + D[i] x[i] + U[i] x[i+1] = r[i]`` with
+    blocks stored as ``B[i, 0:4, l]`` = (b00, b01, b10, b11) and ``r[i, 0:2, l]``.
+    ``D``, ``U`` and ``r`` are overwritten (``r`` becomes the solution). Only lanes with
+    ``mask[l]``; ``bad[l]`` is set for a singular or non-finite block pivot.
+    """
+    for l in range(LANES):
+        bad[l] = False
+    for i in range(n):
+        for l in range(LANES):
+            if not mask[l]:
+                continue
+            d00 = D[i, 0, l]
+            d01 = D[i, 1, l]
+            d10 = D[i, 2, l]
+            d11 = D[i, 3, l]
+            r0 = r[i, 0, l]
+            r1 = r[i, 1, l]
+            if i > 0:
+                # D[i] -= L[i] X[i-1], r[i] -= L[i] y[i-1]; X[i-1] = inv(D[i-1]) U[i-1] is in U
+                l00 = L[i, 0, l]
+                l01 = L[i, 1, l]
+                l10 = L[i, 2, l]
+                l11 = L[i, 3, l]
+                x00 = U[i - 1, 0, l]
+                x01 = U[i - 1, 1, l]
+                x10 = U[i - 1, 2, l]
+                x11 = U[i - 1, 3, l]
+                d00 -= l00 * x00 + l01 * x10
+                d01 -= l00 * x01 + l01 * x11
+                d10 -= l10 * x00 + l11 * x10
+                d11 -= l10 * x01 + l11 * x11
+                r0 -= l00 * r[i - 1, 0, l] + l01 * r[i - 1, 1, l]
+                r1 -= l10 * r[i - 1, 0, l] + l11 * r[i - 1, 1, l]
+            det = d00 * d11 - d01 * d10
+            scale = abs(d00) + abs(d01) + abs(d10) + abs(d11)
+            if not (abs(det) > 1e-300 * scale * scale) or not math.isfinite(det):
+                bad[l] = True
+            inv = 1.0 / det
+            r[i, 0, l] = (d11 * r0 - d01 * r1) * inv
+            r[i, 1, l] = (d00 * r1 - d10 * r0) * inv
+            if i < n - 1:
+                u00 = U[i, 0, l]
+                u01 = U[i, 1, l]
+                u10 = U[i, 2, l]
+                u11 = U[i, 3, l]
+                U[i, 0, l] = (d11 * u00 - d01 * u10) * inv
+                U[i, 1, l] = (d11 * u01 - d01 * u11) * inv
+                U[i, 2, l] = (d00 * u10 - d10 * u00) * inv
+                U[i, 3, l] = (d00 * u11 - d10 * u01) * inv
+    for i in range(n - 2, -1, -1):
+        for l in range(LANES):
+            if mask[l]:
+                y0 = r[i + 1, 0, l]
+                y1 = r[i + 1, 1, l]
+                r[i, 0, l] -= U[i, 0, l] * y0 + U[i, 1, l] * y1
+                r[i, 1, l] -= U[i, 2, l] * y0 + U[i, 3, l] * y1

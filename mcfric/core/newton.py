@@ -10,15 +10,13 @@ Stuck dampers (``s >= 1``) do not change ``K``; their equation is solved exactly
 residual evaluation (``x_j = log(mu0 N0 / (kc |q_j|))``), which keeps a stuck damper with
 tiny ``|q_j|`` from stalling the line search.
 
-Two linear-algebra paths share one Newton loop:
+This module holds the per-point solvers: a dense Newton (any damper graph, LU with
+partial pivoting, O(nd^3)), Levenberg-Marquardt, and a scalar Newton with a bracketing
+fallback for one damper. The fast path for chains, several samples in lockstep with O(nd)
+linear algebra, is :mod:`mcfric.core.batch`; it falls back to the solvers here.
 
-* ``structured``: identical-index chain ``a_j = j, b_j = j + 1``; ``I + G K`` is
-  tridiagonal and the Newton step is a block-tridiagonal system with real 2x2 blocks in
-  ``w = dq``, both O(nd);
-* dense: any damper graph (rings), LU with partial pivoting, O(nd^3). Also the fallback.
-
-Fallback chain per point: Newton from the initial guess -> Newton (dense) restarted from
-all-stuck ``s = 1`` -> Levenberg-Marquardt (dense) from ``s = 1``.
+Fallback chain per point: Newton from the warm start -> Newton (dense) restarted from the
+stick limit ``s = 1`` -> Levenberg-Marquardt (dense) from ``s = 1``.
 """
 
 import math
@@ -26,8 +24,8 @@ import math
 import numpy as np
 
 from ._jit import inline_jit, jit
-from .friction import kappa, kappa_dlogs
-from .linalg import block2_tridiag_solve, cinv, lu_factor, lu_solve, tridiag_solve
+from .friction import kappa_logs
+from .linalg import cinv, lu_factor, lu_solve
 
 #: Status codes of one solve.
 CONVERGED = 0           # Newton from the initial guess
@@ -41,7 +39,7 @@ _MAX_STEP = 5.0          # largest change of log s in one Newton step
 _LM_MAX_ITER = 200
 # Iterate towards tol * _TARGET; a solve that stalls (rounding floor near a lightly
 # damped resonance) is still converged if it is within tol.
-_TARGET = 1e-2
+_TARGET = 1e-1
 
 
 @inline_jit
@@ -76,28 +74,7 @@ def _log_residual(x, c, active, q, f, nd):
 @inline_jit
 def _damper_K(x, kc, active, K, nd):
     for j in range(nd):
-        if not active[j]:
-            K[j] = 0.0j
-        elif x[j] >= 0.0:           # stuck: no exp/acos needed
-            K[j] = kc[j]
-        else:
-            K[j] = kc[j] * kappa(math.exp(x[j]))
-
-
-@inline_jit
-def _residual_chain(x, kc, c, active, Gd, Gu, q0, K, q, f, lo, di, up, nd):
-    """Residual on the tridiagonal chain path. Returns ``sum f^2`` (inf on failure)."""
-    _damper_K(x, kc, active, K, nd)
-    for j in range(nd):
-        di[j] = 1.0 + Gd[j] * K[j]
-        q[j] = q0[j]
-        if j > 0:
-            lo[j] = Gu[j - 1] * K[j - 1]
-        if j < nd - 1:
-            up[j] = Gu[j] * K[j + 1]
-    if tridiag_solve(lo, di, up, q, nd) != 0:
-        return math.inf
-    return _log_residual(x, c, active, q, f, nd)
+        K[j] = kc[j] * kappa_logs(x[j])[0] if active[j] else 0.0j
 
 
 @inline_jit
@@ -121,50 +98,12 @@ def _sensitivities(x, kc, active, q, h, e, nd):
     for j in range(nd):
         q2 = q[j].real * q[j].real + q[j].imag * q[j].imag
         if active[j] and q2 > 0.0:
-            if x[j] > 0.0:          # stuck: K does not move
-                h[j] = 0.0j
-            else:
-                h[j] = kc[j] * kappa_dlogs(math.exp(x[j])) * q[j]
+            h[j] = kc[j] * kappa_logs(x[j])[1] * q[j]
             r2 = 1.0 / q2
             e[j] = complex(q[j].real * r2, -q[j].imag * r2)
         else:
             h[j] = 0.0j
             e[j] = 0.0j
-
-
-@inline_jit
-def _put_block(B, i, t, m, e):
-    """Real 2x2 block of ``w_j -> t w_j - m Re(e w_j)`` (complex t, m, e)."""
-    B[i, 0, 0] = t.real - m.real * e.real
-    B[i, 0, 1] = -t.imag + m.real * e.imag
-    B[i, 1, 0] = t.imag - m.imag * e.real
-    B[i, 1, 1] = t.real + m.imag * e.imag
-
-
-@inline_jit
-def _step_chain(x, kc, active, Gd, Gu, K, q, f, dx, h, e, L, D, U, r, nd):
-    """Newton step on the chain path: block-tridiagonal in ``w = dq``. Returns info."""
-    _sensitivities(x, kc, active, q, h, e, nd)
-    for i in range(nd):
-        _put_block(D, i, 1.0 + Gd[i] * K[i], Gd[i] * h[i], e[i])
-        rhs = Gd[i] * h[i] * f[i]
-        if i > 0:
-            _put_block(L, i, Gu[i - 1] * K[i - 1], Gu[i - 1] * h[i - 1], e[i - 1])
-            rhs += Gu[i - 1] * h[i - 1] * f[i - 1]
-        if i < nd - 1:
-            _put_block(U, i, Gu[i] * K[i + 1], Gu[i] * h[i + 1], e[i + 1])
-            rhs += Gu[i] * h[i + 1] * f[i + 1]
-        r[i, 0] = rhs.real
-        r[i, 1] = rhs.imag
-    info = block2_tridiag_solve(L, D, U, r, nd)
-    if info != 0:
-        return info
-    for j in range(nd):
-        if e[j] != 0.0:
-            dx[j] = -f[j] - (e[j].real * r[j, 0] - e[j].imag * r[j, 1])
-        else:
-            dx[j] = -f[j]
-    return 0
 
 
 @inline_jit
@@ -226,16 +165,9 @@ def _copy_state(src_x, src_q, src_K, src_f, x, q, K, f, nd):
         f[j] = src_f[j]
 
 
-@inline_jit
-def _residual(dense, x, kc, c, active, G, Gd, Gu, q0, K, q, f, lo, di, up, T, piv, nd):
-    if dense:
-        return _residual_dense(x, kc, c, active, G, q0, K, q, f, T, piv, nd)
-    return _residual_chain(x, kc, c, active, Gd, Gu, q0, K, q, f, lo, di, up, nd)
-
-
 @jit
-def newton(x, kc, c, active, G, Gd, Gu, q0, dense, tol, max_iter, w):
-    """Damped Newton iteration in ``x = log s`` from the guess in ``x``.
+def newton(x, kc, c, active, G, q0, tol, max_iter, w):
+    """Damped Newton iteration in ``x = log s`` from the guess in ``x`` (dense path).
 
     Parameters
     ----------
@@ -247,27 +179,28 @@ def newton(x, kc, c, active, G, Gd, Gu, q0, dense, tol, max_iter, w):
         ``log(mu0 N0 / kc)`` per active damper, log(m).
     active : ndarray of bool, shape (nd,)
         Dampers that transmit force (``mu0 N0 > 0`` and ``kc > 0``).
-    G, Gd, Gu, q0 : ndarray
-        Contact-space data of this frequency: dense ``G`` (nd, nd) when ``dense``,
-        else its diagonal ``Gd`` and first super-diagonal ``Gu``; ``q0`` (nd,), m.
-    dense : bool
-        Use the dense path (any damper graph) instead of the tridiagonal chain path.
+    G : ndarray of complex, shape (nd, nd)
+        ``B D11 B^T`` at this frequency, m/N.
+    q0 : ndarray of complex, shape (nd,)
+        Relative contact displacement of the uncoupled array, m.
     tol : float
         Accepted relative force residual ``max |f_j|``; iterations aim at ``tol / 100``
         and stop early only at a stall within ``tol``.
     max_iter : int
         Newton iterations allowed.
-    w : Workspace arrays, see :func:`workspace`.
+    w : tuple
+        Workspace from :func:`workspace`; on return ``w[0]``, ``w[1]``, ``w[2]`` hold
+        ``K``, ``q`` and ``f`` at ``x``.
 
     Returns
     -------
     ok : bool
     iterations : int
     """
-    (K, q, f, xt, qt, Kt, ft, dx, h, e, lo, di, up, L, D, U, r, T, piv, X, J, rpiv) = w
+    (K, q, f, xt, qt, Kt, ft, dx, h, e, T, piv, X, J, rpiv) = w
     nd = x.shape[0]
     target = _TARGET * tol
-    phi = _residual(dense, x, kc, c, active, G, Gd, Gu, q0, K, q, f, lo, di, up, T, piv, nd)
+    phi = _residual_dense(x, kc, c, active, G, q0, K, q, f, T, piv, nd)
     if not math.isfinite(phi):
         return False, 0
     for it in range(max_iter + 1):
@@ -275,10 +208,7 @@ def newton(x, kc, c, active, G, Gd, Gu, q0, dense, tol, max_iter, w):
             return True, it
         if it == max_iter:
             break
-        if dense:
-            info = _step_dense(x, kc, active, G, T, piv, q, f, dx, h, e, X, J, rpiv, nd)
-        else:
-            info = _step_chain(x, kc, active, Gd, Gu, K, q, f, dx, h, e, L, D, U, r, nd)
+        info = _step_dense(x, kc, active, G, T, piv, q, f, dx, h, e, X, J, rpiv, nd)
         if info != 0 or not _limit_step(dx, nd):
             return _max_abs(f, nd) <= tol, it
         lam = 1.0
@@ -286,8 +216,7 @@ def newton(x, kc, c, active, G, Gd, Gu, q0, dense, tol, max_iter, w):
         for _ in range(_MAX_HALVINGS):
             for j in range(nd):
                 xt[j] = x[j] + lam * dx[j]
-            phit = _residual(dense, xt, kc, c, active, G, Gd, Gu, q0, Kt, qt, ft,
-                             lo, di, up, T, piv, nd)
+            phit = _residual_dense(xt, kc, c, active, G, q0, Kt, qt, ft, T, piv, nd)
             if phit <= (1.0 - 2.0 * _ARMIJO * lam) * phi:
                 accepted = True
                 break
@@ -305,7 +234,7 @@ def levenberg_marquardt(x, kc, c, active, G, q0, tol, w):
 
     Same arguments and returns as :func:`newton` (always the dense path).
     """
-    (K, q, f, xt, qt, Kt, ft, dx, h, e, lo, di, up, L, D, U, r, T, piv, X, J, rpiv) = w
+    (K, q, f, xt, qt, Kt, ft, dx, h, e, T, piv, X, J, rpiv) = w
     nd = x.shape[0]
     A = np.empty((nd, nd))
     g = np.empty(nd)
@@ -366,9 +295,6 @@ def workspace(nd):
     return (np.zeros(nd, c16), np.zeros(nd, c16), np.zeros(nd), np.zeros(nd),
             np.zeros(nd, c16), np.zeros(nd, c16), np.zeros(nd), np.zeros(nd),
             np.zeros(nd, c16), np.zeros(nd, c16),
-            np.zeros(nd, c16), np.zeros(nd, c16), np.zeros(nd, c16),
-            np.zeros((nd, 2, 2)), np.zeros((nd, 2, 2)), np.zeros((nd, 2, 2)),
-            np.zeros((nd, 2)),
             np.zeros((nd, nd), c16), np.zeros(nd, np.int64), np.zeros(nd, c16),
             np.zeros((nd, nd)), np.zeros(nd, np.int64))
 
@@ -378,7 +304,7 @@ def workspace(nd):
 @inline_jit
 def _scalar_eval(x, kc, c, g, q0):
     """Residual of the one-damper problem. Returns (f, x, q, K); updates x when stuck."""
-    K = kc * kappa(math.exp(x)) if x < 0.0 else complex(kc, 0.0)
+    K = kc * kappa_logs(x)[0]
     q = q0 * cinv(1.0 + g * K)
     lq = 0.5 * math.log(q.real * q.real + q.imag * q.imag)
     if x >= 0.0:
@@ -421,7 +347,7 @@ def newton_scalar(x, kc, c, g, q0, tol, max_iter):
             return True, it, x, q, K, f
         if it == max_iter:
             break
-        d = 1.0 - (g * kc * kappa_dlogs(math.exp(x)) * cinv(1.0 + g * K)).real
+        d = 1.0 - (g * kc * kappa_logs(x)[1] * cinv(1.0 + g * K)).real
         dx = -f / d
         if not math.isfinite(dx):
             return abs(f) <= tol, it, x, q, K, f
