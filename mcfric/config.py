@@ -83,7 +83,7 @@ def defaults(preset=DEFAULT_PRESET):
         "metric": {"quantity": "displacement", "beams": "all"},
         "solver": {"tol": 1e-10, "max_iter": 50},
         "output": {"keep_response": True},
-        "run": {"threads": 0, "chunk": 0, "checkpoint_s": 5.0},
+        "run": {"threads": 0, "chunk": 0, "checkpoint_s": 0.0},
         "bounds": {"enabled": True, "k_max": 15000.0},
     }
 
@@ -308,8 +308,8 @@ SPEC = {
         "threads": (integer(0), "numba threads (0 = all); never changes the results"),
         "chunk": (integer(0, 10 ** 7), "samples per chunk (0 = auto, ~32 MB of kernel output); "
                                        "never changes the results"),
-        "checkpoint_s": (number(lo=0), "seconds between crash-safe checkpoints (0 = after "
-                                       "every chunk)"),
+        "checkpoint_s": (number(lo=0), "min seconds between crash-safe checkpoints "
+                                       "(0 = after every chunk)"),
     },
     "bounds": {
         "enabled": (boolean(), "compute response bounds (the bounds stage; not read by run)"),

@@ -77,12 +77,17 @@ def test_writing_records_never_touches_metadata(tmp_path):
     before = partial_path(path).read_bytes()
     ranges = raw_ranges(s._h5)
     assert len(ranges) >= 20
-    for a in (0, 37, 70, 119):                       # unaligned, partial chunks too
+    written = {}
+    for a in (0, 37, 70, 119):     # aligned (direct chunk writes) and unaligned edges
         b = min(120, a + 30)
-        s.write(a, records(a, b, nf, nb))
+        written[a, b] = records(a, b, nf, nb)
+        s.write(a, written[a, b])
         s.commit([(a, b)])
     after = partial_path(path).read_bytes()
     assert raw_ranges(s._h5) == ranges          # the chunk index did not move
+    for (a, b), rec in written.items():
+        for name, arr in rec.items():
+            assert s._h5[name][a:b].tobytes() == arr.tobytes(), (name, a, b)
     s.close()
     assert len(after) == len(before)
     keep = np.ones(len(before), bool)
