@@ -23,12 +23,12 @@ Crash safety
 
 Compression
 -----------
-None, measured (``bench/ensemble.py``): the response is float64 noise to a compressor
-(lzf 1.00x, lzf+shuffle 1.13x, gzip-1+shuffle 1.19x) while the fastest filter writes at
-~110 MB/s on one core against ~1 GB/s unfiltered, and the kernel produces up to ~250 MB/s.
-Filtered chunks would also be allocated as they are written, so every checkpoint would
-rewrite the chunk index: the crash-safety argument above needs unfiltered, pre-allocated
-chunks.
+None, measured (``bench/ensemble.py``, real 8-beam output): the response is float64 noise to
+a compressor (lzf 1.00x, lzf+shuffle 1.13x, gzip-1+shuffle 1.19x) while the filters write
+35-115 MB/s on one core against ~730 MB/s unfiltered (fsync included); the kernel produces
+~150-250 MB/s of response on two cores. Filtered chunks would also be allocated as they
+are written, so every checkpoint would rewrite the chunk index: the crash-safety argument
+above needs unfiltered, pre-allocated chunks.
 """
 
 from __future__ import annotations
