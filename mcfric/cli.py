@@ -129,12 +129,14 @@ def _load(args):
 
 
 def _default_output(args, suffix, prefix=""):
+    from .presets import PRESETS
+
     if args.source is None:
         stem = "default"
-    elif Path(args.source).suffix == ".toml":
-        stem = Path(args.source).stem
-    else:
+    elif args.source in PRESETS:
         stem = args.source
+    else:
+        stem = Path(args.source).stem
     return DEFAULT_DIR / f"{prefix}{stem}{suffix}"
 
 
@@ -243,8 +245,8 @@ def cmd_info(args):
     ]
     if a.get("complete") == 1:
         lines.append(f"run time:    {a.get('wall_time_s', float('nan')):.1f} s "
-                     f"(kernel {a.get('kernel_time_s', float('nan')):.1f} s), "
-                     f"finished session")
+                     f"(kernel {a.get('kernel_time_s', float('nan')):.1f} s) in the session "
+                     f"that completed it")
     lines.append(f"written by:  mcfric {a.get('mcfric_version')}, numba "
                  f"{a.get('numba_version')}, numpy {a.get('numpy_version')}, HDF5 "
                  f"{a.get('hdf5_version')}; created {a.get('created_utc')}")

@@ -7,6 +7,7 @@ import signal
 import subprocess
 import sys
 import time
+import tomllib
 import tracemalloc
 from pathlib import Path
 
@@ -275,3 +276,37 @@ def test_sigkill_mid_run_then_resume_is_bitwise_identical(tmp_path):
     cfg = config.load(toml, {"run.chunk": (5000, "--chunk")})
     run(cfg, tmp_path / "straight.h5")
     assert_bitwise(load(out), load(tmp_path / "straight.h5"))
+
+
+def test_results_file_opens_with_h5py_and_xarray_with_labelled_dims(tmp_path):
+    import mcfric
+    import numba
+    import xarray as xr
+
+    cfg = two_beam(samples=12, n=9, sampling__mistuning=0.01)
+    out = tmp_path / "r.h5"
+    run(cfg, out)
+    with h5py.File(out, "r") as h5:
+        labels = {name: tuple(d[0].name.lstrip("/") for d in h5[name].dims)
+                  for name in ("response", "metric", "converged", "mu0", "kc", "N0",
+                               "modal_freq_hz")}
+        assert h5.attrs["numba_version"] == numba.__version__
+        assert h5.attrs["mcfric_version"] == mcfric.__version__
+        assert h5.attrs["seed"] == 11 and h5.attrs["complete"] == 1
+        assert config.validate(tomllib.loads(h5.attrs["config"])).data == cfg.data
+    with xr.open_dataset(out, engine="h5netcdf") as ds:
+        for name, dims in labels.items():
+            assert ds[name].dims == dims
+        assert ds["response"].dims == ("sample", "frequency", "beam")
+        assert ds["mu0"].dims == ("sample", "damper")
+        assert ds["modal_freq_hz"].dims == ("sample", "beam", "mode")
+        np.testing.assert_array_equal(ds["frequency"].values, cfg.frequencies())
+        assert ds["frequency"].attrs["units"] == "Hz"
+        np.testing.assert_array_equal(ds["beam"].values, [1, 2])
+        np.testing.assert_array_equal(ds["sample"].values, np.arange(12))
+        np.testing.assert_array_equal(ds["damper"].attrs["beam_b"], [2])
+        assert ds["response"].dtype == np.complex128 and ds["converged"].dtype == bool
+        assert int(ds["done"].sum()) == 12
+    with mcfric.open_results(out) as ds:
+        m = ds["metric"].sel(frequency=cfg.frequencies()[4]).values
+        assert m.shape == (12,) and np.all(m > 0)
