@@ -159,3 +159,25 @@ def test_reading_a_missing_or_foreign_file(tmp_path):
         h5["x"] = 1
     with pytest.raises(StoreError, match="not an mcfric results file"):
         store.open_results(tmp_path / "foreign.h5")
+
+
+def test_reopening_and_writing_never_touches_metadata(tmp_path):
+    """Same premise on the resume path: open r+, write, commit, close."""
+    path = tmp_path / "r.h5"
+    nf, nb = 2000, 3
+    s = make(path, n=64, nf=nf, nb=nb)
+    s.write(0, records(0, 16, nf, nb))
+    s.commit([(0, 16)])
+    s.close()
+    before = partial_path(path).read_bytes()
+    s = Store.reopen(path, "sample")
+    ranges = raw_ranges(s._h5)
+    s.write(16, records(16, 45, nf, nb))
+    s.commit([(16, 45)])
+    s.close()
+    after = partial_path(path).read_bytes()
+    keep = np.ones(len(before), bool)
+    for a, b in ranges:
+        keep[a:b] = False
+    diff = np.frombuffer(before, np.uint8) != np.frombuffer(after, np.uint8)
+    assert diff.any() and not np.any(diff & keep)
