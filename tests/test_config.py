@@ -145,3 +145,14 @@ def test_validate_without_defaults_reports_missing_keys():
     with pytest.raises(ConfigError) as e:
         config.validate(raw)
     assert e.value.key == "solver.tol"
+
+
+def test_every_toml_example_in_the_readme_is_valid():
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    docs = [p for p in (root / "README.md", root / "docs" / "README-run.md") if p.exists()]
+    blocks = [b.split("```", 1)[0] for p in docs for b in p.read_text().split("```toml\n")[1:]]
+    assert blocks
+    for b in blocks:
+        config.load(tomllib.loads(b))
