@@ -52,7 +52,7 @@ _TAG = re.compile(r"\b(kind|force_n|percentile)\s*=\s*([^\s,;]+)", re.IGNORECASE
 
 # ---------------------------------------------------------------- the data
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Measurement:
     """Measured (or exported) responses of the beams at one force level.
 
@@ -699,7 +699,7 @@ def interpolate_log(freq_hz, values, at_hz):
 
 
 def fraction_inside(measurement, freq_hz, lower, upper, beams=None, *,
-                    quantity="displacement", rtol=1e-9):
+                    quantity="displacement", check_lower=True, rtol=1e-9):
     """Fraction of measured points between lower and upper bounds, per beam and overall.
 
     The bounds are interpolated log-linearly (log amplitude linear in frequency) to the
@@ -722,6 +722,9 @@ def fraction_inside(measurement, freq_hz, lower, upper, beams=None, *,
         Beams (labels of the measurement) to count; default all.
     quantity : {"displacement", "velocity", "acceleration"}
         Quantity of the bounds.
+    check_lower : bool
+        False: test single beams against the upper bound only (the valid test of a beam
+        against bounds of M); ``below`` stays 0.
     rtol : float
         Relative tolerance of the comparison (rounding).
 
@@ -774,7 +777,7 @@ def fraction_inside(measurement, freq_hz, lower, upper, beams=None, *,
             ok = ~(np.isnan(L) | np.isnan(U))
             counts["missing"][b] += int(np.count_nonzero(~has) + np.count_nonzero(~ok))
             a, L, U = a[ok], L[ok], U[ok]
-            below = a < L * (1 - rtol)
+            below = (a < L * (1 - rtol)) if check_lower else np.zeros(a.shape, bool)
             above = a > U * (1 + rtol)
             counts["below"][b] += int(np.count_nonzero(below))
             counts["above"][b] += int(np.count_nonzero(above))

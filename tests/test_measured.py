@@ -12,6 +12,7 @@ import pytest
 import mcfric
 from mcfric.measured import (METRIC, Measurement, export_uff58, fraction_inside,
                              interpolate_log, normalise, read_measured)
+from mcfric.modal_io import write_modal_table_uff55
 
 pyuff = pytest.importorskip("pyuff")
 
@@ -267,7 +268,7 @@ def test_truncated_and_wrong_uff_files(tmp_path):
         read_measured(bad, nodes=NODES)
     one_line(e, str(bad), "61 points")
     # a modal table is not a measurement
-    modal = mcfric.modal_io.write_modal_table_uff55(tmp_path / "modes.uff", mcfric.TABLE_1)
+    modal = write_modal_table_uff55(tmp_path / "modes.uff", mcfric.TABLE_1)
     with pytest.raises(ValueError) as e:
         read_measured(modal, nodes=NODES)
     one_line(e, str(modal), "no dataset 58", "found dataset types: 55, 164")
@@ -382,6 +383,8 @@ def test_fraction_inside_counts():
     lo2[:, 3] = 6.0
     r2 = fraction_inside(m, g, lo2, np.column_stack([up] * 4))
     assert r2.fraction(4) == 0.0 and r2.fraction(3) == 3 / 5
+    r3 = fraction_inside(m, g, lo2, np.column_stack([up] * 4), check_lower=False)
+    assert r3.fraction(4) == 1.0 and r3.fraction(3) == 4 / 5 and r3.below == {3: 0, 4: 0}
     # pooled measurements; bounds in acceleration compare converted data
     assert fraction_inside([m, m], g, lo, up).compared() == 20
     acc = fraction_inside(m, g, lo * 1e6, up * 1e6, quantity="acceleration")
