@@ -1,0 +1,580 @@
+"""Search of the describing-function box for the extreme responses (physics.md section 7).
+
+At one frequency the damper describing functions ``K_j`` are free complex numbers in the
+box ``0 <= Re K_j <= kr``, ``0 <= Im K_j <= ki``, and the output is linear in the beam
+forces: ``y = y_lin - H diag(K) q`` with ``(I + G diag(K)) q = q0``. We seek the max and
+the min over the box of ``M = max_b |y_b|``.
+
+Structure used (why a coordinate search is exact per coordinate):
+
+* With all dampers but ``j`` fixed, every ``y_b`` is a Moebius function of ``z = K_j``
+  with a common denominator: ``y_b(z) = (alpha_b + beta_b z) / (d0 + d1 z)``
+  (Sherman-Morrison on ``I + G diag(K)``). The system is passive for every ``K`` in the
+  box (``Re K, Im K >= 0``, positive modal damping), so the denominator has no zero there.
+* Maximum modulus: ``|y_b|`` over the rectangle of ``z`` is largest on its perimeter, so
+  the maximum of ``M`` over the rectangle is on the perimeter, and along an edge
+  ``|y_b|^2`` is a ratio of quadratics whose critical points solve a quadratic: the
+  coordinate maximisation is exact (edge end points and critical points).
+* For the minimum, ``M`` is a maximum of moduli and may dip inside the rectangle. In
+  ``w = 1 / (d0 + d1 z)`` every ``|y_b|`` is a weighted distance ``|p_b + r_b w|``, so
+  ``M`` is convex in ``w``: inside the rectangle there is no local minimum but the
+  global one of that convex function. Edges are solved exactly (end points, critical
+  points, pairwise crossings ``|y_b| = |y_c|``, all quadratics); the interior by a pattern
+  search from the best candidate, which cannot stall in a spurious interior minimum.
+
+Across dampers the problem is not convex: each search is run from many starts (uniform
+corners, the centre, random corners and interior points) and the extreme value over all
+starts is kept. That is a search, not a proof; tests compare it with dense grids (one
+damper) and with ensembles and random searches (seven dampers).
+"""
+
+import math
+
+import numpy as np
+from numba import prange
+
+from ._jit import inline_jit, jit
+from .linalg import lu_factor, lu_solve
+
+_TINY = 1e-300
+
+
+@jit
+def _factor_inverse(G, K, Tinv, T, piv, nd):
+    """``Tinv = (I + G diag(K))^-1``. Returns False if singular."""
+    for i in range(nd):
+        for j in range(nd):
+            T[i, j] = G[i, j] * K[j]
+        T[i, i] += 1.0
+    if lu_factor(T, piv, nd) != 0:
+        return False
+    col = np.zeros(nd, dtype=np.complex128)
+    for j in range(nd):
+        for i in range(nd):
+            col[i] = 0.0j
+        col[j] = 1.0
+        lu_solve(T, piv, col, nd)
+        for i in range(nd):
+            Tinv[i, j] = col[i]
+    return True
+
+
+@inline_jit
+def _state(G, q0, ylin, H, K, Tinv, q, y, nd, nb):
+    """``q = Tinv q0`` and ``y = y_lin - H (K q)``."""
+    for i in range(nd):
+        acc = 0.0j
+        for m in range(nd):
+            acc += Tinv[i, m] * q0[m]
+        q[i] = acc
+    for b in range(nb):
+        acc = ylin[b]
+        for m in range(nd):
+            acc -= H[b, m] * K[m] * q[m]
+        y[b] = acc
+
+
+@inline_jit
+def _coefficients(G, ylin, H, K, Tinv, q, y, j, u, alpha, beta, nd, nb):
+    """Moebius coefficients of every ``y_b`` in ``z = K_j``. Returns (d0, d1)."""
+    for i in range(nd):
+        acc = 0.0j
+        for m in range(nd):
+            acc += Tinv[i, m] * G[m, j]
+        u[i] = acc
+    d1 = u[j]
+    d0 = 1.0 - K[j] * d1
+    qj = q[j]
+    for b in range(nb):
+        P = 0.0j
+        for m in range(nd):
+            if m != j:
+                P += H[b, m] * K[m] * u[m]
+        base = y[b] + H[b, j] * K[j] * qj        # y_lin_b - S_b
+        alpha[b] = base * d0 - K[j] * qj * P
+        beta[b] = base * d1 + qj * (P - H[b, j])
+    return d0, d1
+
+
+@inline_jit
+def _metric(alpha, beta, d0, d1, z, nb):
+    """``max_b |alpha_b + beta_b z| / |d0 + d1 z|``."""
+    den = d0 + d1 * z
+    m = 0.0
+    for b in range(nb):
+        v = alpha[b] + beta[b] * z
+        m = max(m, v.real * v.real + v.imag * v.imag)
+    return math.sqrt(m / (den.real * den.real + den.imag * den.imag))
+
+
+@inline_jit
+def _quad_roots(a, b, c):
+    """Real roots of ``a t^2 + b t + c`` (up to two; NaN where absent)."""
+    if a == 0.0:
+        if b == 0.0:
+            return math.nan, math.nan
+        return -c / b, math.nan
+    disc = b * b - 4.0 * a * c
+    if disc < 0.0:
+        return math.nan, math.nan
+    sq = math.sqrt(disc)
+    qq = -0.5 * (b + math.copysign(sq, b))
+    r1 = qq / a
+    r2 = c / qq if qq != 0.0 else math.nan
+    return r1, r2
+
+
+@inline_jit
+def _edge_candidates(alpha, beta, d0, d1, z0, z1, want_max, nb, best_val, best_z, pair):
+    """Best ``M`` on the segment ``z0 -> z1``, exactly (see module docstring).
+
+    Updates and returns (best_val, best_z). ``pair``: also try pairwise crossings
+    (needed for the minimum only).
+    """
+    dz = z1 - z0
+    den0 = d0 + d1 * z0
+    den1 = d1 * dz
+    c0 = den0.real * den0.real + den0.imag * den0.imag
+    c1 = 2.0 * (den0.real * den1.real + den0.imag * den1.imag)
+    c2 = den1.real * den1.real + den1.imag * den1.imag
+    for b in range(nb):
+        A = alpha[b] + beta[b] * z0
+        B = beta[b] * dz
+        a0 = A.real * A.real + A.imag * A.imag
+        a1 = 2.0 * (A.real * B.real + A.imag * B.imag)
+        a2 = B.real * B.real + B.imag * B.imag
+        # stationary points of (a2 t^2 + a1 t + a0) / (c2 t^2 + c1 t + c0)
+        r1, r2 = _quad_roots(a2 * c1 - a1 * c2, 2.0 * (a2 * c0 - a0 * c2), a1 * c0 - a0 * c1)
+        for t in (r1, r2):
+            if t > 0.0 and t < 1.0:
+                z = z0 + t * dz
+                v = _metric(alpha, beta, d0, d1, z, nb)
+                if (v > best_val) if want_max else (v < best_val):
+                    best_val = v
+                    best_z = z
+        if pair:
+            for c in range(b + 1, nb):
+                Ac = alpha[c] + beta[c] * z0
+                Bc = beta[c] * dz
+                e0 = Ac.real * Ac.real + Ac.imag * Ac.imag - a0
+                e1 = 2.0 * (Ac.real * Bc.real + Ac.imag * Bc.imag) - a1
+                e2 = Bc.real * Bc.real + Bc.imag * Bc.imag - a2
+                s1, s2 = _quad_roots(e2, e1, e0)
+                for t in (s1, s2):
+                    if t > 0.0 and t < 1.0:
+                        z = z0 + t * dz
+                        v = _metric(alpha, beta, d0, d1, z, nb)
+                        if v < best_val:
+                            best_val = v
+                            best_z = z
+    return best_val, best_z
+
+
+@inline_jit
+def _best_on_rectangle(alpha, beta, d0, d1, kr, ki, want_max, z_now, nb, ptol):
+    """Exact extreme of ``M`` over the perimeter of ``[0, kr] x [0, ki]`` (and, for the
+    minimum, the interior by a pattern search). Never worse than ``z_now``."""
+    best_z = z_now
+    best_val = _metric(alpha, beta, d0, d1, z_now, nb)
+    corners = (0.0j, complex(kr, 0.0), complex(kr, ki), complex(0.0, ki))
+    for c in range(4):
+        z = corners[c]
+        v = _metric(alpha, beta, d0, d1, z, nb)
+        if (v > best_val) if want_max else (v < best_val):
+            best_val = v
+            best_z = z
+    for c in range(4):
+        best_val, best_z = _edge_candidates(alpha, beta, d0, d1, corners[c],
+                                            corners[(c + 1) % 4], want_max, nb,
+                                            best_val, best_z, not want_max)
+    if want_max:
+        return best_val, best_z
+    # interior: pattern search (8 directions) from the best of the centre and the
+    # candidates so far; no spurious interior minimum exists (convex in w)
+    zc = complex(0.5 * kr, 0.5 * ki)
+    vc = _metric(alpha, beta, d0, d1, zc, nb)
+    x, yv, v = best_z.real, best_z.imag, best_val
+    if vc < v:
+        x, yv, v = zc.real, zc.imag, vc
+    hx = 0.25 * kr
+    hy = 0.25 * ki
+    for _ in range(200):
+        moved = False
+        for dxs, dys in ((1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0),
+                         (1.0, 1.0), (-1.0, -1.0), (1.0, -1.0), (-1.0, 1.0)):
+            xn = min(max(x + dxs * hx, 0.0), kr)
+            yn = min(max(yv + dys * hy, 0.0), ki)
+            vn = _metric(alpha, beta, d0, d1, complex(xn, yn), nb)
+            if vn < v:
+                x, yv, v = xn, yn, vn
+                moved = True
+                break
+        if not moved:
+            hx *= 0.5
+            hy *= 0.5
+            if hx <= ptol * kr and hy <= ptol * ki:
+                break
+    if v < best_val:
+        best_val = v
+        best_z = complex(x, yv)
+    return best_val, best_z
+
+
+@jit
+def _search(G, q0, ylin, H, kr, ki, K, want_max, max_sweeps, tol, w):
+    """Coordinate search from the describing functions in ``K`` (N/m). Returns M.
+
+    Each step replaces one ``K_j`` by the best point of its rectangle (exact, see the
+    module docstring), so M never gets worse; sweeps stop when a whole sweep changes M by
+    less than ``tol`` (relative). ``K`` holds the final point; NaN if the linear system
+    was singular.
+    """
+    Tinv, T, piv, q, y, u, alpha, beta, rowj = w[:9]
+    nd = K.shape[0]
+    nb = ylin.shape[0]
+    if not _factor_inverse(G, K, Tinv, T, piv, nd):
+        return math.nan
+    _state(G, q0, ylin, H, K, Tinv, q, y, nd, nb)
+    best = 0.0
+    for b in range(nb):
+        best = max(best, abs(y[b]))
+    for sweep in range(max_sweeps):
+        old = best
+        for j in range(nd):
+            d0, d1 = _coefficients(G, ylin, H, K, Tinv, q, y, j, u, alpha, beta, nd, nb)
+            val, z = _best_on_rectangle(alpha, beta, d0, d1, kr, ki, want_max, K[j], nb,
+                                        max(1e-9, min(1e-4, 100.0 * tol)))
+            delta = z - K[j]
+            if delta == 0.0:
+                continue
+            # Sherman-Morrison update of Tinv, q and y for K_j -> z
+            fac = delta / (1.0 + delta * u[j])
+            qj = q[j]
+            for i in range(nd):
+                q[i] -= fac * u[i] * qj
+            for m in range(nd):
+                rowj[m] = Tinv[j, m]
+            for i in range(nd):
+                ui = fac * u[i]
+                for m in range(nd):
+                    Tinv[i, m] -= ui * rowj[m]
+            K[j] = z
+            for b in range(nb):
+                y[b] = (alpha[b] + beta[b] * z) / (d0 + d1 * z)
+            best = val
+        # refresh the inverse: Sherman-Morrison updates accumulate rounding
+        if not _factor_inverse(G, K, Tinv, T, piv, nd):
+            return math.nan
+        _state(G, q0, ylin, H, K, Tinv, q, y, nd, nb)
+        best = 0.0
+        for b in range(nb):
+            best = max(best, abs(y[b]))
+        if abs(best - old) <= tol * max(best, old):
+            break
+    return best
+
+
+@jit
+def _smooth_max(G, q0, ylin, H, K, mu, grad, w):
+    """``mu log sum_b exp(log|y_b| / mu)`` (a smooth max of log|y_b|) and its gradient
+    with respect to (Re K_j, Im K_j), stored as ``grad[j] = d/dRe + i d/dIm``.
+    Returns (value, log M); value = inf if the system is singular."""
+    Tinv, T, piv, q, y, u, alpha, beta, rowj, r = w
+    nd = K.shape[0]
+    nb = ylin.shape[0]
+    for i in range(nd):
+        for j in range(nd):
+            T[i, j] = G[i, j] * K[j]
+        T[i, i] += 1.0
+        q[i] = q0[i]
+    if lu_factor(T, piv, nd) != 0:
+        return math.inf, math.inf
+    lu_solve(T, piv, q, nd)
+    lmax = -math.inf
+    for b in range(nb):
+        acc = ylin[b]
+        for m in range(nd):
+            acc -= H[b, m] * K[m] * q[m]
+        y[b] = acc
+        lmax = max(lmax, 0.5 * math.log(max(acc.real * acc.real + acc.imag * acc.imag,
+                                            _TINY)))
+    if not math.isfinite(lmax):
+        return math.inf, math.inf
+    tot = 0.0
+    for b in range(nb):
+        yb = y[b]
+        tot += math.exp((0.5 * math.log(max(yb.real * yb.real + yb.imag * yb.imag, _TINY))
+                         - lmax) / mu)
+    val = lmax + mu * math.log(tot)
+    # v_b = w_b / y_b with softmax weights w_b; r = v^T H; g_j = -q_j (r_j - (s^T G)_j)
+    # where T^T s = r o K (adjoint solve; G symmetric, T^T = I + diag(K) G)
+    for m in range(nd):
+        r[m] = 0.0j
+    for b in range(nb):
+        yb = y[b]
+        a2 = max(yb.real * yb.real + yb.imag * yb.imag, _TINY)   # an exact zero (undriven beam)
+        wb = math.exp((0.5 * math.log(a2) - lmax) / mu) / tot
+        vb = wb * yb.conjugate() / a2
+        for m in range(nd):
+            r[m] += vb * H[b, m]
+    # solve (I + diag(K) G) s = r o K by the transpose of the LU of I + G diag(K)
+    for m in range(nd):
+        u[m] = r[m] * K[m]
+    _lu_solve_transposed(T, piv, u, nd)
+    for j in range(nd):
+        sg = 0.0j
+        for m in range(nd):
+            sg += u[m] * G[m, j]
+        gj = -q[j] * (r[j] - sg)      # d(sum w_b log|y_b|)/dK_j as a complex derivative
+        grad[j] = complex(gj.real, -gj.imag)
+    return val, lmax
+
+
+@jit
+def _lu_solve_transposed(A, piv, b, n):
+    """Solve ``A^T x = b`` in place with the factors of :func:`lu_factor` (P A = L U)."""
+    # A^T = U^T L^T P: solve U^T z = b, L^T v = z, then x = P^T v
+    for i in range(n):
+        acc = b[i]
+        for j in range(i):
+            acc -= A[j, i] * b[j]
+        b[i] = acc / A[i, i]
+    for i in range(n - 1, -1, -1):
+        acc = b[i]
+        for j in range(i + 1, n):
+            acc -= A[j, i] * b[j]
+        b[i] = acc
+    for k in range(n - 1, -1, -1):
+        p = piv[k]
+        if p != k:
+            t = b[k]
+            b[k] = b[p]
+            b[p] = t
+
+
+@jit
+def _spg_min(G, q0, ylin, H, kr, ki, K, w):
+    """Spectral projected gradient on a smoothed max, for the minimum of M.
+
+    Coordinate descent on a maximum of several ``|y_b|`` can stall where beams are equal
+    (a joint move of several dampers would still descend); the smoothed max has no such
+    ridges. The smoothing ``mu`` is reduced in stages. Returns M at the final ``K``.
+    """
+    nd = K.shape[0]
+    g = np.zeros(nd, dtype=np.complex128)
+    g_old = np.zeros(nd, dtype=np.complex128)
+    x = np.zeros(nd, dtype=np.complex128)      # K scaled to the unit box
+    x_old = np.zeros(nd, dtype=np.complex128)
+    xt = np.zeros(nd, dtype=np.complex128)
+    Kt = np.zeros(nd, dtype=np.complex128)
+    d = np.zeros(nd, dtype=np.complex128)
+    gt = np.zeros(nd, dtype=np.complex128)
+    for j in range(nd):
+        x[j] = complex(K[j].real / kr, K[j].imag / ki)
+    for mu in (0.05, 0.01, 0.002):
+        for j in range(nd):
+            K[j] = complex(kr * x[j].real, ki * x[j].imag)
+        f, _ = _smooth_max(G, q0, ylin, H, K, mu, g, w)
+        if not math.isfinite(f):
+            break
+        for j in range(nd):
+            g[j] = complex(g[j].real * kr, g[j].imag * ki)
+        alpha = 0.1
+        for it in range(60):
+            gd = 0.0
+            for j in range(nd):
+                v = x[j] - alpha * g[j]
+                v = complex(min(max(v.real, 0.0), 1.0), min(max(v.imag, 0.0), 1.0))
+                d[j] = v - x[j]
+                gd += g[j].real * d[j].real + g[j].imag * d[j].imag
+            if gd >= -1e-14:
+                break
+            lam = 1.0
+            ok = False
+            for _ in range(20):
+                for j in range(nd):
+                    xt[j] = x[j] + lam * d[j]
+                    Kt[j] = complex(kr * xt[j].real, ki * xt[j].imag)
+                ft, _ = _smooth_max(G, q0, ylin, H, Kt, mu, gt, w)
+                if ft <= f + 1e-4 * lam * gd:
+                    ok = True
+                    break
+                lam *= 0.5
+            if not ok:
+                break
+            ss = 0.0
+            sy = 0.0
+            for j in range(nd):
+                gt[j] = complex(gt[j].real * kr, gt[j].imag * ki)
+                sj = xt[j] - x[j]
+                yj = gt[j] - g[j]
+                ss += sj.real * sj.real + sj.imag * sj.imag
+                sy += sj.real * yj.real + sj.imag * yj.imag
+                x[j] = xt[j]
+                g[j] = gt[j]
+            f = ft
+            alpha = min(max(ss / sy, 1e-6), 10.0) if sy > 0.0 else 1.0
+    for j in range(nd):
+        K[j] = complex(kr * x[j].real, ki * x[j].imag)
+    _, lm = _smooth_max(G, q0, ylin, H, K, 1.0, g, w)
+    return math.exp(lm)
+
+
+@jit
+def _workspace(nd, nb):
+    c16 = np.complex128
+    return (np.zeros((nd, nd), c16), np.zeros((nd, nd), c16), np.zeros(nd, np.int64),
+            np.zeros(nd, c16), np.zeros(nb, c16), np.zeros(nd, c16), np.zeros(nb, c16),
+            np.zeros(nb, c16), np.zeros(nd, c16), np.zeros(nd, c16))
+
+
+@jit
+def _improve(G, q0, ylin, H, kr, ki, K, want_max, max_sweeps, tol, w):
+    """One local search: coordinate search; for the minimum also the smoothed-gradient
+    descent and a second coordinate search from where it ends."""
+    v = _search(G, q0, ylin, H, kr, ki, K, want_max, max_sweeps, tol, w)
+    if want_max or not math.isfinite(v):
+        return v
+    nd = K.shape[0]
+    K2 = K.copy()
+    v2 = _spg_min(G, q0, ylin, H, kr, ki, K2, w)
+    if math.isfinite(v2):
+        v2 = _search(G, q0, ylin, H, kr, ki, K2, False, max_sweeps, tol, w)
+        if v2 < v:
+            for j in range(nd):
+                K[j] = K2[j]
+            v = v2
+    return v
+
+
+@jit(parallel=True, nogil=True)
+def _multistart(G, q0, ylin, H, kr, ki, starts, want_max, max_sweeps, tol, best, K_best):
+    """Phase 1: coordinate search from every start at every frequency (in parallel)."""
+    n_f, nd = q0.shape
+    nb = ylin.shape[1]
+    for k in prange(n_f):
+        w = _workspace(nd, nb)
+        K = np.zeros(nd, dtype=np.complex128)
+        bv = math.nan
+        for s in range(starts.shape[0]):
+            for j in range(nd):
+                K[j] = complex(kr * starts[s, j].real, ki * starts[s, j].imag)
+            v = _search(G[k], q0[k], ylin[k], H[k], kr, ki, K, want_max, max_sweeps, tol, w)
+            if math.isfinite(v) and (math.isnan(bv) or ((v > bv) if want_max else (v < bv))):
+                bv = v
+                for j in range(nd):
+                    K_best[k, j] = K[j]
+        best[k] = bv
+
+
+@jit(parallel=True, nogil=True)
+def _propagate(G, q0, ylin, H, kr, ki, want_max, max_sweeps, tol, best, K_best,
+               cand, K_cand):
+    """Phase 2: continuation along frequency, upward (d = 0) and downward (d = 1) in
+    parallel; each frequency starts from the neighbour's best and keeps what improves."""
+    n_f, nd = q0.shape
+    nb = ylin.shape[1]
+    for d in prange(2):
+        w = _workspace(nd, nb)
+        K = np.zeros(nd, dtype=np.complex128)
+        for i in range(n_f):
+            k = i if d == 0 else n_f - 1 - i
+            cand[d, k] = best[k]
+            for j in range(nd):
+                K_cand[d, k, j] = K_best[k, j]
+            if i == 0:
+                continue
+            kp = k - 1 if d == 0 else k + 1
+            if math.isnan(cand[d, kp]):
+                continue
+            for j in range(nd):
+                K[j] = K_cand[d, kp, j]
+            v = _improve(G[k], q0[k], ylin[k], H[k], kr, ki, K, want_max, max_sweeps, tol, w)
+            if math.isfinite(v) and (math.isnan(cand[d, k]) or
+                                     ((v > cand[d, k]) if want_max else (v < cand[d, k]))):
+                cand[d, k] = v
+                for j in range(nd):
+                    K_cand[d, k, j] = K[j]
+
+
+@jit(parallel=True, nogil=True)
+def _polish(G, q0, ylin, H, kr, ki, want_max, max_sweeps, tol, best, K_best):
+    """Phase 3: a tight local search from the best point of every frequency."""
+    n_f, nd = q0.shape
+    nb = ylin.shape[1]
+    for k in prange(n_f):
+        if math.isnan(best[k]):
+            continue
+        w = _workspace(nd, nb)
+        K = np.empty(nd, dtype=np.complex128)
+        for j in range(nd):
+            K[j] = K_best[k, j]
+        v = _improve(G[k], q0[k], ylin[k], H[k], kr, ki, K, want_max, max_sweeps, tol, w)
+        if math.isfinite(v) and ((v >= best[k]) if want_max else (v <= best[k])):
+            best[k] = v
+            for j in range(nd):
+                K_best[k, j] = K[j]
+
+
+#: Exploration (multistart, continuation) stops sweeps at this relative change; the final
+#: polish at POLISH_TOL, so that members touching a bound are not cut off by rounding.
+EXPLORE_TOL = 1e-6
+POLISH_TOL = 1e-13
+
+
+def box_extreme(G, q0, ylin, H, kr, ki, starts, want_max, max_sweeps=20, rounds=2):
+    """Max (``want_max``) or min of ``M = max_b |y_b|`` over the box at every frequency.
+
+    Parameters
+    ----------
+    G : ndarray of complex, shape (n_f, nd, nd)
+        ``B D11 B^T``, m/N.
+    q0 : ndarray of complex, shape (n_f, nd)
+        Relative contact displacement of the uncoupled array, m.
+    ylin : ndarray of complex, shape (n_f, nb)
+        Uncoupled output displacement of the beams in the metric, m.
+    H : ndarray of complex, shape (n_f, nb, nd)
+        Output displacement per unit damper force, m/N.
+    kr, ki : float
+        Box limits of Re K and Im K, N/m.
+    starts : ndarray of complex, shape (n_start, nd)
+        Starting points in normalised box coordinates (``Re, Im in [0, 1]``), used at
+        every frequency.
+    want_max : bool
+    max_sweeps : int
+        Coordinate sweeps per local search.
+    rounds : int
+        Upward-and-downward continuation passes (stops early when nothing improves).
+
+    Returns
+    -------
+    best : ndarray, shape (n_f,)
+        The extreme M found, m (NaN where every start failed).
+    K_best : ndarray of complex, shape (n_f, nd)
+        Describing functions reaching it, N/m.
+    """
+    n_f, nd = q0.shape
+    best = np.full(n_f, np.nan)
+    K_best = np.zeros((n_f, nd), complex)
+    tol = EXPLORE_TOL
+    _multistart(G, q0, ylin, H, kr, ki, starts, want_max, max_sweeps, tol, best, K_best)
+    cand = np.empty((2, n_f))
+    K_cand = np.empty((2, n_f, nd), complex)
+    pick = np.nanargmax if want_max else np.nanargmin
+    for _ in range(rounds):
+        _propagate(G, q0, ylin, H, kr, ki, want_max, max_sweeps, tol, best, K_best,
+                   cand, K_cand)
+        allnan = np.all(np.isnan(cand), axis=0)
+        d = pick(np.where(allnan[None, :], 0.0, cand), axis=0)
+        new = np.where(allnan, np.nan, cand[d, np.arange(n_f)])
+        better = (new > best) if want_max else (new < best)
+        better &= np.isfinite(new)
+        if not better.any() and not np.isnan(best).any():
+            break
+        improved = better | (np.isnan(best) & np.isfinite(new))
+        best = np.where(improved, new, best)
+        K_best[improved] = K_cand[d[improved], np.arange(n_f)[improved]]
+        if not better.any():
+            break
+    _polish(G, q0, ylin, H, kr, ki, want_max, 5 * max_sweeps, POLISH_TOL, best, K_best)
+    return best, K_best
