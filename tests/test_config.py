@@ -148,6 +148,8 @@ def test_validate_without_defaults_reports_missing_keys():
 
 
 def test_every_toml_example_in_the_readme_is_valid():
+    """Every plain ```toml block of the README is a run configuration and must validate;
+    TOML that is not one (e.g. a modal-table file) uses an info string: ```toml table-file."""
     from pathlib import Path
 
     root = Path(__file__).resolve().parents[1]
