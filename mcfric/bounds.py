@@ -9,10 +9,14 @@ complex number in the admissible region
 
 At each frequency the bounds on the metric ``M = max_b |y_b|`` are
 
-* upper = min(maximum of M over the box, force bound of Eq. 10), and ``limited_by``
-  records which of the two is smaller;
-* lower = minimum of M over the box (the force constraint only removes points, so the box
-  minimum stays a valid lower bound).
+* upper: each beam's response is bounded by the smaller of its maximum over the box and
+  its force bound (Eq. 10: every damper at the force limit with the worst phase); M by the
+  largest of these. This is never above the paper's min(box maximum of M, force bound of
+  M) and equally valid. ``limited_by`` records whether the force limit or the box sets
+  it. Where a beam reaches its force bound the box search for it stops (the box can no
+  longer matter), which also saves most of the work at high forcing;
+* lower: the minimum of M over the box (the force constraint only removes points, so the
+  box minimum stays a valid lower bound).
 
 Every Coulomb damper with ``kc <= k_max``, ``mu0 <= mu_max`` and ``N0 <= N0_max`` is
 admissible (``Re K <= kc``, ``Im K <= kc / pi``, ``|K| A <= (4/pi) mu0 N0``), so every
@@ -38,7 +42,11 @@ from .model import Model
 
 #: ``limited_by`` codes: which constraint sets the upper bound.
 LIMITED_BY = ("box", "force")
-N_STARTS = 8
+N_STARTS = 12
+#: Starts over the whole frequency grid at least: the continuation along frequency shares
+#: what the starts find, so a coarse grid gets more starts per frequency (the total effort
+#: stays about that of a 1000-point grid).
+MIN_TOTAL_STARTS = 12000
 MAX_SWEEPS = 20
 
 
@@ -52,8 +60,11 @@ class Bounds:
     upper, lower : ndarray, shape (n_f,)
         Bounds on ``M`` in the metric's unit (m, m/s or m/s^2). NaN where the search
         failed (a singular linear system: counted in :meth:`summary`).
-    upper_box, upper_force : ndarray, shape (n_f,)
-        The two candidates of the upper bound.
+    upper_box : ndarray, shape (n_f,)
+        Largest box value found over the beams. Where a beam reached its force bound the
+        search stopped there, so it is then only known to be at least that.
+    upper_force : ndarray, shape (n_f,)
+        Force bound of M (Eq. 10, largest over the beams).
     limited_by : ndarray of int8, shape (n_f,)
         0 where the box sets the upper bound, 1 where the force saturation does.
     K_upper, K_lower : ndarray of complex, shape (n_f, nd)
@@ -131,7 +142,9 @@ def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity
     beams : sequence of int, optional
         0-based beams of the metric; default all.
     n_starts : int
-        Starts of each search (max and min) per frequency.
+        Starts of the search for the minimum per frequency (at least
+        ``MIN_TOTAL_STARTS / n_f``); the maximum, sought beam by beam, uses half as many
+        per beam.
     max_sweeps : int
         Coordinate sweeps per start.
     seed : int
@@ -163,41 +176,56 @@ def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity
     sel = list(beams)
     ylin = np.ascontiguousarray(ylin[:, sel])
     H = np.ascontiguousarray(H[:, sel, :])
-    starts_max, starts_min = _starts(model.n_dampers, n_starts, seed)
+    n_starts = max(int(n_starts), -(-MIN_TOTAL_STARTS // len(f)))
+    # the maximum runs once per beam (each a smoother problem): half the starts each
+    starts_max, _ = _starts(len(f), model.n_dampers, max(1, n_starts // 2), seed)
+    _, starts_min = _starts(len(f), model.n_dampers, n_starts, seed + 1)
     G = np.ascontiguousarray(G)
     q0 = np.ascontiguousarray(q0)
+    # Eq. 10 on the output of each beam: every damper at the force limit, worst phases
+    force_beam = np.abs(ylin) + F_lim * np.abs(H).sum(axis=2)          # (n_f, nb)
     with threads(n_threads):
-        upper_box, K_upper = box_extreme(G, q0, ylin, H, kr, ki, starts_max, True,
-                                         int(max_sweeps))
+        box_beam, K_beam = box_extreme(G, q0, ylin, H, kr, ki, starts_max, True,
+                                       cap=force_beam, max_sweeps=int(max_sweeps))
         lower, K_lower = box_extreme(G, q0, ylin, H, kr, ki, starts_min, False,
-                                     int(max_sweeps))
-    # Eq. 10 on the output: every damper at the force limit with the worst phase
-    upper_force = (np.abs(ylin) + F_lim * np.abs(H).sum(axis=2)).max(axis=1)
-    limited_by = (upper_force < upper_box).astype(np.int8)
-    upper = np.minimum(upper_box, upper_force)
-    upper = np.where(np.isnan(upper_box), np.nan, upper)
+                                     max_sweeps=int(max_sweeps))
+    lower, K_lower = lower[0], K_lower[0]
+    # each beam is bounded by the smaller of its box maximum and its force bound; M by
+    # the largest of these (never above the paper's min(box max of M, force bound of M))
+    per_beam = np.fmin(box_beam.T, force_beam)                          # (n_f, nb)
+    failed = np.isnan(box_beam).all(axis=0)
+    b_star = np.argmax(np.where(np.isnan(per_beam), -np.inf, per_beam), axis=1)
+    idx = np.arange(len(f))
+    upper = np.where(failed, np.nan, per_beam[idx, b_star])
+    upper_box = np.where(failed, np.nan, np.nanmax(np.where(np.isnan(box_beam), -np.inf,
+                                                            box_beam), axis=0))
+    upper_force = force_beam.max(axis=1)
+    limited_by = (force_beam[idx, b_star] <= box_beam[b_star, idx]).astype(np.int8)
+    K_upper = K_beam[b_star, idx]
     scale = omega ** QUANTITIES.index(quantity)
     return Bounds(f, upper * scale, lower * scale, upper_box * scale, upper_force * scale,
                   limited_by, K_upper, K_lower, kr, ki, F_lim, quantity, beams)
 
 
-def _starts(nd, n_starts, seed):
-    """Starting points in normalised box coordinates, the same at every frequency.
+def _starts(n_f, nd, n_starts, seed):
+    """Starting points in normalised box coordinates, shape (n_f, n_starts, nd) each.
 
     Max: the four uniform corners, then random corners (the box maximum lies on the
     perimeter of every damper's rectangle). Min: the uniform corners and the centre,
-    then random interior points and random corners.
+    then random interior points and corners. The random starts differ from frequency to
+    frequency; the continuation along frequency shares what each of them finds.
     """
     rng = np.random.default_rng(seed)
     corners = np.array([0, 1, 1 + 1j, 1j])
-    uniform = np.repeat(corners[:, None], nd, axis=1)
+    uniform = np.broadcast_to(corners[None, :, None], (n_f, 4, nd))
     n_rand = max(n_starts - 4, 0)
-    rand_corners = corners[rng.integers(0, 4, size=(n_rand, nd))]
-    starts_max = np.concatenate([uniform, rand_corners])[:n_starts]
-    centre = np.full((1, nd), 0.5 + 0.5j)
+    starts_max = np.concatenate([uniform, corners[rng.integers(0, 4, (n_f, n_rand, nd))]],
+                                axis=1)[:, :n_starts]
+    centre = np.full((n_f, 1, nd), 0.5 + 0.5j)
     n_int = n_rand // 2
-    interior = rng.uniform(0, 1, (n_int, nd)) + 1j * rng.uniform(0, 1, (n_int, nd))
+    interior = rng.uniform(0, 1, (n_f, n_int, nd)) + 1j * rng.uniform(0, 1, (n_f, n_int, nd))
     starts_min = np.concatenate([uniform, centre, interior,
-                                 corners[rng.integers(0, 4, size=(n_rand - n_int, nd))]])
+                                 corners[rng.integers(0, 4, (n_f, n_rand - n_int, nd))]],
+                                axis=1)[:, :n_starts]
     return (np.ascontiguousarray(starts_max, dtype=complex),
-            np.ascontiguousarray(starts_min[:n_starts], dtype=complex))
+            np.ascontiguousarray(starts_min, dtype=complex))

@@ -97,11 +97,11 @@ def _coefficients(G, ylin, H, K, Tinv, q, y, j, u, alpha, beta, nd, nb):
 
 
 @inline_jit
-def _metric(alpha, beta, d0, d1, z, nb):
-    """``max_b |alpha_b + beta_b z| / |d0 + d1 z|``."""
+def _metric(alpha, beta, d0, d1, z, b0, b1):
+    """``max_b |alpha_b + beta_b z| / |d0 + d1 z|`` over the objective's beams b0..b1-1."""
     den = d0 + d1 * z
     m = 0.0
-    for b in range(nb):
+    for b in range(b0, b1):
         v = alpha[b] + beta[b] * z
         m = max(m, v.real * v.real + v.imag * v.imag)
     return math.sqrt(m / (den.real * den.real + den.imag * den.imag))
@@ -125,7 +125,7 @@ def _quad_roots(a, b, c):
 
 
 @inline_jit
-def _edge_candidates(alpha, beta, d0, d1, z0, z1, want_max, nb, best_val, best_z, pair):
+def _edge_candidates(alpha, beta, d0, d1, z0, z1, want_max, b0, b1, best_val, best_z, pair):
     """Best ``M`` on the segment ``z0 -> z1``, exactly (see module docstring).
 
     Updates and returns (best_val, best_z). ``pair``: also try pairwise crossings
@@ -137,7 +137,7 @@ def _edge_candidates(alpha, beta, d0, d1, z0, z1, want_max, nb, best_val, best_z
     c0 = den0.real * den0.real + den0.imag * den0.imag
     c1 = 2.0 * (den0.real * den1.real + den0.imag * den1.imag)
     c2 = den1.real * den1.real + den1.imag * den1.imag
-    for b in range(nb):
+    for b in range(b0, b1):
         A = alpha[b] + beta[b] * z0
         B = beta[b] * dz
         a0 = A.real * A.real + A.imag * A.imag
@@ -147,13 +147,21 @@ def _edge_candidates(alpha, beta, d0, d1, z0, z1, want_max, nb, best_val, best_z
         r1, r2 = _quad_roots(a2 * c1 - a1 * c2, 2.0 * (a2 * c0 - a0 * c2), a1 * c0 - a0 * c1)
         for t in (r1, r2):
             if t > 0.0 and t < 1.0:
+                if want_max:
+                    # the edge maximum of M is the largest of each beam's own maximum:
+                    # beam b's candidates need only |y_b|
+                    v = math.sqrt((a0 + t * (a1 + t * a2)) / (c0 + t * (c1 + t * c2)))
+                    if v > best_val:
+                        best_val = v
+                        best_z = z0 + t * dz
+                    continue
                 z = z0 + t * dz
-                v = _metric(alpha, beta, d0, d1, z, nb)
-                if (v > best_val) if want_max else (v < best_val):
+                v = _metric(alpha, beta, d0, d1, z, b0, b1)
+                if v < best_val:
                     best_val = v
                     best_z = z
         if pair:
-            for c in range(b + 1, nb):
+            for c in range(b + 1, b1):
                 Ac = alpha[c] + beta[c] * z0
                 Bc = beta[c] * dz
                 e0 = Ac.real * Ac.real + Ac.imag * Ac.imag - a0
@@ -163,7 +171,7 @@ def _edge_candidates(alpha, beta, d0, d1, z0, z1, want_max, nb, best_val, best_z
                 for t in (s1, s2):
                     if t > 0.0 and t < 1.0:
                         z = z0 + t * dz
-                        v = _metric(alpha, beta, d0, d1, z, nb)
+                        v = _metric(alpha, beta, d0, d1, z, b0, b1)
                         if v < best_val:
                             best_val = v
                             best_z = z
@@ -171,28 +179,28 @@ def _edge_candidates(alpha, beta, d0, d1, z0, z1, want_max, nb, best_val, best_z
 
 
 @inline_jit
-def _best_on_rectangle(alpha, beta, d0, d1, kr, ki, want_max, z_now, nb, ptol):
+def _best_on_rectangle(alpha, beta, d0, d1, kr, ki, want_max, z_now, b0, b1, ptol):
     """Exact extreme of ``M`` over the perimeter of ``[0, kr] x [0, ki]`` (and, for the
     minimum, the interior by a pattern search). Never worse than ``z_now``."""
     best_z = z_now
-    best_val = _metric(alpha, beta, d0, d1, z_now, nb)
+    best_val = _metric(alpha, beta, d0, d1, z_now, b0, b1)
     corners = (0.0j, complex(kr, 0.0), complex(kr, ki), complex(0.0, ki))
     for c in range(4):
         z = corners[c]
-        v = _metric(alpha, beta, d0, d1, z, nb)
+        v = _metric(alpha, beta, d0, d1, z, b0, b1)
         if (v > best_val) if want_max else (v < best_val):
             best_val = v
             best_z = z
     for c in range(4):
         best_val, best_z = _edge_candidates(alpha, beta, d0, d1, corners[c],
-                                            corners[(c + 1) % 4], want_max, nb,
+                                            corners[(c + 1) % 4], want_max, b0, b1,
                                             best_val, best_z, not want_max)
-    if want_max:
+    if want_max or ptol <= 0.0:
         return best_val, best_z
     # interior: pattern search (8 directions) from the best of the centre and the
     # candidates so far; no spurious interior minimum exists (convex in w)
     zc = complex(0.5 * kr, 0.5 * ki)
-    vc = _metric(alpha, beta, d0, d1, zc, nb)
+    vc = _metric(alpha, beta, d0, d1, zc, b0, b1)
     x, yv, v = best_z.real, best_z.imag, best_val
     if vc < v:
         x, yv, v = zc.real, zc.imag, vc
@@ -204,7 +212,7 @@ def _best_on_rectangle(alpha, beta, d0, d1, kr, ki, want_max, z_now, nb, ptol):
                          (1.0, 1.0), (-1.0, -1.0), (1.0, -1.0), (-1.0, 1.0)):
             xn = min(max(x + dxs * hx, 0.0), kr)
             yn = min(max(yv + dys * hy, 0.0), ki)
-            vn = _metric(alpha, beta, d0, d1, complex(xn, yn), nb)
+            vn = _metric(alpha, beta, d0, d1, complex(xn, yn), b0, b1)
             if vn < v:
                 x, yv, v = xn, yn, vn
                 moved = True
@@ -220,9 +228,21 @@ def _best_on_rectangle(alpha, beta, d0, d1, kr, ki, want_max, z_now, nb, ptol):
     return best_val, best_z
 
 
+@inline_jit
+def _objective(y, b0, b1):
+    """``max |y_b|`` over beams b0..b1-1; NaN if any is NaN (never a silent 0)."""
+    m = 0.0
+    for b in range(b0, b1):
+        v = abs(y[b])
+        if not (v <= m):
+            m = v
+    return m
+
+
 @jit
-def _search(G, q0, ylin, H, kr, ki, K, want_max, max_sweeps, tol, w):
-    """Coordinate search from the describing functions in ``K`` (N/m). Returns M.
+def _search(G, q0, ylin, H, kr, ki, K, want_max, b0, b1, max_sweeps, tol, w):
+    """Coordinate search from the describing functions in ``K`` (N/m) for the extreme of
+    ``max |y_b|`` over the beams ``b0 .. b1 - 1``. Returns that value.
 
     Each step replaces one ``K_j`` by the best point of its rectangle (exact, see the
     module docstring), so M never gets worse; sweeps stop when a whole sweep changes M by
@@ -235,15 +255,15 @@ def _search(G, q0, ylin, H, kr, ki, K, want_max, max_sweeps, tol, w):
     if not _factor_inverse(G, K, Tinv, T, piv, nd):
         return math.nan
     _state(G, q0, ylin, H, K, Tinv, q, y, nd, nb)
-    best = 0.0
-    for b in range(nb):
-        best = max(best, abs(y[b]))
+    best = _objective(y, b0, b1)
     for sweep in range(max_sweeps):
         old = best
         for j in range(nd):
             d0, d1 = _coefficients(G, ylin, H, K, Tinv, q, y, j, u, alpha, beta, nd, nb)
-            val, z = _best_on_rectangle(alpha, beta, d0, d1, kr, ki, want_max, K[j], nb,
-                                        max(1e-9, min(1e-4, 100.0 * tol)))
+            # the interior pattern search only in tight searches (exploring relies on
+            # the edges and on the smoothed-gradient polish)
+            val, z = _best_on_rectangle(alpha, beta, d0, d1, kr, ki, want_max, K[j], b0, b1,
+                                        1e-9 if tol < 1e-9 else 0.0)
             delta = z - K[j]
             if delta == 0.0:
                 continue
@@ -266,16 +286,14 @@ def _search(G, q0, ylin, H, kr, ki, K, want_max, max_sweeps, tol, w):
         if not _factor_inverse(G, K, Tinv, T, piv, nd):
             return math.nan
         _state(G, q0, ylin, H, K, Tinv, q, y, nd, nb)
-        best = 0.0
-        for b in range(nb):
-            best = max(best, abs(y[b]))
+        best = _objective(y, b0, b1)
         if abs(best - old) <= tol * max(best, old):
             break
     return best
 
 
 @jit
-def _smooth_max(G, q0, ylin, H, K, mu, grad, w):
+def _smooth_max(G, q0, ylin, H, K, mu, b0, b1, grad, w):
     """``mu log sum_b exp(log|y_b| / mu)`` (a smooth max of log|y_b|) and its gradient
     with respect to (Re K_j, Im K_j), stored as ``grad[j] = d/dRe + i d/dIm``.
     Returns (value, log M); value = inf if the system is singular."""
@@ -291,7 +309,7 @@ def _smooth_max(G, q0, ylin, H, K, mu, grad, w):
         return math.inf, math.inf
     lu_solve(T, piv, q, nd)
     lmax = -math.inf
-    for b in range(nb):
+    for b in range(b0, b1):
         acc = ylin[b]
         for m in range(nd):
             acc -= H[b, m] * K[m] * q[m]
@@ -301,7 +319,7 @@ def _smooth_max(G, q0, ylin, H, K, mu, grad, w):
     if not math.isfinite(lmax):
         return math.inf, math.inf
     tot = 0.0
-    for b in range(nb):
+    for b in range(b0, b1):
         yb = y[b]
         tot += math.exp((0.5 * math.log(max(yb.real * yb.real + yb.imag * yb.imag, _TINY))
                          - lmax) / mu)
@@ -310,7 +328,7 @@ def _smooth_max(G, q0, ylin, H, K, mu, grad, w):
     # where T^T s = r o K (adjoint solve; G symmetric, T^T = I + diag(K) G)
     for m in range(nd):
         r[m] = 0.0j
-    for b in range(nb):
+    for b in range(b0, b1):
         yb = y[b]
         a2 = max(yb.real * yb.real + yb.imag * yb.imag, _TINY)   # an exact zero (undriven beam)
         wb = math.exp((0.5 * math.log(a2) - lmax) / mu) / tot
@@ -353,12 +371,14 @@ def _lu_solve_transposed(A, piv, b, n):
 
 
 @jit
-def _spg_min(G, q0, ylin, H, kr, ki, K, w):
-    """Spectral projected gradient on a smoothed max, for the minimum of M.
+def _spg(G, q0, ylin, H, kr, ki, K, sign, b0, b1, w):
+    """Spectral projected gradient on ``sign`` times a smoothed max of ``log|y_b|``
+    (sign = 1: the minimum of M; sign = -1: the maximum).
 
-    Coordinate descent on a maximum of several ``|y_b|`` can stall where beams are equal
-    (a joint move of several dampers would still descend); the smoothed max has no such
-    ridges. The smoothing ``mu`` is reduced in stages. Returns M at the final ``K``.
+    Coordinate searches move one damper at a time: they stall where beams are equal (a
+    ridge of the minimum) and crawl along resonance ridges, where the best direction
+    moves several dampers together (the maximum). A joint gradient step does not. The
+    smoothing ``mu`` is reduced in stages. Returns M at the final ``K``.
     """
     nd = K.shape[0]
     g = np.zeros(nd, dtype=np.complex128)
@@ -371,16 +391,17 @@ def _spg_min(G, q0, ylin, H, kr, ki, K, w):
     gt = np.zeros(nd, dtype=np.complex128)
     for j in range(nd):
         x[j] = complex(K[j].real / kr, K[j].imag / ki)
-    for mu in (0.05, 0.01, 0.002):
+    for mu in (0.01, 0.002):
         for j in range(nd):
             K[j] = complex(kr * x[j].real, ki * x[j].imag)
-        f, _ = _smooth_max(G, q0, ylin, H, K, mu, g, w)
+        f, _ = _smooth_max(G, q0, ylin, H, K, mu, b0, b1, g, w)
         if not math.isfinite(f):
             break
+        f *= sign
         for j in range(nd):
-            g[j] = complex(g[j].real * kr, g[j].imag * ki)
+            g[j] = complex(sign * g[j].real * kr, sign * g[j].imag * ki)
         alpha = 0.1
-        for it in range(60):
+        for it in range(40):
             gd = 0.0
             for j in range(nd):
                 v = x[j] - alpha * g[j]
@@ -395,7 +416,8 @@ def _spg_min(G, q0, ylin, H, kr, ki, K, w):
                 for j in range(nd):
                     xt[j] = x[j] + lam * d[j]
                     Kt[j] = complex(kr * xt[j].real, ki * xt[j].imag)
-                ft, _ = _smooth_max(G, q0, ylin, H, Kt, mu, gt, w)
+                ft, _ = _smooth_max(G, q0, ylin, H, Kt, mu, b0, b1, gt, w)
+                ft *= sign
                 if ft <= f + 1e-4 * lam * gd:
                     ok = True
                     break
@@ -405,7 +427,7 @@ def _spg_min(G, q0, ylin, H, kr, ki, K, w):
             ss = 0.0
             sy = 0.0
             for j in range(nd):
-                gt[j] = complex(gt[j].real * kr, gt[j].imag * ki)
+                gt[j] = complex(sign * gt[j].real * kr, sign * gt[j].imag * ki)
                 sj = xt[j] - x[j]
                 yj = gt[j] - g[j]
                 ss += sj.real * sj.real + sj.imag * sj.imag
@@ -416,7 +438,7 @@ def _spg_min(G, q0, ylin, H, kr, ki, K, w):
             alpha = min(max(ss / sy, 1e-6), 10.0) if sy > 0.0 else 1.0
     for j in range(nd):
         K[j] = complex(kr * x[j].real, ki * x[j].imag)
-    _, lm = _smooth_max(G, q0, ylin, H, K, 1.0, g, w)
+    _, lm = _smooth_max(G, q0, ylin, H, K, 1.0, b0, b1, g, w)
     return math.exp(lm)
 
 
@@ -428,48 +450,73 @@ def _workspace(nd, nb):
             np.zeros(nb, c16), np.zeros(nd, c16), np.zeros(nd, c16))
 
 
+@inline_jit
+def _beam_range(objective, nb):
+    """Objective -1: M = max over all beams; objective b >= 0: |y_b| alone."""
+    if objective < 0:
+        return 0, nb
+    return objective, objective + 1
+
+
 @jit
-def _improve(G, q0, ylin, H, kr, ki, K, want_max, max_sweeps, tol, w):
-    """One local search: coordinate search; for the minimum also the smoothed-gradient
-    descent and a second coordinate search from where it ends."""
-    v = _search(G, q0, ylin, H, kr, ki, K, want_max, max_sweeps, tol, w)
-    if want_max or not math.isfinite(v):
+def _improve(G, q0, ylin, H, kr, ki, K, want_max, objective, max_sweeps, tol, w):
+    """One local search: coordinate search, the smoothed-gradient search from where it
+    ends, and a second coordinate search from there; keeps the better end point."""
+    b0, b1 = _beam_range(objective, ylin.shape[0])
+    v = _search(G, q0, ylin, H, kr, ki, K, want_max, b0, b1, max_sweeps, tol, w)
+    if not math.isfinite(v):
         return v
     nd = K.shape[0]
     K2 = K.copy()
-    v2 = _spg_min(G, q0, ylin, H, kr, ki, K2, w)
+    v2 = _spg(G, q0, ylin, H, kr, ki, K2, -1.0 if want_max else 1.0, b0, b1, w)
     if math.isfinite(v2):
-        v2 = _search(G, q0, ylin, H, kr, ki, K2, False, max_sweeps, tol, w)
-        if v2 < v:
+        v2 = _search(G, q0, ylin, H, kr, ki, K2, want_max, b0, b1, max_sweeps, tol, w)
+        if (v2 > v) if want_max else (v2 < v):
             for j in range(nd):
                 K[j] = K2[j]
             v = v2
     return v
 
 
+@inline_jit
+def _better(v, ref, want_max):
+    """``v`` is finite and improves on ``ref`` (NaN ``ref``: nothing yet)."""
+    if not math.isfinite(v):
+        return False
+    if math.isnan(ref):
+        return True
+    return v > ref if want_max else v < ref
+
+
 @jit(parallel=True, nogil=True)
-def _multistart(G, q0, ylin, H, kr, ki, starts, want_max, max_sweeps, tol, best, K_best):
-    """Phase 1: coordinate search from every start at every frequency (in parallel)."""
+def _multistart(G, q0, ylin, H, kr, ki, starts, want_max, objectives, cap, max_sweeps, tol,
+                best, K_best):
+    """Phase 1: coordinate search from every start, for every objective, at every
+    frequency (in parallel over frequencies)."""
     n_f, nd = q0.shape
     nb = ylin.shape[1]
     for k in prange(n_f):
         w = _workspace(nd, nb)
         K = np.zeros(nd, dtype=np.complex128)
-        bv = math.nan
-        for s in range(starts.shape[0]):
-            for j in range(nd):
-                K[j] = complex(kr * starts[s, j].real, ki * starts[s, j].imag)
-            v = _search(G[k], q0[k], ylin[k], H[k], kr, ki, K, want_max, max_sweeps, tol, w)
-            if math.isfinite(v) and (math.isnan(bv) or ((v > bv) if want_max else (v < bv))):
-                bv = v
+        for o in range(objectives.shape[0]):
+            b0, b1 = _beam_range(objectives[o], nb)
+            best[o, k] = math.nan
+            for s in range(starts.shape[1]):
                 for j in range(nd):
-                    K_best[k, j] = K[j]
-        best[k] = bv
+                    K[j] = complex(kr * starts[k, s, j].real, ki * starts[k, s, j].imag)
+                v = _search(G[k], q0[k], ylin[k], H[k], kr, ki, K, want_max, b0, b1,
+                            max_sweeps, tol, w)
+                if _better(v, best[o, k], want_max):
+                    best[o, k] = v
+                    for j in range(nd):
+                        K_best[o, k, j] = K[j]
+                if want_max and best[o, k] >= cap[k, o]:
+                    break               # at the force limit: the box no longer matters
 
 
 @jit(parallel=True, nogil=True)
-def _propagate(G, q0, ylin, H, kr, ki, want_max, max_sweeps, tol, best, K_best,
-               cand, K_cand):
+def _propagate(G, q0, ylin, H, kr, ki, want_max, objectives, cap, max_sweeps, tol, best,
+               K_best, cand, K_cand):
     """Phase 2: continuation along frequency, upward (d = 0) and downward (d = 1) in
     parallel; each frequency starts from the neighbour's best and keeps what improves."""
     n_f, nd = q0.shape
@@ -477,43 +524,49 @@ def _propagate(G, q0, ylin, H, kr, ki, want_max, max_sweeps, tol, best, K_best,
     for d in prange(2):
         w = _workspace(nd, nb)
         K = np.zeros(nd, dtype=np.complex128)
-        for i in range(n_f):
-            k = i if d == 0 else n_f - 1 - i
-            cand[d, k] = best[k]
-            for j in range(nd):
-                K_cand[d, k, j] = K_best[k, j]
-            if i == 0:
-                continue
-            kp = k - 1 if d == 0 else k + 1
-            if math.isnan(cand[d, kp]):
-                continue
-            for j in range(nd):
-                K[j] = K_cand[d, kp, j]
-            v = _improve(G[k], q0[k], ylin[k], H[k], kr, ki, K, want_max, max_sweeps, tol, w)
-            if math.isfinite(v) and (math.isnan(cand[d, k]) or
-                                     ((v > cand[d, k]) if want_max else (v < cand[d, k]))):
-                cand[d, k] = v
+        for o in range(objectives.shape[0]):
+            for i in range(n_f):
+                k = i if d == 0 else n_f - 1 - i
+                cand[d, o, k] = best[o, k]
                 for j in range(nd):
-                    K_cand[d, k, j] = K[j]
+                    K_cand[d, o, k, j] = K_best[o, k, j]
+                if i == 0:
+                    continue
+                kp = k - 1 if d == 0 else k + 1
+                if math.isnan(cand[d, o, kp]):
+                    continue
+                for j in range(nd):
+                    K[j] = K_cand[d, o, kp, j]
+                if want_max and cand[d, o, k] >= cap[k, o]:
+                    continue            # already at the force limit: nothing to gain
+                v = _improve(G[k], q0[k], ylin[k], H[k], kr, ki, K, want_max, objectives[o],
+                             max_sweeps, tol, w)
+                if _better(v, cand[d, o, k], want_max):
+                    cand[d, o, k] = v
+                    for j in range(nd):
+                        K_cand[d, o, k, j] = K[j]
 
 
 @jit(parallel=True, nogil=True)
-def _polish(G, q0, ylin, H, kr, ki, want_max, max_sweeps, tol, best, K_best):
-    """Phase 3: a tight local search from the best point of every frequency."""
+def _polish(G, q0, ylin, H, kr, ki, want_max, objectives, cap, max_sweeps, tol, best,
+            K_best):
+    """Phase 3: a tight local search from the best point of every objective and frequency."""
     n_f, nd = q0.shape
     nb = ylin.shape[1]
     for k in prange(n_f):
-        if math.isnan(best[k]):
-            continue
         w = _workspace(nd, nb)
         K = np.empty(nd, dtype=np.complex128)
-        for j in range(nd):
-            K[j] = K_best[k, j]
-        v = _improve(G[k], q0[k], ylin[k], H[k], kr, ki, K, want_max, max_sweeps, tol, w)
-        if math.isfinite(v) and ((v >= best[k]) if want_max else (v <= best[k])):
-            best[k] = v
+        for o in range(objectives.shape[0]):
+            if math.isnan(best[o, k]) or (want_max and best[o, k] >= cap[k, o]):
+                continue
             for j in range(nd):
-                K_best[k, j] = K[j]
+                K[j] = K_best[o, k, j]
+            v = _improve(G[k], q0[k], ylin[k], H[k], kr, ki, K, want_max, objectives[o],
+                         max_sweeps, tol, w)
+            if math.isfinite(v) and ((v >= best[o, k]) if want_max else (v <= best[o, k])):
+                best[o, k] = v
+                for j in range(nd):
+                    K_best[o, k, j] = K[j]
 
 
 #: Exploration (multistart, continuation) stops sweeps at this relative change; the final
@@ -522,8 +575,13 @@ EXPLORE_TOL = 1e-6
 POLISH_TOL = 1e-13
 
 
-def box_extreme(G, q0, ylin, H, kr, ki, starts, want_max, max_sweeps=20, rounds=2):
+def box_extreme(G, q0, ylin, H, kr, ki, starts, want_max, cap=None, max_sweeps=20, rounds=3):
     """Max (``want_max``) or min of ``M = max_b |y_b|`` over the box at every frequency.
+
+    The maximum is sought beam by beam (the maximum over the box of a maximum over beams
+    is the largest of the beams' own maxima): a beam whose response hardly depends on the
+    dampers would otherwise hold a search of M on a plateau while another beam could
+    still grow. The minimum is sought for M itself.
 
     Parameters
     ----------
@@ -537,10 +595,15 @@ def box_extreme(G, q0, ylin, H, kr, ki, starts, want_max, max_sweeps=20, rounds=
         Output displacement per unit damper force, m/N.
     kr, ki : float
         Box limits of Re K and Im K, N/m.
-    starts : ndarray of complex, shape (n_start, nd)
-        Starting points in normalised box coordinates (``Re, Im in [0, 1]``), used at
-        every frequency.
+    starts : ndarray of complex, shape (n_f, n_start, nd)
+        Starting points per frequency in normalised box coordinates (``Re, Im in
+        [0, 1]``). Different random starts at different frequencies, joined by the
+        continuation along frequency, explore far more of the box than the same starts
+        everywhere.
     want_max : bool
+    cap : ndarray, shape (n_f, nb), optional
+        For the maximum: stop searching beam b at frequency k once ``|y_b|`` reaches
+        ``cap[k, b]`` (its force bound: beyond it the box no longer sets the bound).
     max_sweeps : int
         Coordinate sweeps per local search.
     rounds : int
@@ -548,33 +611,45 @@ def box_extreme(G, q0, ylin, H, kr, ki, starts, want_max, max_sweeps=20, rounds=
 
     Returns
     -------
-    best : ndarray, shape (n_f,)
-        The extreme M found, m (NaN where every start failed).
-    K_best : ndarray of complex, shape (n_f, nd)
+    best : ndarray, shape (n_o, n_f)
+        The extreme found per objective (one per beam for the maximum, M for the
+        minimum), m (NaN where every start failed). A capped maximum may stop anywhere
+        at or above its cap.
+    K_best : ndarray of complex, shape (n_o, n_f, nd)
         Describing functions reaching it, N/m.
     """
     n_f, nd = q0.shape
-    best = np.full(n_f, np.nan)
-    K_best = np.zeros((n_f, nd), complex)
-    tol = EXPLORE_TOL
-    _multistart(G, q0, ylin, H, kr, ki, starts, want_max, max_sweeps, tol, best, K_best)
-    cand = np.empty((2, n_f))
-    K_cand = np.empty((2, n_f, nd), complex)
+    nb = ylin.shape[1]
+    objectives = np.arange(nb) if want_max else np.array([-1])
+    n_o = len(objectives)
+    if cap is None or not want_max:
+        cap = np.full((n_f, n_o), np.inf)
+    cap = np.ascontiguousarray(cap, dtype=float)
+    best = np.full((n_o, n_f), np.nan)
+    K_best = np.zeros((n_o, n_f, nd), complex)
+    _multistart(G, q0, ylin, H, kr, ki, starts, want_max, objectives, cap, max_sweeps,
+                EXPLORE_TOL, best, K_best)
+    cand = np.empty((2, n_o, n_f))
+    K_cand = np.empty((2, n_o, n_f, nd), complex)
     pick = np.nanargmax if want_max else np.nanargmin
+    idx = np.arange(n_f)
     for _ in range(rounds):
-        _propagate(G, q0, ylin, H, kr, ki, want_max, max_sweeps, tol, best, K_best,
-                   cand, K_cand)
-        allnan = np.all(np.isnan(cand), axis=0)
-        d = pick(np.where(allnan[None, :], 0.0, cand), axis=0)
-        new = np.where(allnan, np.nan, cand[d, np.arange(n_f)])
-        better = (new > best) if want_max else (new < best)
-        better &= np.isfinite(new)
-        if not better.any() and not np.isnan(best).any():
+        _propagate(G, q0, ylin, H, kr, ki, want_max, objectives, cap, max_sweeps,
+                   EXPLORE_TOL, best, K_best, cand, K_cand)
+        any_better = False
+        for o in range(n_o):
+            c = cand[:, o]
+            allnan = np.all(np.isnan(c), axis=0)
+            d = pick(np.where(allnan[None, :], -np.inf if want_max else np.inf, c), axis=0)
+            new = np.where(allnan, np.nan, c[d, idx])
+            with np.errstate(invalid="ignore"):
+                better = np.isfinite(new) & (np.isnan(best[o]) |
+                                             ((new > best[o]) if want_max else (new < best[o])))
+            best[o] = np.where(better, new, best[o])
+            K_best[o][better] = K_cand[d[better], o, idx[better]]
+            any_better |= bool(better.any())
+        if not any_better:
             break
-        improved = better | (np.isnan(best) & np.isfinite(new))
-        best = np.where(improved, new, best)
-        K_best[improved] = K_cand[d[improved], np.arange(n_f)[improved]]
-        if not better.any():
-            break
-    _polish(G, q0, ylin, H, kr, ki, want_max, 5 * max_sweeps, POLISH_TOL, best, K_best)
+    _polish(G, q0, ylin, H, kr, ki, want_max, objectives, cap, 5 * max_sweeps, POLISH_TOL,
+            best, K_best)
     return best, K_best

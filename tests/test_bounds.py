@@ -1,0 +1,179 @@
+"""Validity and tightness of the equivalent-linear bounds.
+
+References are independent of the bounds search: a dense grid of the describing-function
+box solved in physical space (naive.py) for one damper, harmonic-balance ensembles, and a
+random + scipy multistart search of the box for seven dampers.
+"""
+
+import numpy as np
+import pytest
+from scipy import optimize
+
+import mcfric
+from mcfric.bounds import compute_bounds, force_limit
+
+from . import naive
+from .conftest import naive_beams, naive_pairs
+
+K_MAX = 15000.0
+N0 = 0.5
+F_LIM = force_limit(1.0, N0)          # mu0 ~ U(0, 1), N0 = 0.5 N
+
+
+class PhysicalMetric:
+    """M(K) = max_b |y_b| at one frequency from the physical-space solve of naive.py."""
+
+    def __init__(self, model, freq_hz):
+        self.model = model
+        self.D, self.Fext, self.index = naive._assemble(2 * np.pi * freq_hz, naive_beams(model),
+                                                        model.force, 0, 1, 2)
+        self.pairs = naive_pairs(model)
+
+    def __call__(self, K):
+        r = naive._solve_physical(self.D, self.Fext, self.index, self.pairs, np.asarray(K),
+                                  0, 1)
+        return np.max(np.abs(r["y_output"]))
+
+
+def _dense_box_extremes(metric, n_grid=121, n_edge=4001):
+    """Min and max of M over [0, K_MAX]^2 for one damper: a 2-D grid, every edge sampled
+    finely (sharp resonance ridges run along Im K = 0), and a Nelder-Mead polish of both."""
+    g = np.linspace(0, K_MAX, n_grid)
+    pts = [complex(a, b) for a in g for b in g]
+    e = np.linspace(0, K_MAX, n_edge)
+    pts += [complex(v, 0) for v in e] + [complex(v, K_MAX) for v in e]
+    pts += [complex(0, v) for v in e] + [complex(K_MAX, v) for v in e]
+    vals = np.array([metric([z]) for z in pts])
+    out = []
+    for sign, pick in ((1.0, np.argmin), (-1.0, np.argmax)):
+        z0 = pts[pick(vals)]
+        res = optimize.minimize(
+            lambda x: sign * metric([complex(*np.clip(x, 0, K_MAX))]), [z0.real, z0.imag],
+            method="Nelder-Mead", options=dict(xatol=1e-3, fatol=0, maxiter=2000))
+        out.append(min(vals.min(), res.fun) if sign > 0 else max(vals.max(), -res.fun))
+    return out
+
+
+@pytest.mark.parametrize("F0", [0.22, 1.1])
+def test_one_damper_equals_dense_grid(F0):
+    model = mcfric.two_beam(F0)
+    f = np.array([12.0, 17.0, 30.0, 40.0, 55.0, 64.0, 90.0, 112.0, 140.0])
+    B = compute_bounds(model, f, K_MAX)        # box only: the box search is not capped
+    for k, fk in enumerate(f):
+        lo, hi = _dense_box_extremes(PhysicalMetric(model, fk))
+        # valid: no admissible K outside, and tight: within 0.5 % of the grid
+        assert B.upper_box[k] >= hi * (1 - 1e-9), (fk, B.upper_box[k], hi)
+        assert B.lower[k] <= lo * (1 + 1e-9), (fk, B.lower[k], lo)
+        assert B.upper_box[k] <= hi * 1.005, (fk, B.upper_box[k], hi)
+        assert B.lower[k] >= lo / 1.005, (fk, B.lower[k], lo)
+
+
+def test_upper_bound_is_the_largest_beam_bound_of_box_and_eq_10():
+    """One damper (exact search): upper = max over beams of min(box max, Eq. 10 bound)."""
+    model = mcfric.two_beam(1.1)
+    f = np.linspace(10, 150, 29)
+    B = compute_bounds(model, f, K_MAX, F_lim=F_LIM)
+    box_beam = np.array([compute_bounds(model, f, K_MAX, beams=[b]).upper_box
+                         for b in range(model.n_beams)]).T
+    force_beam = np.array([naive.force_bound(2 * np.pi * fk, naive_beams(model),
+                                             naive_pairs(model), model.force, F_LIM)
+                           for fk in f])
+    np.testing.assert_allclose(B.upper_force, force_beam.max(axis=1), rtol=1e-12)
+    np.testing.assert_allclose(B.upper, np.minimum(box_beam, force_beam).max(axis=1),
+                               rtol=1e-9)
+    assert np.any(B.limited_by == 1) and np.any(B.limited_by == 0)
+
+
+@pytest.mark.parametrize("F0", [0.22, 1.1])
+def test_upper_bound_never_above_the_papers(F0):
+    """Never above min(box maximum of M, force bound of M) (physics.md section 7, step 4)."""
+    model = mcfric.eight_beam(F0)
+    f = np.linspace(10, 150, 57)
+    B = compute_bounds(model, f, K_MAX, F_lim=F_LIM)
+    box = compute_bounds(model, f, K_MAX)
+    force = [naive.force_bound(2 * np.pi * fk, naive_beams(model), naive_pairs(model),
+                               model.force, F_LIM).max() for fk in f]
+    np.testing.assert_allclose(B.upper_force, force, rtol=1e-12)
+    assert np.all(B.upper <= np.minimum(box.upper_box, B.upper_force) * (1 + 1e-9))
+
+
+def _ensemble_check(model, n_members, freq, seed):
+    rng = np.random.default_rng(seed)
+    nd = model.n_dampers
+    r = mcfric.solve(model, freq, rng.uniform(0, 1, (n_members, nd)),
+                     rng.uniform(0, K_MAX, (n_members, nd)), N0)
+    B = compute_bounds(model, freq, K_MAX, F_lim=F_LIM)
+    M = r.metric()
+    ok = r.converged
+    inside = B.contains(M, rtol=1e-9)
+    assert B.n_failed == 0
+    assert np.all(inside[ok]), (
+        f"{np.count_nonzero(~inside & ok)} member points outside; worst above "
+        f"{np.nanmax(M / B.upper):.6g}, worst below {np.nanmin(M / B.lower):.6g}")
+    return B, M
+
+
+@pytest.mark.parametrize("F0", [0.22, 1.1])
+@pytest.mark.parametrize("preset", ["two-beam", "eight-beam"])
+def test_every_ensemble_member_lies_within_the_bounds(preset, F0):
+    model = mcfric.preset(preset, F0)
+    _ensemble_check(model, 500, np.linspace(10, 150, 281), seed=3)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("F0", [0.22, 0.25, 1.1])
+@pytest.mark.parametrize("preset", ["two-beam", "eight-beam"])
+def test_every_member_of_large_ensembles_lies_within_the_bounds(preset, F0):
+    model = mcfric.preset(preset, F0)
+    _ensemble_check(model, 4000, np.linspace(10, 150, 1000), seed=4)
+
+
+@pytest.mark.parametrize("F0", [0.22, 1.1])
+def test_seven_dampers_random_and_multistart_search_stay_inside(F0):
+    """Random points of the box, random corners, and scipy polishes from the best of them,
+    all in physical space, find nothing above the box maximum or below the box minimum
+    (bounds computed, as a user would, on a fine frequency grid; checked at ten of its
+    frequencies)."""
+    model = mcfric.eight_beam(F0)
+    grid = np.linspace(10, 150, 281)
+    B = compute_bounds(model, grid, K_MAX)      # the box alone: what the search must cover
+    rng = np.random.default_rng(7)
+    nd = model.n_dampers
+    for k in np.linspace(4, 276, 10).astype(int):
+        metric = PhysicalMetric(model, grid[k])
+        K = K_MAX * (rng.uniform(0, 1, (1500, nd)) + 1j * rng.uniform(0, 1, (1500, nd)))
+        corners = K_MAX * np.array([0, 1, 1 + 1j, 1j])[rng.integers(0, 4, (500, nd))]
+        cand = np.concatenate([K, corners])
+        vals = np.array([metric(z) for z in cand])
+        for sign, order in ((-1.0, np.argsort(-vals)), (1.0, np.argsort(vals))):
+            for z in cand[order[:3]]:
+                res = optimize.minimize(
+                    lambda x: sign * metric(x[:nd] + 1j * x[nd:]),
+                    np.concatenate([z.real, z.imag]), method="L-BFGS-B",
+                    bounds=[(0, K_MAX)] * (2 * nd), options=dict(maxiter=300))
+                vals = np.append(vals, sign * res.fun)
+        assert vals.max() <= B.upper_box[k] * (1 + 1e-9), (grid[k], vals.max(), B.upper_box[k])
+        assert vals.min() >= B.lower[k] * (1 - 1e-9), (grid[k], vals.min(), B.lower[k])
+
+
+def test_bounds_scale_with_the_metric_quantity():
+    model = mcfric.two_beam(0.22)
+    f = np.linspace(20, 120, 6)
+    d = compute_bounds(model, f, K_MAX, F_lim=F_LIM, n_starts=2)
+    a = compute_bounds(model, f, K_MAX, F_lim=F_LIM, n_starts=2, quantity="acceleration")
+    np.testing.assert_allclose(a.upper, d.upper * (2 * np.pi * f) ** 2, rtol=1e-12)
+    np.testing.assert_allclose(a.lower, d.lower * (2 * np.pi * f) ** 2, rtol=1e-12)
+
+
+@pytest.mark.parametrize("kwargs, name", [
+    (dict(k_max=0.0), "k_max"),
+    (dict(k_max=np.nan), "k_max"),
+    (dict(k_max=K_MAX, k_max_im=-1.0), "k_max_im"),
+    (dict(k_max=K_MAX, F_lim=0.0), "F_lim"),
+    (dict(k_max=K_MAX, beams=[9]), "beams"),
+    (dict(k_max=K_MAX, quantity="jerk"), "quantity"),
+    (dict(k_max=K_MAX, n_starts=0), "n_starts"),
+])
+def test_bad_input_names_the_argument(kwargs, name):
+    with pytest.raises(ValueError, match=name):
+        compute_bounds(mcfric.two_beam(), [20.0, 30.0], **kwargs)
