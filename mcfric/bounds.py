@@ -32,6 +32,7 @@ true maximum on the eight-beam rig.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -229,3 +230,101 @@ def _starts(n_f, nd, n_starts, seed):
                                 axis=1)[:, :n_starts]
     return (np.ascontiguousarray(starts_max, dtype=complex),
             np.ascontiguousarray(starts_min, dtype=complex))
+
+
+def from_config(cfg, n_threads=None):
+    """Bounds of a validated :class:`mcfric.config.Config` (its model, frequency grid,
+    metric and ``[bounds]``, limits derived from ``[sampling]`` where "auto").
+
+    The model is the nominal one: with ``sampling.mistuning > 0`` the members come from
+    other linear rigs and need not lie inside (the paper's bounds cover friction only).
+    """
+    k_re, k_im, F_lim = cfg.bounds_limits()
+    return compute_bounds(cfg.model(), cfg.frequencies(), k_re, k_max_im=k_im,
+                          F_lim=None if np.isinf(F_lim) else F_lim,
+                          quantity=cfg["metric"]["quantity"], beams=cfg.metric_beams(),
+                          n_starts=cfg["bounds"]["n_starts"], n_threads=n_threads)
+
+
+def to_group(B):
+    """The ``bounds/`` group of a results file: ``{var: (dims, array, attrs)}, attrs``."""
+    from .ensemble import METRIC_UNITS
+
+    unit = METRIC_UNITS[B.quantity]
+    variables = {
+        "upper": (("frequency",), B.upper, {
+            "units": unit, "long_name": "upper bound of the metric M for every friction law "
+                                        "in the admissible region; NaN where the search failed"}),
+        "lower": (("frequency",), B.lower, {
+            "units": unit, "long_name": "lower bound of M (minimum over the box)"}),
+        "limited_by": (("frequency",), B.limited_by, {
+            "long_name": "constraint that sets the upper bound", "flag_values": [0, 1],
+            "flag_meanings": "box force"}),
+        "upper_box": (("frequency",), B.upper_box, {
+            "units": unit, "long_name": "largest box value found (at least the force bound "
+                                        "where the force limit sets the upper bound)"}),
+        "upper_force": (("frequency",), B.upper_force, {
+            "units": unit, "long_name": "force-saturation bound of M (Eq. 10)"}),
+        "K_upper": (("frequency", "damper"), B.K_upper, {
+            "units": "N/m", "long_name": "describing functions at the box maximum"}),
+        "K_lower": (("frequency", "damper"), B.K_lower, {
+            "units": "N/m", "long_name": "describing functions at the box minimum"}),
+    }
+    attrs = {"k_max_re": B.k_max_re, "k_max_im": B.k_max_im, "F_lim": B.F_lim,
+             "quantity": B.quantity, "beams": np.asarray(B.beams, dtype=np.int64) + 1,
+             "method": "equivalent-linear bounds (physics.md 7): coordinate search exact per "
+                       "damper + smoothed projected gradient, multistart and continuation "
+                       "along frequency (mcfric.bounds)",
+             "n_failed": np.int64(B.n_failed)}
+    return variables, attrs
+
+
+def read_bounds(path):
+    """The bounds stored in a results (or bounds) file, as :class:`Bounds`; None if absent."""
+    import h5py
+
+    with h5py.File(path, "r", locking=False) as h5:
+        if "bounds" not in h5:
+            return None
+        g = h5["bounds"]
+        a = dict(g.attrs)
+        return Bounds(h5["frequency"][()], g["upper"][()], g["lower"][()], g["upper_box"][()],
+                      g["upper_force"][()], g["limited_by"][()], g["K_upper"][()],
+                      g["K_lower"][()], float(a["k_max_re"]), float(a["k_max_im"]),
+                      float(a["F_lim"]), str(a["quantity"]),
+                      tuple(int(b) - 1 for b in np.atleast_1d(a["beams"])))
+
+
+def write_bounds_file(path, cfg, B):
+    """A bounds-only results file: ``frequency``, ``damper`` and ``bounds/``, root
+    attributes as a run's (configuration, versions), written to ``path.partial`` and
+    renamed when complete so that a killed write never leaves a complete-looking file."""
+    import h5py
+
+    from . import __version__
+    from .store import LAYOUT_VERSION, _fsync_path, _write_group, partial_path
+
+    path = Path(path)
+    part = partial_path(path)
+    model = cfg.model()
+    a, b = model.dampers
+    with h5py.File(part, "w") as h5:
+        fr = h5.create_dataset("frequency", data=B.freq_hz, track_times=False)
+        fr.make_scale("frequency")
+        fr.attrs.update({"units": "Hz", "long_name": "excitation frequency"})
+        d = h5.create_dataset("damper", data=np.arange(1, model.n_dampers + 1),
+                              track_times=False)
+        d.make_scale("damper")
+        d.attrs.update({"long_name": "damper number (1-based); couples beam_a and beam_b",
+                        "beam_a": a + 1, "beam_b": b + 1})
+        variables, attrs = to_group(B)
+        _write_group(h5, "bounds", variables, attrs)
+        h5.attrs.update({"title": f"mcfric response bounds: {model.name}",
+                         "model_name": model.name, "config": cfg.toml(comments=False),
+                         "config_json": cfg.json(), "samples": np.int64(0),
+                         "mcfric_version": __version__,
+                         "layout_version": np.int64(LAYOUT_VERSION),
+                         "complete": np.int8(1)})
+    _fsync_path(part)
+    part.replace(path)
+    return path

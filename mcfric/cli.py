@@ -10,6 +10,10 @@
     mcfric info FILE                         # summary of a results file
     mcfric hbm [PRESET|CONFIG.toml] [--mu0 X] [--kc N_PER_M] [--N0 N] [--F0 N]
                [--f-min HZ] [--f-max HZ] [--n-freq N] [-o OUT.csv] [--no-figure]
+    mcfric bounds [PRESET|CONFIG.toml] [-o FILE] [--F0 N] [--f-min HZ] [--f-max HZ]
+               [--n-freq N] [--k-max N_PER_M] [--F-lim N] [--threads T] [--no-figure]
+    mcfric plot FILE [-o FIG.png|pdf] [--quantity Q] [--f-min HZ] [--f-max HZ]
+               [--member I] [--measured DATA ...] [--nodes N1,N2,...]
 
 Exit codes: 0 done, 1 a run-time failure (e.g. disk full, unreadable file), 2 bad
 configuration or arguments (one line on stderr, nothing written), 130 interrupted (the
@@ -25,7 +29,7 @@ from pathlib import Path
 
 DEFAULT_DIR = Path("mcfric-results")
 EXIT_OK, EXIT_FAIL, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
-COMMANDS = ("run", "config", "info", "hbm")
+COMMANDS = ("run", "config", "info", "hbm", "bounds", "plot")
 
 
 class UsageError(Exception):
@@ -51,7 +55,7 @@ def _parser():
     p = _Parser(prog="mcfric", description="Friction-damped beam arrays: harmonic balance, "
                 "Monte Carlo ensembles. `mcfric` alone runs the default ensemble.")
     p.add_argument("--version", action="version", version=f"mcfric {__version__}")
-    sub = p.add_subparsers(dest="command", metavar="{run,config,info,hbm}")
+    sub = p.add_subparsers(dest="command", metavar="{run,config,info,hbm,bounds,plot}")
 
     r = sub.add_parser("run", help="run (or resume) a Monte Carlo ensemble",
                        description="Run a Monte Carlo ensemble into an HDF5 results file "
@@ -93,6 +97,45 @@ def _parser():
                    help="CSV file (default: mcfric-results/hbm-<name>.csv); the PNG goes "
                         "next to it")
     h.add_argument("--no-figure", action="store_true", help="do not draw the figure")
+
+    b = sub.add_parser("bounds", help="response bounds alone (no ensemble)",
+                       description="Equivalent-linear response bounds (physics.md 7) of a "
+                       "preset or configuration: an HDF5 file with frequency and bounds/, "
+                       "and a figure next to it.")
+    b.add_argument("source", nargs="?", help=_source_help() + " (default: eight-beam)")
+    b.add_argument("-o", "--output", metavar="FILE",
+                   help="bounds file (default: mcfric-results/bounds-<name>.h5)")
+    _model_flags(b)
+    b.add_argument("--k-max", type=float, metavar="N_PER_M",
+                   help="largest Re K and Im K of a damper, N/m (default: from kc)")
+    b.add_argument("--F-lim", type=float, metavar="N",
+                   help="friction force limit, N (default: 4/pi mu0_max N0_max)")
+    b.add_argument("--threads", type=int, metavar="T", help="numba threads (0 = all)")
+    b.add_argument("--no-figure", action="store_true", help="do not draw the figure")
+
+    pl = sub.add_parser("plot", help="figure of a results or bounds file",
+                        description="Bounds band over the ensemble cloud (log amplitude vs "
+                        "frequency), optionally with measured data; prints the fraction of "
+                        "measured points inside the bounds.")
+    pl.add_argument("file", help="results file (mcfric run) or bounds file (mcfric bounds)")
+    pl.add_argument("-o", "--output", metavar="FIG",
+                    help="figure file, .png/.pdf/.svg (default: FILE with .png)")
+    pl.add_argument("--quantity", choices=("displacement", "velocity", "acceleration"),
+                    help="plotted quantity (default: the stored one)")
+    pl.add_argument("--f-min", type=float, metavar="HZ", help="lower end of the window, Hz")
+    pl.add_argument("--f-max", type=float, metavar="HZ", help="upper end of the window, Hz")
+    pl.add_argument("--member", type=int, default=0, metavar="I",
+                    help="ensemble member drawn in black (default 0; -1: none)")
+    pl.add_argument("--measured", nargs="+", metavar="DATA", default=[],
+                    help="measured responses (CSV, or UFF dataset 58 with --nodes)")
+    pl.add_argument("--nodes", metavar="N1,N2,...",
+                    help="UFF response node of beam 1, 2, ... (for --measured UFF files)")
+    pl.add_argument("--measured-quantity", choices=("displacement", "velocity",
+                                                    "acceleration"),
+                    help="what the measured values are, when the file does not say")
+    pl.add_argument("--normalise", action="store_true",
+                    help="rescale measured data taken at force F_meas to the file's F0 "
+                         "(Eq. 11-12; needs the force level in the data)")
     return p
 
 
@@ -113,7 +156,9 @@ def _overrides(args):
                             ("sampling.samples", "samples", "--samples"),
                             ("sampling.seed", "seed", "--seed"),
                             ("run.threads", "threads", "--threads"),
-                            ("run.chunk", "chunk", "--chunk")):
+                            ("run.chunk", "chunk", "--chunk"),
+                            ("bounds.k_max", "k_max", "--k-max"),
+                            ("bounds.F_lim", "F_lim", "--F-lim")):
         if hasattr(args, attr):
             o[key] = (getattr(args, attr), flag)
     return o
@@ -154,6 +199,39 @@ def _output_path(args, suffix, prefix=""):
     return out
 
 
+def _bounds_group(cfg):
+    """Compute the bounds of ``cfg`` (before the ensemble) as a store group."""
+    import time
+
+    from . import bounds
+
+    if cfg["sampling"]["mistuning"] > 0:
+        print("note: the bounds are for the nominal rig; mistuned members need not lie "
+              "inside them", flush=True)
+    t = time.perf_counter()
+    B = bounds.from_config(cfg, n_threads=cfg["run"]["threads"] or None)
+    print(f"{B.summary()} ({time.perf_counter() - t:.1f} s)", flush=True)
+    return {"bounds": bounds.to_group(B)}
+
+
+def _check_members(path):
+    """Count converged ensemble points outside the stored bounds (a validity check)."""
+    import numpy as np
+
+    from .bounds import read_bounds
+    from .store import iter_records
+
+    B = read_bounds(path)
+    if B is None:
+        return None
+    outside = total = 0
+    for _, arr in iter_records(path, ["metric", "converged"]):
+        ok = arr["converged"]
+        outside += int(np.count_nonzero(~B.contains(arr["metric"]) & ok))
+        total += int(np.count_nonzero(ok))
+    return outside, total
+
+
 def cmd_run(args):
     from . import ensemble, plot
 
@@ -165,8 +243,9 @@ def cmd_run(args):
         print(f"mcfric run: {model.name}, {cfg.samples} samples x {cfg['frequency']['n']} "
               f"frequencies, {model.n_beams} beams, F0 = {model.excitation.F0:g} N, "
               f"seed {cfg.seed}", flush=True)
+        groups = (lambda: _bounds_group(cfg)) if cfg["bounds"]["enabled"] else None
         summary = ensemble.run(cfg, out, resume=args.resume, force=args.force,
-                               progress=not args.no_progress)
+                               progress=not args.no_progress, groups=groups)
     except ensemble.RunError as e:
         raise UsageError(str(e)) from None
     except ensemble.Interrupted as e:
@@ -178,13 +257,135 @@ def cmd_run(args):
         print(f"{out} already holds this run (same configuration and seed): nothing to do; "
               f"--force recomputes it")
     print(summary.text())
+    if summary.complete:
+        check = _check_members(out)
+        if check is not None:
+            outside, total = check
+            print(f"bounds check: {outside} of {total:,} converged member points outside "
+                  f"[lower, upper]" + ("" if outside == 0 else
+                                       " (the bounds search missed them: please report)"))
     if summary.complete and not args.no_figure:
-        fig = getattr(plot, "ensemble_figure", None)   # the plotting stage may replace it
-        if fig is not None:
-            png = out.with_suffix(".png")
-            fig(out, png)
-            print(f"figure: {png}")
+        png = out.with_suffix(".png")
+        plot.results_figure(out, png)
+        print(f"figure: {png}")
     return EXIT_OK
+
+
+def cmd_bounds(args):
+    import time
+
+    from . import bounds, plot
+
+    cfg = _load(args)
+    out = _output_path(args, ".h5", prefix="bounds-")
+    model = cfg.model()
+    f = cfg.frequencies()
+    k_re, k_im, F_lim = cfg.bounds_limits()
+    print(f"mcfric bounds: {model.name}, {len(f)} frequencies {f[0]:g}-{f[-1]:g} Hz, "
+          f"F0 = {model.excitation.F0:g} N; box 0 <= Re K <= {k_re:g} N/m, "
+          f"0 <= Im K <= {k_im:g} N/m, F_lim = {F_lim:g} N", flush=True)
+    t = time.perf_counter()
+    B = bounds.from_config(cfg, n_threads=cfg["run"]["threads"] or None)
+    print(f"{B.summary()} ({time.perf_counter() - t:.1f} s)")
+    bounds.write_bounds_file(out, cfg, B)
+    print(f"bounds: {out}")
+    if not args.no_figure:
+        png = out.with_suffix(".png")
+        plot.results_figure(out, png)
+        print(f"figure: {png}")
+    return EXIT_OK
+
+
+def cmd_plot(args):
+    from . import plot
+    from .store import StoreError, read_attrs
+
+    path = Path(args.file)
+    if not path.is_file():
+        raise UsageError(f"{path}: no such file")
+    try:
+        attrs = read_attrs(path)
+    except StoreError as e:
+        raise UsageError(str(e)) from None
+    if "layout_version" not in attrs:
+        raise UsageError(f"{path}: not an mcfric results or bounds file")
+    if attrs.get("complete") != 1:
+        raise UsageError(f"{path}: the run is not complete (continue it with --resume)")
+    out = Path(args.output) if args.output else path.with_suffix(".png")
+    if out.suffix.lower() not in (".png", ".pdf", ".svg"):
+        raise UsageError(f"-o: expected a .png, .pdf or .svg file, got {out.name}")
+    if not out.parent.is_dir():
+        raise UsageError(f"-o: directory {out.parent} does not exist")
+    window = None
+    if args.f_min is not None or args.f_max is not None:
+        from .store import read
+        f = read(path, "frequency")
+        window = (args.f_min if args.f_min is not None else f.min(),
+                  args.f_max if args.f_max is not None else f.max())
+    measured = _read_measured(args, attrs)
+    try:
+        drawn = plot.results_figure(path, out, quantity=args.quantity, f_window=window,
+                                    member=None if args.member < 0 else args.member,
+                                    measured=measured)
+    except ValueError as e:
+        raise UsageError(str(e)) from None
+    print(f"figure: {out} ({drawn['n_drawn']} of {drawn['n_members']} members drawn"
+          f"{', bounds' if drawn['has_bounds'] else ', no bounds in the file'})")
+    if measured and drawn["has_bounds"]:
+        _print_inside(path, measured, args.quantity)
+    return EXIT_OK
+
+
+def _read_measured(args, attrs):
+    """Measurements of ``--measured`` (normalised to the file's F0 with --normalise)."""
+    if not args.measured:
+        return []
+    from . import measured as ms
+
+    nodes = None
+    if args.nodes:
+        try:
+            nodes = [int(x) for x in args.nodes.split(",")]
+        except ValueError:
+            raise UsageError(f"--nodes: expected comma-separated node numbers, got "
+                             f"{args.nodes!r}") from None
+    F0 = json.loads(attrs.get("config_json", "{}")).get("excitation", {}).get("F0")
+    out = []
+    for data in args.measured:
+        try:
+            ms_list = ms.read_measured(data, nodes=nodes, quantity=args.measured_quantity)
+        except (ValueError, ImportError) as e:
+            raise UsageError(str(e).splitlines()[0]) from None
+        for m in ms_list:
+            if args.normalise:
+                if m.force_n is None:
+                    raise UsageError(f"--normalise: {data} gives no force level (force_n)")
+                m, report = ms.normalise(m, F0)
+                print(report.text())
+            out.append(m)
+    return out
+
+
+def _print_inside(path, measured, quantity):
+    """Fraction of measured points inside the bounds: the upper bound per beam, both
+    bounds for the measured metric (the lower bound of M bounds the largest beam only)."""
+    import numpy as np
+
+    from . import measured as ms
+    from .bounds import read_bounds
+
+    B = read_bounds(path)
+    q = quantity or B.quantity
+    k = ("displacement", "velocity", "acceleration")
+    scale = (2 * np.pi * B.freq_hz) ** (k.index(q) - k.index(B.quantity))
+    lo, up = B.lower * scale, B.upper * scale
+    per_beam = ms.fraction_inside(measured, B.freq_hz, lo, up, quantity=q, check_lower=False)
+    metric = [m.to_quantity(q).metric() for m in measured]
+    overall = ms.fraction_inside(metric, B.freq_hz, lo, up, quantity=q)
+    print("measured points below the upper bound, per beam:")
+    print(per_beam.text())
+    print("measured metric (max over the beams) inside [lower, upper]:")
+    print(overall.text())
 
 
 def cmd_config(args):
@@ -316,8 +517,8 @@ def main(argv=None):
         argv = ["run"] + argv        # `mcfric` alone (or `mcfric two-beam`) means `mcfric run`
     try:
         args = _parser().parse_args(argv)
-        return {"run": cmd_run, "config": cmd_config, "info": cmd_info,
-                "hbm": cmd_hbm}[args.command](args)
+        return {"run": cmd_run, "config": cmd_config, "info": cmd_info, "hbm": cmd_hbm,
+                "bounds": cmd_bounds, "plot": cmd_plot}[args.command](args)
     except UsageError as e:
         print(f"mcfric: error: {e}", file=sys.stderr)
         return EXIT_USAGE

@@ -18,8 +18,9 @@ Sections (units SI: Hz, N, N/m): ``[model]`` (+ ``[model.table]``, ``[[model.bea
 ``[excitation]``, ``[frequency]``, ``[sampling]`` (+ ``[sampling.mu0|kc|N0]``), ``[metric]``,
 ``[solver]``, ``[output]``, ``[run]`` and ``[bounds]``. ``[run]`` says how to compute
 (threads, chunk size, checkpoints), never what: it is excluded from :meth:`Config.identity`,
-the part that must match for ``--resume``. ``[bounds]`` is read by the bounds stage (not
-by ``run``) and is excluded too.
+the part that must match for ``--resume``. ``[bounds]`` configures the response bounds
+that ``run`` computes before the ensemble (and ``mcfric bounds`` alone); it does not
+change the ensemble and is excluded too.
 """
 
 from __future__ import annotations
@@ -84,7 +85,8 @@ def defaults(preset=DEFAULT_PRESET):
         "solver": {"tol": 1e-10, "max_iter": 50},
         "output": {"keep_response": True},
         "run": {"threads": 0, "chunk": 0, "checkpoint_s": 0.0},
-        "bounds": {"enabled": True, "k_max": 15000.0},
+        "bounds": {"enabled": True, "k_max": "auto", "k_max_im": "auto", "F_lim": "auto",
+                   "n_starts": 12},
     }
 
 
@@ -218,6 +220,20 @@ def integers():
     return check
 
 
+def auto_or_number(lo=0, words=("auto",)):
+    """``"auto"`` (or another of ``words``) or a number > ``lo``."""
+    num = number(lo=lo, lo_open=True)
+
+    def check(v, key):
+        if isinstance(v, str):
+            if v in words:
+                return v
+            raise ConfigError(key, f"expected {_choices(words)} or a number > {lo:g}, "
+                              f"got {_show(v)}")
+        return num(v, key)
+    return check
+
+
 def beams_or_all():
     ints = integers()
 
@@ -312,8 +328,15 @@ SPEC = {
                                        "(0 = after every chunk)"),
     },
     "bounds": {
-        "enabled": (boolean(), "compute response bounds (the bounds stage; not read by run)"),
-        "k_max": (number(lo=0, lo_open=True), "upper limit of Re K and Im K, N/m"),
+        "enabled": (boolean(), "compute the equivalent-linear response bounds (physics.md 7) "
+                               "before the ensemble, stored in bounds/"),
+        "k_max": (auto_or_number(), 'largest stiffness Re K of a damper, N/m; "auto": the '
+                                    'upper limit of the kc distribution'),
+        "k_max_im": (auto_or_number(), 'largest dissipation Im K, N/m; "auto": k_max'),
+        "F_lim": (auto_or_number(words=("auto", "none")),
+                  'friction force limit (first harmonic), N; "auto": 4/pi mu0_max N0_max '
+                  'from the sampling; "none": no force constraint'),
+        "n_starts": (integer(1, 10000), "starts of the box search per frequency"),
     },
 }
 SECTION_DOC = {
@@ -327,7 +350,7 @@ SECTION_DOC = {
     "solver": "harmonic-balance solver",
     "output": "what the results file keeps",
     "run": "how to compute: never changes the results, not compared on --resume",
-    "bounds": "placeholder for the response-bounds stage (not read by run)",
+    "bounds": "equivalent-linear response bounds (physics.md 7): do not change the ensemble",
 }
 
 
@@ -510,11 +533,51 @@ def _cross_checks(c):
             if not 1 <= b <= nb:
                 raise ConfigError("metric.beams", f"expected beam numbers in 1..{nb} "
                                   f"(n_beams), got {_show(beams)}")
+    if c["bounds"]["enabled"]:
+        _bounds_limits(c)      # unbounded distributions need explicit limits
     import numba
     nt = numba.config.NUMBA_NUM_THREADS
     if c["run"]["threads"] > nt:
         raise ConfigError("run.threads", f"expected an integer in 0..{nt} (0 = all {nt}), "
                           f"got {c['run']['threads']}")
+
+
+def _dist_max(t):
+    """Upper limit of a distribution table (inf where it has none)."""
+    d = t["dist"]
+    if d == "fixed":
+        return float(t["value"])
+    if d in ("uniform", "truncnormal"):
+        return float(t["high"])
+    return math.inf
+
+
+def _bounds_limits(c):
+    """(k_max_re, k_max_im, F_lim) in N/m, N/m, N from ``[bounds]`` and ``[sampling]``."""
+    b, s = c["bounds"], c["sampling"]
+    k_max = b["k_max"]
+    if k_max == "auto":
+        k_max = _dist_max(s["kc"])
+        if not math.isfinite(k_max):
+            raise ConfigError("bounds.k_max", f'"auto" needs a kc distribution with an upper '
+                              f'limit ({s["kc"]["dist"]} has none): give k_max in N/m')
+        if not k_max > 0:
+            raise ConfigError("bounds.k_max", '"auto" needs kc > 0 somewhere: give k_max '
+                              "in N/m or set bounds.enabled = false")
+    k_im = k_max if b["k_max_im"] == "auto" else b["k_max_im"]
+    F_lim = b["F_lim"]
+    if F_lim == "none":
+        F_lim = math.inf
+    elif F_lim == "auto":
+        mu, n0 = _dist_max(s["mu0"]), _dist_max(s["N0"])
+        if not (math.isfinite(mu) and math.isfinite(n0)):
+            which = "mu0" if not math.isfinite(mu) else "N0"
+            raise ConfigError("bounds.F_lim", f'"auto" needs {which} with an upper limit '
+                              f'({s[which]["dist"]} has none): give F_lim in N or "none"')
+        F_lim = 4.0 / math.pi * mu * n0
+        if not F_lim > 0:
+            F_lim = math.inf      # no friction anywhere: the force constraint is void
+    return float(k_max), float(k_im), float(F_lim)
 
 
 # ----------------------------------------------------------------------------- loading
@@ -637,6 +700,11 @@ class Config:
                                 modal_freq_hz=model.modal_arrays()[0],
                                 mistuning=s["mistuning"], mistuning_per=s["mistuning_per"],
                                 **dists)
+
+    def bounds_limits(self):
+        """(k_max_re, k_max_im, F_lim): the admissible region of the bounds, N/m, N/m, N
+        (``F_lim`` inf: no force constraint)."""
+        return _bounds_limits(self.data)
 
     def metric_beams(self):
         """0-based beams of the metric, or None for all."""

@@ -329,7 +329,7 @@ def _put(q, item, writer, err):
                 raise err[0] if err else RuntimeError("the writer thread stopped")
 
 
-def run(cfg, path, *, resume=False, force=False, progress=True):
+def run(cfg, path, *, resume=False, force=False, progress=True, groups=None):
     """Run (or continue) the Monte Carlo ensemble of ``cfg`` into the results file ``path``.
 
     Parameters
@@ -345,6 +345,10 @@ def run(cfg, path, *, resume=False, force=False, progress=True):
         Replace an existing results file or partial file that holds another run.
     progress : bool
         Show a tqdm progress bar on stderr.
+    groups : callable, optional
+        Called only when a new results file is created; returns ``{group: (variables,
+        attrs)}`` written with it (e.g. the ``bounds/`` group, computed before the
+        ensemble so that the file never changes but for its chunks afterwards).
 
     Returns
     -------
@@ -370,7 +374,8 @@ def run(cfg, path, *, resume=False, force=False, progress=True):
     if what == "new":
         coords, variables, attrs, placeholders = layout(cfg, model, freq)
         store = Store.create(final, record_dim=RECORD, n_records=cfg.samples, coords=coords,
-                             variables=variables, attrs=attrs, placeholders=placeholders)
+                             variables=variables, attrs=attrs, placeholders=placeholders,
+                             groups=groups() if groups else None)
         done = np.zeros(cfg.samples, bool)
         not_conv_before = 0
     else:

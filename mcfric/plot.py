@@ -1,16 +1,20 @@
 """Figures (matplotlib, Agg canvas: no display and no pyplot state needed).
 
-Small placeholders until the plotting stage (issue 5) replaces them: :func:`ensemble_figure`
-(the ensemble cloud written next to a results file by ``mcfric run``) and
-:func:`hbm_figure` (``mcfric hbm``). ``mcfric run`` calls ``ensemble_figure`` only if this
-module defines it.
+* :func:`results_figure` (``mcfric plot``, and the figure ``mcfric run`` writes): the
+  response bounds as a band over the ensemble as a grey cloud, one highlighted member,
+  log amplitude against frequency; measured data on top (stepped-sine crosses, sweep
+  lines).
+* :func:`hbm_figure` (``mcfric hbm``): one parameter set, each beam a line.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from .hbm import QUANTITIES
 from .store import iter_records, read, read_attrs
+
+UNITS = {"displacement": "m", "velocity": "m/s", "acceleration": "m/s$^2$"}
 
 
 def _figure(size=(8, 4.5)):
@@ -22,53 +26,135 @@ def _figure(size=(8, 4.5)):
     return fig
 
 
-def ensemble_figure(results_path, png_path, max_lines=400):
-    """Grey cloud of the ensemble metric (log amplitude vs frequency) with its envelope.
+def _stored_quantity(attrs):
+    import json
+    try:
+        return json.loads(attrs["config_json"])["metric"]["quantity"]
+    except (KeyError, ValueError, TypeError):
+        return "displacement"
 
-    Reads the file in blocks: memory does not grow with the number of samples. At most
-    ``max_lines`` sample curves are drawn (evenly spread over the ensemble); the envelope
-    (min and max over every stored sample) is exact. Non-converged points (NaN) are gaps.
+
+def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lines=400,
+                   measured=(), title=None):
+    """Bounds band over the ensemble cloud, log amplitude vs frequency.
+
+    Reads the file in blocks (memory does not grow with the ensemble). The cloud is one
+    ``LineCollection`` of at most ``max_lines`` members spread evenly over the ensemble
+    (low alpha, rasterised, so vector output stays small); non-converged points are gaps.
+    A file without bounds gives the cloud alone, a bounds file (``mcfric bounds``) the
+    band alone.
 
     Parameters
     ----------
-    results_path : str or Path
-        A results file of ``mcfric run``.
-    png_path : str or Path
-        Where to write the PNG.
+    path : str or Path
+        Results file of ``mcfric run`` or bounds file of ``mcfric bounds``.
+    out : str or Path
+        Figure file; the format follows the suffix (``.png``, ``.pdf``, ``.svg``).
+    quantity : {"displacement", "velocity", "acceleration"}, optional
+        Plot ``omega^k`` times the stored amplitudes; default the stored quantity.
+    f_window : (float, float), optional
+        Frequency window, Hz.
+    member : int or None
+        Ensemble member (sample index) drawn in black; None for none.
+    max_lines : int
+        Members drawn in the cloud.
+    measured : sequence of Measurement
+        Drawn in the plotted quantity: stepped-sine points as crosses, sweeps as lines,
+        each as its metric (max over the beams measured).
+    title : str, optional
+
+    Returns
+    -------
+    dict
+        ``n_members``, ``n_drawn`` and ``has_bounds``: what was drawn.
     """
-    attrs = read_attrs(results_path)
-    f = read(results_path, "frequency")
-    n = int(attrs.get("samples", 1))
-    step = max(1, n // max_lines)
-    lo = np.full(len(f), np.inf)
-    hi = np.full(len(f), -np.inf)
-    lines = []
-    for start, arrays in iter_records(results_path, ["metric", "sample"]):
-        m = arrays["metric"]
-        lo = np.fmin(lo, np.where(np.isnan(m), np.inf, m).min(axis=0))
-        hi = np.fmax(hi, np.where(np.isnan(m), -np.inf, m).max(axis=0))
-        pick = arrays["sample"] % step == 0
-        lines.extend(m[pick])
+    from matplotlib.collections import LineCollection
+
+    from .bounds import read_bounds
+
+    attrs = read_attrs(path)
+    f = read(path, "frequency")
+    stored = _stored_quantity(attrs)
+    quantity = quantity or stored
+    if quantity not in QUANTITIES:
+        raise ValueError(f"quantity: expected one of {QUANTITIES}, got {quantity!r}")
+    scale = (2 * np.pi * f) ** (QUANTITIES.index(quantity) - QUANTITIES.index(stored))
+    lo_f, hi_f = (f.min(), f.max()) if f_window is None else map(float, f_window)
+    if not hi_f > lo_f:
+        raise ValueError(f"f_window: expected f_min < f_max, got {lo_f:g}, {hi_f:g}")
+    win = (f >= lo_f) & (f <= hi_f)
+    if not win.any():
+        raise ValueError(f"f_window: no frequencies of {path} in {lo_f:g}..{hi_f:g} Hz")
+    fw = f[win]
+
     fig = _figure()
     ax = fig.add_subplot()
-    if lines:
-        y = np.array(lines).T
-        ax.plot(f, np.where(y > 0, y, np.nan), color="0.5", lw=0.4, alpha=0.35)
-    env = np.isfinite(lo) & np.isfinite(hi)
-    ax.plot(f[env], hi[env], color="k", lw=1.2, label="ensemble max")
-    ax.plot(f[env], np.where(lo[env] > 0, lo[env], np.nan), color="k", lw=1.2, ls="--",
-            label="ensemble min")
+    n = int(attrs.get("samples", 0))
+    drawn = 0
+    if "sample" in _datasets(path):
+        step = max(1, n // max_lines)
+        segs, highlight = [], None
+        for _, arr in iter_records(path, ["metric", "sample"]):
+            m = arr["metric"][:, win] * scale[win]
+            for idx in np.flatnonzero(arr["sample"] % step == 0):
+                segs.append(np.column_stack([fw, np.where(m[idx] > 0, m[idx], np.nan)]))
+            if member is not None and member in arr["sample"]:
+                highlight = m[np.flatnonzero(arr["sample"] == member)[0]]
+        drawn = len(segs)
+        if segs:
+            lc = LineCollection(segs, colors="0.45", linewidths=0.5, alpha=0.25,
+                                rasterized=True, label=f"ensemble ({n} members, {drawn} drawn)")
+            ax.add_collection(lc)
+        if highlight is not None:
+            ax.plot(fw, np.where(highlight > 0, highlight, np.nan), color="k", lw=1.1,
+                    label=f"member {member}")
+    B = read_bounds(path)
+    if B is not None:
+        up = B.upper[win] * scale[win]
+        lo = B.lower[win] * scale[win]
+        ax.fill_between(fw, np.where(lo > 0, lo, np.nan), up, color="tab:blue", alpha=0.12,
+                        lw=0)
+        ax.plot(fw, up, color="tab:blue", lw=2.0, label="upper bound")
+        ax.plot(fw, np.where(lo > 0, lo, np.nan), color="tab:red", lw=2.0, label="lower bound")
+    for mm in measured:
+        g = mm.to_quantity(quantity)
+        mf = g.frequency_hz
+        y = g.metric().response[:, 0].real
+        keep = (mf >= lo_f) & (mf <= hi_f)
+        lab = f"measured {mm.kind}" + (f" ({mm.force_n:g} N)" if mm.force_n else "")
+        if mm.kind == "stepped":
+            ax.plot(mf[keep], y[keep], "x", color="tab:green", ms=4, mew=1.0, label=lab)
+        else:
+            ax.plot(mf[keep], y[keep], color="tab:green", lw=1.0, label=lab)
     ax.set_yscale("log")
+    ax.set_xlim(lo_f, hi_f)
+    ax.autoscale(axis="y")
     ax.set_xlabel("frequency [Hz]")
-    q = attrs.get("config_json", "")
-    unit = "m/s^2" if '"acceleration"' in q else "m/s" if '"velocity"' in q else "m"
-    ax.set_ylabel(f"response metric M [{unit}]")
-    ax.set_title(f"{attrs.get('model_name', '')}: {n} samples "
-                 f"({len(lines)} drawn), seed {attrs.get('seed')}")
+    ax.set_ylabel(f"{quantity} amplitude M [{UNITS[quantity]}]")
+    if title is None:
+        name = attrs.get("model_name", "")
+        cfg = _config(attrs)
+        F0 = cfg.get("excitation", {}).get("F0")
+        title = f"{name}" + (f", F0 = {F0:g} N" if F0 else "")
+    ax.set_title(title, fontsize=10)
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(loc="upper right")
-    fig.savefig(png_path, dpi=120)
-    return png_path
+    ax.legend(loc="best", fontsize=8)
+    fig.savefig(out, dpi=150)
+    return {"n_members": n if drawn else 0, "n_drawn": drawn, "has_bounds": B is not None}
+
+
+def _config(attrs):
+    import json
+    try:
+        return json.loads(attrs["config_json"])
+    except (KeyError, ValueError, TypeError):
+        return {}
+
+
+def _datasets(path):
+    import h5py
+    with h5py.File(path, "r", locking=False) as h5:
+        return set(h5.keys())
 
 
 def hbm_figure(freq_hz, amplitude, metric, converged, png_path, title="",

@@ -97,7 +97,8 @@ class Store:
     # -- creation ---------------------------------------------------------------------
 
     @classmethod
-    def create(cls, path, *, record_dim, n_records, coords, variables, attrs, placeholders):
+    def create(cls, path, *, record_dim, n_records, coords, variables, attrs, placeholders,
+               groups=None):
         """Create ``path + ".partial"`` (replacing one that exists) with every chunk allocated.
 
         Parameters
@@ -116,6 +117,10 @@ class Store:
         placeholders : dict
             Root attributes set now and overwritten in place by :meth:`finish`: numeric
             numpy scalars (their dtype is kept).
+        groups : dict, optional
+            ``{group: (variables, attrs)}`` written whole now (e.g. ``bounds/``), in the
+            form of :func:`add_group`; written at creation so that nothing but raw chunk
+            bytes changes afterwards.
         """
         part = partial_path(path)
         part.unlink(missing_ok=True)
@@ -143,6 +148,8 @@ class Store:
                 for i, d in enumerate(dims):
                     ds.dims[i].attach_scale(h5[d])
                 ds.attrs.update(vattrs)
+            for gname, (gvars, gattrs) in (groups or {}).items():
+                _write_group(h5, gname, gvars, gattrs)
             h5.attrs.update(attrs)
             h5.attrs["layout_version"] = np.int64(LAYOUT_VERSION)
             h5.attrs["complete"] = np.int8(0)
@@ -399,19 +406,24 @@ def add_group(path, name, variables, attrs=None):
     if a.get("complete") != 1:
         raise StoreError(f"{path}: add_group needs a complete results file")
     with h5py.File(path, "r+") as h5:
-        for var, (dims, array, _) in variables.items():
-            array = np.asarray(array)
-            expect = tuple(h5[d].shape[0] if d in h5 else -1 for d in dims)
-            if array.shape != expect:
-                raise ValueError(f"{name}/{var}: shape {array.shape} does not match dims "
-                                 f"{dims} {expect}")
-        if name in h5:
-            del h5[name]
-        g = h5.create_group(name, track_order=True)
-        g.attrs.update(attrs or {})
-        for var, (dims, array, vattrs) in variables.items():
-            ds = g.create_dataset(var, data=np.asarray(array), track_times=False)
-            for i, d in enumerate(dims):
-                ds.dims[i].attach_scale(h5[d])
-            ds.attrs.update(vattrs or {})
+        _write_group(h5, name, variables, attrs)
         h5.flush()
+
+
+def _write_group(h5, name, variables, attrs):
+    """Write (or replace) group ``name`` of labelled arrays in an open file."""
+    for var, (dims, array, _) in variables.items():
+        array = np.asarray(array)
+        expect = tuple(h5[d].shape[0] if d in h5 else -1 for d in dims)
+        if array.shape != expect:
+            raise ValueError(f"{name}/{var}: shape {array.shape} does not match dims "
+                             f"{dims} {expect}")
+    if name in h5:
+        del h5[name]
+    g = h5.create_group(name, track_order=True)
+    g.attrs.update(attrs or {})
+    for var, (dims, array, vattrs) in variables.items():
+        ds = g.create_dataset(var, data=np.asarray(array), track_times=False)
+        for i, d in enumerate(dims):
+            ds.dims[i].attach_scale(h5[d])
+        ds.attrs.update(vattrs or {})
