@@ -69,7 +69,8 @@ def test_overrides_apply_and_name_their_flag():
 def test_file_merges_key_by_key_and_replaces_distribution_tables(tmp_path):
     p = tmp_path / "c.toml"
     p.write_text('[model]\npreset = "two-beam"\n[frequency]\nn = 40\n'
-                 '[sampling.kc]\ndist = "normal"\nmean = 6000.0\nstd = 500.0\n')
+                 '[sampling.kc]\ndist = "normal"\nmean = 6000.0\nstd = 500.0\n'
+                 '[bounds]\nk_max = 9000.0\n')    # a normal kc has no upper limit
     cfg = config.load(p)
     assert cfg["frequency"] == {"f_min": 10.0, "f_max": 150.0, "n": 40, "spacing": "linear"}
     assert cfg["sampling"]["kc"] == {"dist": "normal", "mean": 6000.0, "std": 500.0}

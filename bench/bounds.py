@@ -1,0 +1,128 @@
+"""Cost and tightness of the response bounds against harmonic-balance ensembles.
+
+Run: ``python bench/bounds.py [--members N] [--n-freq N] [--threads T]``.
+
+Measured in this one run (compiled kernels, best of ``--repeat``), for both presets at the
+paper's forces, on 10-150 Hz:
+
+* the bounds (upper + lower, ``mcfric.bounds.compute_bounds``);
+* one harmonic-balance sweep of one member;
+* an ensemble of ``--members`` members (default 2000; the paper's claim: bounds cost
+  about one HBM sweep, the target here: no more than that ensemble);
+
+and, from that ensemble, how close its envelope comes to the bounds, and whether every
+converged member lies inside. Printed and saved to ``bench/out/bounds.json`` with a figure
+per case (``bench/out/bounds-<case>.png``).
+"""
+
+import argparse
+import json
+import pathlib
+import time
+
+import numpy as np
+
+import mcfric
+from mcfric.bounds import compute_bounds, force_limit
+
+K_MAX = 15000.0
+N0 = 0.5
+
+
+def best_time(fn, repeat):
+    best = np.inf
+    for _ in range(repeat):
+        t = time.perf_counter()
+        out = fn()
+        best = min(best, time.perf_counter() - t)
+    return best, out
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--members", type=int, default=2000)
+    p.add_argument("--n-freq", type=int, default=1000)
+    p.add_argument("--threads", type=int, default=None)
+    p.add_argument("--repeat", type=int, default=2)
+    args = p.parse_args(argv)
+    f = np.linspace(10, 150, args.n_freq)
+    F_lim = force_limit(1.0, N0)
+    out = pathlib.Path(__file__).parent / "out"
+    out.mkdir(exist_ok=True)
+    results = {}
+    print(f"{args.members} members x {args.n_freq} frequencies, 10-150 Hz; "
+          f"k_max = {K_MAX:g} N/m, F_lim = {F_lim:.4g} N")
+    for preset, F0 in (("two-beam", 0.22), ("two-beam", 1.1), ("eight-beam", 0.25),
+                       ("eight-beam", 1.1)):
+        model = mcfric.preset(preset, F0)
+        nd = model.n_dampers
+        rng = np.random.default_rng(0)
+        mu0 = rng.uniform(0, 1, (args.members, nd))
+        kc = rng.uniform(0, K_MAX, (args.members, nd))
+        # compile / load everything first
+        compute_bounds(model, f[:4], K_MAX, F_lim=F_lim, n_threads=args.threads)
+        mcfric.solve(model, f[:4], mu0[:2], kc[:2], N0, n_threads=args.threads)
+        t_b, B = best_time(lambda: compute_bounds(model, f, K_MAX, F_lim=F_lim,
+                                                  n_threads=args.threads), args.repeat)
+        t_1, _ = best_time(lambda: mcfric.solve(model, f, mu0[:1], kc[:1], N0,
+                                                n_threads=args.threads), max(args.repeat, 5))
+        t_e, r = best_time(lambda: mcfric.solve(model, f, mu0, kc, N0,
+                                                n_threads=args.threads), args.repeat)
+        M = r.metric()
+        ok = r.converged
+        inside = B.contains(M)
+        env_hi = np.nanmax(np.where(ok, M, np.nan), axis=0)
+        env_lo = np.nanmin(np.where(ok, M, np.nan), axis=0)
+        case = f"{preset}-F{F0:g}"
+        res = {
+            "bounds_s": t_b, "one_sweep_s": t_1, "ensemble_s": t_e,
+            "bounds_over_ensemble": t_b / t_e, "bounds_over_one_sweep": t_b / t_1,
+            "member_points_outside": int(np.count_nonzero(~inside & ok)),
+            "converged_points": int(np.count_nonzero(ok)),
+            "max_member_over_upper": float(np.nanmax(M / B.upper)),
+            "min_member_over_lower": float(np.nanmin(M / B.lower)),
+            "envelope_over_upper_median": float(np.median(env_hi / B.upper)),
+            "lower_over_envelope_min_median": float(np.median(B.lower / env_lo)),
+            "upper_set_by_force": int(np.count_nonzero(B.limited_by == 1)),
+            "failed": B.n_failed,
+        }
+        results[case] = res
+        print(f"{case:>16}: bounds {t_b:6.2f} s | one sweep {t_1 * 1e3:7.1f} ms | "
+              f"{args.members}-member ensemble {t_e:6.2f} s | bounds/ensemble "
+              f"{t_b / t_e:5.2f} | bounds/sweep {t_b / t_1:7.0f}")
+        print(f"{'':>16}  members outside: {res['member_points_outside']} of "
+              f"{res['converged_points']:,} | max M/upper {res['max_member_over_upper']:.6f}"
+              f" | min M/lower {res['min_member_over_lower']:.4f} | envelope/upper median "
+              f"{res['envelope_over_upper_median']:.3f} | lower/ensemble min median "
+              f"{res['lower_over_envelope_min_median']:.3f} | upper set by force at "
+              f"{res['upper_set_by_force']} of {len(f)}")
+        _figure(f, M, B, out / f"bounds-{case}.png", f"{preset}, F0 = {F0:g} N")
+    (out / "bounds.json").write_text(json.dumps(results, indent=2))
+    print(f"saved {out / 'bounds.json'} and figures in {out}")
+
+
+def _figure(f, M, B, path, title):
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.collections import LineCollection
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(8, 4.5), layout="constrained")
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    step = max(1, len(M) // 300)
+    ax.add_collection(LineCollection([np.column_stack([f, m]) for m in M[::step]],
+                                     colors="0.45", linewidths=0.5, alpha=0.25,
+                                     rasterized=True))
+    ax.plot(f, B.upper, color="tab:blue", lw=2, label="upper bound")
+    ax.plot(f, B.lower, color="tab:red", lw=2, label="lower bound")
+    ax.set_yscale("log")
+    ax.set_xlabel("frequency [Hz]")
+    ax.set_ylabel("M [m]")
+    ax.set_title(title)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend()
+    fig.savefig(path, dpi=120)
+
+
+if __name__ == "__main__":
+    main()
