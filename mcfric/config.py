@@ -642,6 +642,7 @@ def load(source=None, overrides=None):
         user = {"model": {"preset": source}}
     else:
         user = read_toml(source)
+        _expand_modal_files(user, Path(source).parent)
     model = user.get("model", {})
     base_name = model.get("preset", DEFAULT_PRESET) if isinstance(model, dict) else DEFAULT_PRESET
     if not isinstance(base_name, str) or base_name not in PRESETS:
@@ -655,6 +656,63 @@ def load(source=None, overrides=None):
         _set(raw, key, value)
         labels[key] = label
     return validate(raw, labels)
+
+
+MODAL_FILE_KEYS = ("file", "nodes", "direction", "modes", "max_imag")
+
+
+def _expand_modal_files(user, base):
+    """Replace ``[model.table] file = ...`` (and per-beam ``file``) by the table read.
+
+    The file (UFF 55, CSV or TOML; :func:`mcfric.modal_io.read_modal_table`) is read
+    once, here: the validated configuration holds the numbers, so a results file records
+    the modal data it was computed with. ``nodes = {contact, output, drive}`` maps the
+    file's node numbers (CSV/TOML: position labels) to positions 1, 2, 3.
+    """
+    m = user.get("model")
+    if not isinstance(m, dict):
+        return
+    beams = m.get("beam") if isinstance(m.get("beam"), list) else []
+    items = [("model.table", m.get("table"))] + [(f"model.beam[{n}]", b)
+                                                  for n, b in enumerate(beams, 1)]
+    for key, t in items:
+        if not isinstance(t, dict) or "file" not in t:
+            continue
+        extra = set(t) - set(MODAL_FILE_KEYS) - ({"beam"} if key != "model.table" else set())
+        if extra:
+            raise ConfigError(f"{key}.{sorted(extra)[0]}", "cannot be given together with "
+                              "file (the file holds the whole table)")
+        nodes = t.get("nodes")
+        if (not isinstance(nodes, dict) or set(nodes) != {"contact", "output", "drive"}
+                or not all(_is_int(v) for v in nodes.values())):
+            raise ConfigError(f"{key}.nodes", "expected {contact = N, output = N, drive = N} "
+                              f"(node numbers in the file), got {_show(nodes)}")
+        if not isinstance(t["file"], str):
+            raise ConfigError(f"{key}.file", f"expected a file name, got {_show(t['file'])}")
+        path = Path(t["file"])
+        if not path.is_absolute():
+            path = base / path
+        from .modal_io import read_modal_table
+        try:
+            table = read_modal_table(
+                path, positions={1: nodes["contact"], 2: nodes["output"], 3: nodes["drive"]},
+                direction=t.get("direction"), modes=t.get("modes"),
+                max_imag=t.get("max_imag", 0.05))
+        except (ValueError, ImportError, OSError) as e:
+            raise ConfigError(f"{key}.file", str(e).splitlines()[0]) from None
+        new = {"freq_hz": table.freq_hz.tolist(), "zeta": table.zeta.tolist(),
+               "shapes": table.shapes.tolist()}
+        if key == "model.table":
+            new["positions"] = list(table.positions)
+        else:
+            new["beam"] = t.get("beam")
+        t.clear()
+        t.update(new)
+        if key == "model.table":
+            for role, label in (("contact", 1), ("output", 2), ("drive", 3)):
+                if m.get(role, label) != label:
+                    raise ConfigError(f"model.{role}", "is set by model.table.nodes when the "
+                                      "table comes from a file; remove it")
 
 
 # ----------------------------------------------------------------------------- Config

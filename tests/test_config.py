@@ -159,3 +159,43 @@ def test_every_toml_example_in_the_readme_is_valid():
     assert blocks
     for b in blocks:
         config.load(tomllib.loads(b))
+
+
+def test_modal_table_from_a_uff_file(tmp_path):
+    """[model.table] file + nodes: the table read from UFF 55 replaces the numbers."""
+    pytest.importorskip("pyuff")
+    from mcfric.model import TABLE_1
+    from mcfric.modal_io import write_modal_table_uff55
+
+    write_modal_table_uff55(tmp_path / "beam.uff", TABLE_1, nodes={1: 101, 2: 102, 3: 103})
+    p = tmp_path / "c.toml"
+    p.write_text('[model]\npreset = "two-beam"\n[model.table]\nfile = "beam.uff"\n'
+                 'nodes = {contact = 101, output = 102, drive = 103}\n'
+                 '[[model.beam]]\nbeam = 2\nfile = "beam.uff"\n'
+                 'nodes = {contact = 101, output = 102, drive = 103}\n')
+    cfg = config.load(p)
+    m = cfg.model()
+    for t in m.beams:
+        np.testing.assert_allclose(t.freq_hz, TABLE_1.freq_hz, rtol=1e-5)
+        np.testing.assert_allclose(t.shapes, TABLE_1.shapes, rtol=1e-5)
+    assert "file" not in cfg["model"]["table"]          # the numbers are recorded instead
+    assert config.validate(tomllib.loads(cfg.toml())).data == cfg.data
+
+
+@pytest.mark.parametrize("table, key", [
+    ('file = "missing.uff"\nnodes = {contact = 1, output = 2, drive = 3}', "model.table.file"),
+    ('file = "beam.uff"\nnodes = {contact = 101, output = 102}', "model.table.nodes"),
+    ('file = "beam.uff"\nnodes = {contact = 101, output = 102, drive = 103}\nzeta = [0.1]',
+     "model.table.zeta"),
+])
+def test_bad_modal_table_file(tmp_path, table, key):
+    pytest.importorskip("pyuff")
+    from mcfric.model import TABLE_1
+    from mcfric.modal_io import write_modal_table_uff55
+
+    write_modal_table_uff55(tmp_path / "beam.uff", TABLE_1, nodes={1: 101, 2: 102, 3: 103})
+    p = tmp_path / "c.toml"
+    p.write_text(f"[model.table]\n{table}\n")
+    with pytest.raises(config.ConfigError) as e:
+        config.load(p)
+    assert str(e.value).startswith(key) and "\n" not in str(e.value)
