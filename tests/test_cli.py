@@ -170,7 +170,8 @@ def test_no_arguments_runs_the_embedded_default(tmp_path, monkeypatch, capsys):
 
     monkeypatch.chdir(tmp_path)
     monkeypatch.setattr(ensemble, "run", fake_run)
-    monkeypatch.setattr(plot, "ensemble_figure", lambda h5, png: seen.update(png=png))
+    monkeypatch.setattr(plot, "results_figure", lambda h5, png, **kw: seen.update(png=png))
+    monkeypatch.setattr(cli, "_check_members", lambda path: None)   # no file was written
     rc, out, _ = call([], capsys)
     assert rc == 0
     cfg = seen["cfg"]
