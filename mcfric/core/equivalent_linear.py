@@ -488,6 +488,17 @@ def _better(v, ref, want_max):
     return v > ref if want_max else v < ref
 
 
+@inline_jit
+def _irrelevant(best, cap, o, k, n_o):
+    """For the maximum: beam ``o`` cannot set the bound at frequency ``k`` when its force
+    bound is already reached by another beam's ``min(box value found, force bound)``."""
+    top = -math.inf
+    for p in range(n_o):
+        if p != o and not math.isnan(best[p, k]):
+            top = max(top, min(best[p, k], cap[k, p]))
+    return cap[k, o] <= top
+
+
 @jit(parallel=True, nogil=True)
 def _multistart(G, q0, ylin, H, kr, ki, starts, want_max, objectives, cap, max_sweeps, tol,
                 best, K_best):
@@ -495,12 +506,18 @@ def _multistart(G, q0, ylin, H, kr, ki, starts, want_max, objectives, cap, max_s
     frequency (in parallel over frequencies)."""
     n_f, nd = q0.shape
     nb = ylin.shape[1]
+    n_o = objectives.shape[0]
     for k in prange(n_f):
         w = _workspace(nd, nb)
         K = np.zeros(nd, dtype=np.complex128)
-        for o in range(objectives.shape[0]):
-            b0, b1 = _beam_range(objectives[o], nb)
+        for o in range(n_o):
             best[o, k] = math.nan
+        # beams with the largest force bound first: the others may then be skipped
+        order = np.argsort(-cap[k]) if want_max else np.arange(n_o)
+        for o in order:
+            if want_max and _irrelevant(best, cap, o, k, n_o):
+                continue
+            b0, b1 = _beam_range(objectives[o], nb)
             for s in range(starts.shape[1]):
                 for j in range(nd):
                     K[j] = complex(kr * starts[k, s, j].real, ki * starts[k, s, j].imag)
@@ -537,8 +554,9 @@ def _propagate(G, q0, ylin, H, kr, ki, want_max, objectives, cap, max_sweeps, to
                     continue
                 for j in range(nd):
                     K[j] = K_cand[d, o, kp, j]
-                if want_max and cand[d, o, k] >= cap[k, o]:
-                    continue            # already at the force limit: nothing to gain
+                if want_max and (cand[d, o, k] >= cap[k, o] or
+                                 _irrelevant(best, cap, o, k, objectives.shape[0])):
+                    continue            # at the force limit, or cannot set the bound
                 v = _improve(G[k], q0[k], ylin[k], H[k], kr, ki, K, want_max, objectives[o],
                              max_sweeps, tol, w)
                 if _better(v, cand[d, o, k], want_max):
@@ -557,7 +575,9 @@ def _polish(G, q0, ylin, H, kr, ki, want_max, objectives, cap, max_sweeps, tol, 
         w = _workspace(nd, nb)
         K = np.empty(nd, dtype=np.complex128)
         for o in range(objectives.shape[0]):
-            if math.isnan(best[o, k]) or (want_max and best[o, k] >= cap[k, o]):
+            if math.isnan(best[o, k]) or (want_max and (
+                    best[o, k] >= cap[k, o] or
+                    _irrelevant(best, cap, o, k, objectives.shape[0]))):
                 continue
             for j in range(nd):
                 K[j] = K_best[o, k, j]
