@@ -19,7 +19,6 @@ file does not say and must agree with what it does.
 
 from __future__ import annotations
 
-import csv
 import math
 import re
 from collections.abc import Mapping, Sequence
@@ -28,8 +27,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .modal_io import (UFF_SUFFIXES, _as_int, _atomic_uff_write, _short, uff_datasets,
-                       uff_date, uff_units_dataset)
+from .modal_io import (UFF_SUFFIXES, _as_int, _atomic_uff_write, _short, csv_rows,
+                       uff_datasets, uff_date, uff_units_dataset)
 
 KINDS = ("stepped", "sweep")
 QUANTITIES = ("displacement", "velocity", "acceleration")
@@ -438,14 +437,7 @@ _CSV_BEAM = re.compile(r"^(re_|im_)?beam_?(\d+)$")
 def _read_csv(path, quantity, force_n, kind, scale):
     if not path.is_file():
         raise ValueError(f"{path}: file not found")
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except UnicodeDecodeError:
-        raise ValueError(f"{path}: not a text file") from None
-    rows = [(i + 1, r) for i, r in enumerate(csv.reader(text.splitlines()))
-            if r and any(c.strip() for c in r) and not r[0].lstrip().startswith("#")]
-    if not rows:
-        raise ValueError(f"{path}: empty CSV file")
+    rows = csv_rows(path)
     _, header = rows[0]
     names = [h.strip().lower().replace(" ", "_") for h in header]
     amp, re_, im_, special = {}, {}, {}, {}

@@ -480,7 +480,11 @@ def _realise(path, mode, v, max_imag):
 _CSV_SHAPE = re.compile(r"^u_?(-?\d+)$")
 
 
-def _parse_csv_table(path):
+def csv_rows(path, what="CSV file"):
+    """Non-empty, non-comment rows of a CSV file as ``(line number, cells)``.
+
+    Raises a one-line ValueError naming the file when it is not text or has no rows.
+    """
     try:
         text = path.read_text(encoding="utf-8-sig")
     except UnicodeDecodeError:
@@ -488,7 +492,12 @@ def _parse_csv_table(path):
     rows = [(i + 1, r) for i, r in enumerate(csv.reader(text.splitlines()))
             if r and any(c.strip() for c in r) and not r[0].lstrip().startswith("#")]
     if not rows:
-        raise ValueError(f"{path}: empty CSV table")
+        raise ValueError(f"{path}: empty {what}")
+    return rows
+
+
+def _parse_csv_table(path):
+    rows = csv_rows(path, "CSV table")
     line0, header = rows[0]
     names = [h.strip().lower() for h in header]
     labels, shape_cols = [], []

@@ -34,7 +34,7 @@ import numpy as np
 from numba import prange
 
 from ._jit import inline_jit, jit
-from .linalg import lu_factor, lu_solve
+from .linalg import contact_solve, lu_factor, lu_solve
 
 _TINY = 1e-300
 
@@ -299,15 +299,8 @@ def _smooth_max(G, q0, ylin, H, K, mu, b0, b1, grad, w):
     Returns (value, log M); value = inf if the system is singular."""
     Tinv, T, piv, q, y, u, alpha, beta, rowj, r = w
     nd = K.shape[0]
-    nb = ylin.shape[0]
-    for i in range(nd):
-        for j in range(nd):
-            T[i, j] = G[i, j] * K[j]
-        T[i, i] += 1.0
-        q[i] = q0[i]
-    if lu_factor(T, piv, nd) != 0:
+    if contact_solve(G, K, q0, T, piv, q, nd) != 0:
         return math.inf, math.inf
-    lu_solve(T, piv, q, nd)
     lmax = -math.inf
     for b in range(b0, b1):
         acc = ylin[b]
@@ -382,9 +375,7 @@ def _spg(G, q0, ylin, H, kr, ki, K, sign, b0, b1, w):
     """
     nd = K.shape[0]
     g = np.zeros(nd, dtype=np.complex128)
-    g_old = np.zeros(nd, dtype=np.complex128)
     x = np.zeros(nd, dtype=np.complex128)      # K scaled to the unit box
-    x_old = np.zeros(nd, dtype=np.complex128)
     xt = np.zeros(nd, dtype=np.complex128)
     Kt = np.zeros(nd, dtype=np.complex128)
     d = np.zeros(nd, dtype=np.complex128)

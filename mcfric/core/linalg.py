@@ -75,6 +75,24 @@ def lu_solve(A, piv, b, n):
 
 
 @inline_jit
+def contact_solve(G, K, q0, T, piv, q, nd):
+    """``q = (I + G diag(K))^-1 q0`` by LU with partial pivoting (any damper graph).
+
+    ``T`` keeps the LU factors and ``piv`` the interchanges. Returns the info code of
+    :func:`lu_factor` (``q`` is valid only for 0).
+    """
+    for i in range(nd):
+        for j in range(nd):
+            T[i, j] = G[i, j] * K[j]
+        T[i, i] += 1.0
+        q[i] = q0[i]
+    info = lu_factor(T, piv, nd)
+    if info == 0:
+        lu_solve(T, piv, q, nd)
+    return info
+
+
+@inline_jit
 def cinv(z):
     """``1/z`` as ``conj(z)/|z|^2``: one real division instead of numba's scaled complex one."""
     r = 1.0 / (z.real * z.real + z.imag * z.imag)

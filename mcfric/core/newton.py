@@ -25,7 +25,7 @@ import numpy as np
 
 from ._jit import inline_jit, jit
 from .friction import kappa_logs
-from .linalg import cinv, lu_factor, lu_solve
+from .linalg import cinv, contact_solve, lu_factor, lu_solve
 
 #: Status codes of one solve.
 CONVERGED = 0           # Newton from the initial guess
@@ -81,14 +81,8 @@ def _damper_K(x, kc, active, K, nd):
 def _residual_dense(x, kc, c, active, G, q0, K, q, f, T, piv, nd):
     """Residual on the dense path; leaves the LU factors of ``I + G K`` in ``T``."""
     _damper_K(x, kc, active, K, nd)
-    for i in range(nd):
-        for j in range(nd):
-            T[i, j] = G[i, j] * K[j]
-        T[i, i] += 1.0
-        q[i] = q0[i]
-    if lu_factor(T, piv, nd) != 0:
+    if contact_solve(G, K, q0, T, piv, q, nd) != 0:
         return math.inf
-    lu_solve(T, piv, q, nd)
     return _log_residual(x, c, active, q, f, nd)
 
 
