@@ -1,0 +1,156 @@
+"""`mcfric plot`: the figure of a results file (not blank: bounds, cloud), PDF output, the
+quantity and frequency-window options, bad inputs, and a measured overlay made from a
+member of the run itself (100 % inside)."""
+
+import csv
+import re
+
+import h5py
+import numpy as np
+import pytest
+from matplotlib.image import imread
+
+from mcfric import cli
+
+TAB_BLUE = (31 / 255, 119 / 255, 180 / 255)     # upper bound
+TAB_RED = (214 / 255, 39 / 255, 40 / 255)       # lower bound
+TAB_GREEN = (44 / 255, 160 / 255, 44 / 255)     # measured data
+
+
+@pytest.fixture(scope="module")
+def results(tmp_path_factory):
+    """A small two-beam results file with its bounds (20 members x 60 frequencies)."""
+    path = tmp_path_factory.mktemp("plot") / "x.h5"
+    rc = cli.main(["run", "two-beam", "--samples", "20", "--n-freq", "60", "-o", str(path),
+                   "--no-progress", "--no-figure"])
+    assert rc == 0 and path.is_file()
+    return path
+
+
+def call(argv, capsys):
+    rc = cli.main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return rc, out, err
+
+
+def rgb(png):
+    img = imread(png)
+    assert img.ndim == 3 and img.shape[0] > 200 and img.shape[1] > 200
+    return img[..., :3].astype(float)
+
+
+def near(img, colour, tol=0.08):
+    """Pixels within ``tol`` of ``colour`` in every channel."""
+    return int(np.count_nonzero(np.abs(img - np.asarray(colour)).max(axis=-1) < tol))
+
+
+def assert_not_blank(img):
+    non_white = np.any(img < 0.98, axis=-1).mean()
+    assert non_white > 0.10, f"only {100 * non_white:.1f} % of the pixels are not white"
+    q = np.round(img * 15).astype(int)                          # 4 bits per channel
+    _, counts = np.unique(q[..., 0] * 256 + q[..., 1] * 16 + q[..., 2], return_counts=True)
+    assert np.count_nonzero(counts >= 50) >= 8, "too few distinct colours"
+
+
+def test_png_shows_bounds_and_cloud(results, tmp_path, capsys):
+    png = tmp_path / "fig.png"
+    rc, out, err = call(["plot", results, "-o", png], capsys)
+    assert rc == 0, err
+    assert f"figure: {png} (20 of 20 members drawn, bounds)" in out
+    img = rgb(png)
+    assert_not_blank(img)
+    assert near(img, TAB_BLUE) > 1000, "no upper bound (blue) drawn"
+    assert near(img, TAB_RED) > 1000, "no lower bound (red) drawn"
+    # the cloud: light, unsaturated grey (grey lines at low alpha, over white or the pale
+    # blue band); a figure of the bounds alone has ~2000 such pixels (text antialiasing),
+    # this one ~20000
+    mean, spread = img.mean(axis=-1), np.ptp(img, axis=-1)
+    grey = np.count_nonzero((spread < 0.07) & (mean > 0.70) & (mean < 0.86))
+    assert grey > 8000, f"no ensemble cloud (grey): {grey} pixels"
+
+
+def test_pdf_output(results, tmp_path, capsys):
+    pdf = tmp_path / "fig.pdf"
+    rc, out, err = call(["plot", results, "-o", pdf], capsys)
+    assert rc == 0, err
+    data = pdf.read_bytes()
+    assert data.startswith(b"%PDF") and len(data) > 5000
+
+
+def test_quantity_and_window(results, tmp_path, capsys):
+    base, acc, win = tmp_path / "d.png", tmp_path / "a.png", tmp_path / "w.png"
+    assert call(["plot", results, "-o", base], capsys)[0] == 0
+    rc, _, err = call(["plot", results, "-o", acc, "--quantity", "acceleration"], capsys)
+    assert rc == 0, err
+    rc, _, err = call(["plot", results, "-o", win, "--f-min", "30", "--f-max", "80"], capsys)
+    assert rc == 0, err
+    imgs = {p.name: rgb(p) for p in (base, acc, win)}
+    for name, img in imgs.items():
+        assert_not_blank(img)
+        assert near(img, TAB_BLUE) > 500 and near(img, TAB_RED) > 500, name
+    assert imgs["a.png"].shape != imgs["d.png"].shape or not np.array_equal(imgs["a.png"],
+                                                                              imgs["d.png"])
+    assert imgs["w.png"].shape != imgs["d.png"].shape or not np.array_equal(imgs["w.png"],
+                                                                              imgs["d.png"])
+
+
+@pytest.mark.parametrize("case", ["missing file", "jpg output", "f-min above f-max",
+                                  "window outside the grid", "bad quantity"])
+def test_bad_input_is_one_line_exit_2(case, results, tmp_path, capsys):
+    out_png = tmp_path / "fig.png"
+    argv = {
+        "missing file": ["plot", tmp_path / "nope.h5", "-o", out_png],
+        "jpg output": ["plot", results, "-o", tmp_path / "fig.jpg"],
+        "f-min above f-max": ["plot", results, "-o", out_png, "--f-min", "100",
+                              "--f-max", "50"],
+        "window outside the grid": ["plot", results, "-o", out_png, "--f-min", "200",
+                                    "--f-max", "300"],
+        "bad quantity": ["plot", results, "-o", out_png, "--quantity", "force"],
+    }[case]
+    rc, out, err = call(argv, capsys)
+    assert rc == 2
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("mcfric: error: "), err
+    assert not out_png.exists() and not (tmp_path / "fig.jpg").exists()
+
+
+def _member_csv(results, path, member, scale=1.0):
+    """CSV of one member's |response| per beam (frequency_hz, beam1, beam2, kind)."""
+    with h5py.File(results, "r") as h5:
+        f = h5["frequency"][()]
+        y = np.abs(h5["response"][member]) * scale               # (frequency, beam)
+        assert np.all(h5["converged"][member])
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["frequency_hz", "beam1", "beam2", "kind"])
+        for fi, row in zip(f, y):
+            w.writerow([repr(float(fi)), repr(float(row[0])), repr(float(row[1])), "sweep"])
+    return len(f)
+
+
+def _fractions(out):
+    """(percent, inside, compared) of each 'inside the bounds' line printed."""
+    return [(float(p), int(a), int(b)) for p, a, b in
+            re.findall(r"measured points inside the bounds: ([\d.]+) % \((\d+)/(\d+)\)", out)]
+
+
+def test_measured_member_is_inside(results, tmp_path, capsys):
+    data = tmp_path / "member.csv"
+    n_f = _member_csv(results, data, member=3)
+    png = tmp_path / "m.png"
+    rc, out, err = call(["plot", results, "-o", png, "--measured", data], capsys)
+    assert rc == 0, err
+    # per beam against the upper bound (2 beams), the measured metric against both bounds
+    assert _fractions(out) == [(100.0, 2 * n_f, 2 * n_f), (100.0, n_f, n_f)], out
+    assert near(rgb(png), TAB_GREEN) > 300, "measured sweep (green) not drawn"
+
+
+def test_measured_outside_is_counted(results, tmp_path, capsys):
+    data = tmp_path / "loud.csv"
+    n_f = _member_csv(results, data, member=3, scale=100.0)     # far above the upper bound
+    rc, out, err = call(["plot", results, "-o", tmp_path / "m.png", "--measured", data],
+                        capsys)
+    assert rc == 0, err
+    fr = _fractions(out)
+    assert len(fr) == 2 and fr[1][2] == n_f
+    assert all(p < 100.0 for p, _, _ in fr), out
