@@ -328,3 +328,18 @@ def write_bounds_file(path, cfg, B):
     _fsync_path(part)
     part.replace(path)
     return path
+
+
+def group_from_config(cfg, verbose=True):
+    """``{"bounds": (variables, attrs)}`` for a results file of ``cfg``: the bounds of its
+    nominal model, computed now (``mcfric run`` does this before the ensemble)."""
+    import time
+
+    if verbose and cfg["sampling"]["mistuning"] > 0:
+        print("note: the bounds are for the nominal rig; mistuned members need not lie "
+              "inside them", flush=True)
+    t = time.perf_counter()
+    B = from_config(cfg, n_threads=cfg["run"]["threads"] or None)
+    if verbose:
+        print(f"{B.summary()} ({time.perf_counter() - t:.1f} s)", flush=True)
+    return {"bounds": to_group(B)}

@@ -199,21 +199,6 @@ def _output_path(args, suffix, prefix=""):
     return out
 
 
-def _bounds_group(cfg):
-    """Compute the bounds of ``cfg`` (before the ensemble) as a store group."""
-    import time
-
-    from . import bounds
-
-    if cfg["sampling"]["mistuning"] > 0:
-        print("note: the bounds are for the nominal rig; mistuned members need not lie "
-              "inside them", flush=True)
-    t = time.perf_counter()
-    B = bounds.from_config(cfg, n_threads=cfg["run"]["threads"] or None)
-    print(f"{B.summary()} ({time.perf_counter() - t:.1f} s)", flush=True)
-    return {"bounds": bounds.to_group(B)}
-
-
 def _check_members(path):
     """Count converged ensemble points outside the stored bounds (a validity check)."""
     import numpy as np
@@ -243,9 +228,8 @@ def cmd_run(args):
         print(f"mcfric run: {model.name}, {cfg.samples} samples x {cfg['frequency']['n']} "
               f"frequencies, {model.n_beams} beams, F0 = {model.excitation.F0:g} N, "
               f"seed {cfg.seed}", flush=True)
-        groups = (lambda: _bounds_group(cfg)) if cfg["bounds"]["enabled"] else None
         summary = ensemble.run(cfg, out, resume=args.resume, force=args.force,
-                               progress=not args.no_progress, groups=groups)
+                               progress=not args.no_progress)
     except ensemble.RunError as e:
         raise UsageError(str(e)) from None
     except ensemble.Interrupted as e:
@@ -322,6 +306,10 @@ def cmd_plot(args):
         f = read(path, "frequency")
         window = (args.f_min if args.f_min is not None else f.min(),
                   args.f_max if args.f_max is not None else f.max())
+    n = int(attrs.get("samples", 0))
+    if n and not -1 <= args.member < n:
+        raise UsageError(f"--member: expected -1 (none) or a member in 0..{n - 1}, "
+                         f"got {args.member}")
     measured = _read_measured(args, attrs)
     try:
         drawn = plot.results_figure(path, out, quantity=args.quantity, f_window=window,
@@ -382,9 +370,10 @@ def _print_inside(path, measured, quantity):
     per_beam = ms.fraction_inside(measured, B.freq_hz, lo, up, quantity=q, check_lower=False)
     metric = [m.to_quantity(q).metric() for m in measured]
     overall = ms.fraction_inside(metric, B.freq_hz, lo, up, quantity=q)
-    print("measured points below the upper bound, per beam:")
+    print("each beam against the upper bound only (the lower bound of M bounds the "
+          "largest beam, not every beam):")
     print(per_beam.text())
-    print("measured metric (max over the beams) inside [lower, upper]:")
+    print("the measured metric M (max over the beams) against both bounds:")
     print(overall.text())
 
 

@@ -329,7 +329,7 @@ def _put(q, item, writer, err):
                 raise err[0] if err else RuntimeError("the writer thread stopped")
 
 
-def run(cfg, path, *, resume=False, force=False, progress=True, groups=None):
+def run(cfg, path, *, resume=False, force=False, progress=True, groups="auto"):
     """Run (or continue) the Monte Carlo ensemble of ``cfg`` into the results file ``path``.
 
     Parameters
@@ -345,10 +345,11 @@ def run(cfg, path, *, resume=False, force=False, progress=True, groups=None):
         Replace an existing results file or partial file that holds another run.
     progress : bool
         Show a tqdm progress bar on stderr.
-    groups : callable, optional
+    groups : callable, "auto" or None
         Called only when a new results file is created; returns ``{group: (variables,
-        attrs)}`` written with it (e.g. the ``bounds/`` group, computed before the
-        ensemble so that the file never changes but for its chunks afterwards).
+        attrs)}`` written with it, so that the file never changes but for its chunks
+        afterwards. ``"auto"`` (default): the ``bounds/`` group when
+        ``[bounds] enabled`` (computed before the ensemble); None: no groups.
 
     Returns
     -------
@@ -372,6 +373,8 @@ def run(cfg, path, *, resume=False, force=False, progress=True, groups=None):
                        int(found.get("n_not_converged", -1)), time.perf_counter() - t_start,
                        0.0, True, already_complete=True)
     if what == "new":
+        if groups == "auto":
+            groups = _bounds_groups(cfg, progress) if cfg["bounds"]["enabled"] else None
         coords, variables, attrs, placeholders = layout(cfg, model, freq)
         store = Store.create(final, record_dim=RECORD, n_records=cfg.samples, coords=coords,
                              variables=variables, attrs=attrs, placeholders=placeholders,
@@ -385,6 +388,12 @@ def run(cfg, path, *, resume=False, force=False, progress=True, groups=None):
         return _drive(cfg, model, freq, store, done, not_conv_before, progress, t_start)
     finally:
         store.close()
+
+
+def _bounds_groups(cfg, verbose):
+    from .bounds import group_from_config
+
+    return lambda: group_from_config(cfg, verbose)
 
 
 def _drive(cfg, model, freq, store, done, not_conv_before, progress, t_start):

@@ -646,11 +646,11 @@ class Inside:
         return self.fraction()
 
     def text(self):
-        parts = [f"{'M' if b == METRIC else f'beam {b}'} {100 * self.fraction(b):.1f} % "
+        parts = [f"{'M' if b == METRIC else f'beam {b}'} {_percent(self.fraction(b))} % "
                  f"({self.inside[b]}/{self.compared(b)})" for b in self.beams]
         excl = sum(self.outside_range.values())
         miss = sum(self.missing.values())
-        s = (f"measured points inside the bounds: {100 * self.overall:.1f} % "
+        s = (f"measured points inside the bounds: {_percent(self.overall)} % "
              f"({sum(self.inside.values())}/{self.compared()}); " + ", ".join(parts))
         if excl:
             s += f"; {excl} outside the bounds' frequency range (excluded)"
@@ -688,6 +688,11 @@ def interpolate_log(freq_hz, values, at_hz):
     out = np.where(np.isnan(v0) | np.isnan(v1), np.nan, out)
     # exp(log(v)) may be off by an ulp: grid points get their own value exactly
     return np.where(t == 0, v0, np.where(t == 1, v1, out))
+
+
+def _percent(x):
+    """One decimal, rounded down: 9999 of 10000 must not read 100.0 %."""
+    return "nan" if math.isnan(x) else f"{math.floor(1000 * x) / 10:.1f}"
 
 
 def fraction_inside(measurement, freq_hz, lower, upper, beams=None, *,

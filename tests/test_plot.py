@@ -154,3 +154,27 @@ def test_measured_outside_is_counted(results, tmp_path, capsys):
     fr = _fractions(out)
     assert len(fr) == 2 and fr[1][2] == n_f
     assert all(p < 100.0 for p, _, _ in fr), out
+
+
+def test_member_out_of_range_is_refused(results, tmp_path, capsys):
+    from mcfric import cli
+
+    rc = cli.main(["plot", str(results), "-o", str(tmp_path / "m.png"), "--member", "999"])
+    err = capsys.readouterr().err
+    assert rc == 2 and "--member" in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "m.png").exists()
+
+
+def test_python_ensemble_run_stores_bounds_by_default(tmp_path):
+    """ensemble.run from Python writes bounds/ as the CLI does ([bounds] enabled)."""
+    from mcfric import config, ensemble
+    from mcfric.bounds import read_bounds
+
+    cfg = config.load("two-beam", {"sampling.samples": (8, "--samples"),
+                                   "frequency.n": (30, "--n-freq")})
+    ensemble.run(cfg, tmp_path / "r.h5", progress=False)
+    B = read_bounds(tmp_path / "r.h5")
+    assert B is not None and B.n_failed == 0 and len(B.upper) == 30
+    off = cfg.replace("bounds.enabled", False)
+    ensemble.run(off, tmp_path / "n.h5", progress=False)
+    assert read_bounds(tmp_path / "n.h5") is None
