@@ -434,6 +434,115 @@ def _spg(G, q0, ylin, H, kr, ki, K, sign, b0, b1, w):
 
 
 @jit
+def _lsq_valley(G, q0, ylin, H, kr, ki, K, w, n_iter=40):
+    """Projected Levenberg-Marquardt on ``sum_b |y_b|^2`` from ``K`` (in place).
+
+    The box minimum of M can be a deep, narrow valley where all beams are nearly at rest
+    at once; coordinate and max-smoothed searches rarely fall into it, a least-squares
+    fit of every ``y_b`` to zero does (its minimiser starts the minimax search). Returns
+    ``M`` at the final ``K`` (NaN if singular).
+    """
+    Tinv, T, piv, q, y, u, alpha, beta, rowj, r = w
+    nd = K.shape[0]
+    nb = ylin.shape[0]
+    n = 2 * nd
+    X = np.empty((nd, nd), dtype=np.complex128)
+    J = np.empty((nb, nd), dtype=np.complex128)
+    A = np.empty((2 * nb, n))
+    N = np.empty((n, n))
+    g = np.empty(n)
+    d = np.empty(n)
+    rpiv = np.empty(n, dtype=np.int64)
+    Kt = np.empty(nd, dtype=np.complex128)
+    scale = np.empty(n)
+    for j in range(nd):
+        scale[2 * j] = kr
+        scale[2 * j + 1] = ki
+    lam = 1e-3
+    phi = _sumsq(G, q0, ylin, H, K, T, piv, q, y, nd, nb)
+    if not math.isfinite(phi):
+        return math.nan
+    for it in range(n_iter):
+        # Jacobian dy_b/dK_j = -q_j (H_bj - (H diag(K) (I + G K)^-1 G)_bj); T holds the LU
+        for j in range(nd):
+            for i in range(nd):
+                X[i, j] = G[i, j]
+            col = X[:, j].copy()
+            lu_solve(T, piv, col, nd)
+            for i in range(nd):
+                X[i, j] = col[i]
+        for b in range(nb):
+            for j in range(nd):
+                acc = 0.0j
+                for m in range(nd):
+                    acc += H[b, m] * K[m] * X[m, j]
+                J[b, j] = -q[j] * (H[b, j] - acc)
+        # real Jacobian in the scaled variables (Re K / kr, Im K / ki)
+        for b in range(nb):
+            for j in range(nd):
+                c = J[b, j]
+                A[2 * b, 2 * j] = c.real * kr
+                A[2 * b + 1, 2 * j] = c.imag * kr
+                A[2 * b, 2 * j + 1] = -c.imag * ki
+                A[2 * b + 1, 2 * j + 1] = c.real * ki
+        for i in range(n):
+            acc = 0.0
+            for b in range(nb):
+                acc += A[2 * b, i] * y[b].real + A[2 * b + 1, i] * y[b].imag
+            g[i] = acc
+        improved = False
+        for _ in range(12):
+            for i in range(n):
+                for jj in range(n):
+                    acc = 0.0
+                    for rr in range(2 * nb):
+                        acc += A[rr, i] * A[rr, jj]
+                    N[i, jj] = acc
+                N[i, i] += lam * (1.0 + N[i, i])
+                d[i] = -g[i]
+            if lu_factor(N, rpiv, n) != 0:
+                lam *= 10.0
+                continue
+            lu_solve(N, rpiv, d, n)
+            for j in range(nd):
+                re = min(max(K[j].real + d[2 * j] * kr, 0.0), kr)
+                im = min(max(K[j].imag + d[2 * j + 1] * ki, 0.0), ki)
+                Kt[j] = complex(re, im)
+            phit = _sumsq(G, q0, ylin, H, Kt, T, piv, q, y, nd, nb)
+            if phit < phi:
+                improved = True
+                break
+            lam *= 4.0
+        if not improved:
+            break
+        for j in range(nd):
+            K[j] = Kt[j]
+        conv = phi - phit <= 1e-12 * phi
+        phi = phit
+        lam = max(lam / 3.0, 1e-12)
+        if conv:
+            break
+    # T, q, y belong to the last trial: restore them at K
+    phi = _sumsq(G, q0, ylin, H, K, T, piv, q, y, nd, nb)
+    return _objective(y, 0, nb) if math.isfinite(phi) else math.nan
+
+
+@inline_jit
+def _sumsq(G, q0, ylin, H, K, T, piv, q, y, nd, nb):
+    """``sum_b |y_b|^2`` at ``K`` (fills q, y; LU of I + G K in T); inf if singular."""
+    if contact_solve(G, K, q0, T, piv, q, nd) != 0:
+        return math.inf
+    tot = 0.0
+    for b in range(nb):
+        acc = ylin[b]
+        for m in range(nd):
+            acc -= H[b, m] * K[m] * q[m]
+        y[b] = acc
+        tot += acc.real * acc.real + acc.imag * acc.imag
+    return tot if math.isfinite(tot) else math.inf
+
+
+@jit
 def _workspace(nd, nb):
     c16 = np.complex128
     return (np.zeros((nd, nd), c16), np.zeros((nd, nd), c16), np.zeros(nd, np.int64),
@@ -520,6 +629,18 @@ def _multistart(G, q0, ylin, H, kr, ki, starts, want_max, objectives, cap, max_s
                         K_best[o, k, j] = K[j]
                 if want_max and best[o, k] >= cap[k, o]:
                     break               # at the force limit: the box no longer matters
+            if not want_max and objectives[o] < 0 and nd > 1:
+                # the valley where all beams rest at once: least squares from the centre
+                for j in range(nd):
+                    K[j] = complex(0.5 * kr, 0.5 * ki)
+                v = _lsq_valley(G[k], q0[k], ylin[k], H[k], kr, ki, K, w)
+                if math.isfinite(v):
+                    v = _search(G[k], q0[k], ylin[k], H[k], kr, ki, K, False, b0, b1,
+                                max_sweeps, tol, w)
+                if _better(v, best[o, k], want_max):
+                    best[o, k] = v
+                    for j in range(nd):
+                        K_best[o, k, j] = K[j]
 
 
 @jit(parallel=True, nogil=True)
