@@ -43,11 +43,11 @@ from .model import Model
 
 #: ``limited_by`` codes: which constraint sets the upper bound.
 LIMITED_BY = ("box", "force")
-N_STARTS = 12
+N_STARTS = 8
 #: Starts over the whole frequency grid at least: the continuation along frequency shares
 #: what the starts find, so a coarse grid gets more starts per frequency (the total effort
 #: stays about that of a 1000-point grid).
-MIN_TOTAL_STARTS = 12000
+MIN_TOTAL_STARTS = 8000
 MAX_SWEEPS = 20
 
 

@@ -704,7 +704,7 @@ def _polish(G, q0, ylin, H, kr, ki, want_max, objectives, cap, max_sweeps, tol, 
 #: Exploration (multistart, continuation) stops sweeps at this relative change; the final
 #: polish at POLISH_TOL, so that members touching a bound are not cut off by rounding.
 EXPLORE_TOL = 1e-6
-POLISH_TOL = 1e-13
+POLISH_TOL = 1e-11
 
 
 def box_extreme(G, q0, ylin, H, kr, ki, starts, want_max, cap=None, max_sweeps=20, rounds=3):
