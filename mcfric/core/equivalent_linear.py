@@ -34,7 +34,7 @@ import numpy as np
 from numba import prange
 
 from ._jit import inline_jit, jit
-from .linalg import contact_solve, lu_factor, lu_solve
+from .linalg import contact_solve, lm_step, lu_factor, lu_solve
 
 _TINY = 1e-300
 
@@ -492,18 +492,9 @@ def _lsq_valley(G, q0, ylin, H, kr, ki, K, w, n_iter=40):
             g[i] = acc
         improved = False
         for _ in range(12):
-            for i in range(n):
-                for jj in range(n):
-                    acc = 0.0
-                    for rr in range(2 * nb):
-                        acc += A[rr, i] * A[rr, jj]
-                    N[i, jj] = acc
-                N[i, i] += lam * (1.0 + N[i, i])
-                d[i] = -g[i]
-            if lu_factor(N, rpiv, n) != 0:
+            if lm_step(A, g, lam, N, rpiv, d, 2 * nb, n) != 0:
                 lam *= 10.0
                 continue
-            lu_solve(N, rpiv, d, n)
             for j in range(nd):
                 re = min(max(K[j].real + d[2 * j] * kr, 0.0), kr)
                 im = min(max(K[j].imag + d[2 * j + 1] * ki, 0.0), ki)

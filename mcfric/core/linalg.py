@@ -74,6 +74,27 @@ def lu_solve(A, piv, b, n):
         b[i] = acc / A[i, i]
 
 
+@jit
+def lm_step(A, g, lam, N, piv, d, m, n):
+    """Levenberg-Marquardt step: ``(A^T A + lam (I + diag(A^T A))) d = -g``.
+
+    ``A`` (m, n) is the Jacobian of the residuals, ``g = A^T r`` the gradient; ``N`` (n, n)
+    and ``piv`` are scratch. Returns the info code of :func:`lu_factor`.
+    """
+    for i in range(n):
+        for j in range(n):
+            acc = 0.0
+            for k in range(m):
+                acc += A[k, i] * A[k, j]
+            N[i, j] = acc
+        N[i, i] += lam * (1.0 + N[i, i])
+        d[i] = -g[i]
+    info = lu_factor(N, piv, n)
+    if info == 0:
+        lu_solve(N, piv, d, n)
+    return info
+
+
 @inline_jit
 def contact_solve(G, K, q0, T, piv, q, nd):
     """``q = (I + G diag(K))^-1 q0`` by LU with partial pivoting (any damper graph).

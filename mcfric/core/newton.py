@@ -25,7 +25,7 @@ import numpy as np
 
 from ._jit import inline_jit, jit
 from .friction import kappa_logs
-from .linalg import cinv, contact_solve, lu_factor, lu_solve
+from .linalg import cinv, contact_solve, lm_step, lu_factor, lu_solve
 
 #: Status codes of one solve.
 CONVERGED = 0           # Newton from the initial guess
@@ -251,18 +251,9 @@ def levenberg_marquardt(x, kc, c, active, G, q0, tol, w):
             g[i] = acc
         improved = False
         for _ in range(40):
-            for i in range(nd):
-                for j in range(nd):
-                    acc = 0.0
-                    for k in range(nd):
-                        acc += J[k, i] * J[k, j]
-                    A[i, j] = acc
-                A[i, i] += lam * (1.0 + A[i, i])
-                dx[i] = -g[i]
-            if lu_factor(A, rpiv, nd) != 0:
+            if lm_step(J, g, lam, A, rpiv, dx, nd, nd) != 0:
                 lam *= 10.0
                 continue
-            lu_solve(A, rpiv, dx, nd)
             if not _limit_step(dx, nd):
                 lam *= 10.0
                 continue
