@@ -81,7 +81,7 @@ def synchronous(cfg, path, chunk):
     for a in range(0, cfg.samples, chunk):
         d = sampler.draw(np.arange(a, min(cfg.samples, a + chunk)))
         r = hbm.solve(model, f, d.mu0, d.kc, d.N0)
-        st.write(a, {"response": r.response, "metric": ensemble.metric(r.response, f),
+        st.write(a, {"response": r.response, "metric": hbm.response_metric(r.response, f),
                      "converged": r.converged,
                      "mu0": d.mu0, "kc": d.kc, "N0": d.N0})
         st.commit([(a, a + len(d.index))])

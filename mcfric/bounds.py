@@ -38,7 +38,7 @@ import numpy as np
 
 from .core.equivalent_linear import box_extreme
 from .core.receptance import contact_space
-from .hbm import QUANTITIES, check_frequencies, threads
+from .hbm import METRIC_UNITS, QUANTITIES, check_frequencies, threads
 from .model import Model
 
 #: ``limited_by`` codes: which constraint sets the upper bound.
@@ -248,8 +248,6 @@ def from_config(cfg, n_threads=None):
 
 def to_group(B):
     """The ``bounds/`` group of a results file: ``{var: (dims, array, attrs)}, attrs``."""
-    from .ensemble import METRIC_UNITS
-
     unit = METRIC_UNITS[B.quantity]
     variables = {
         "upper": (("frequency",), B.upper, {

@@ -384,7 +384,7 @@ def cmd_config(args):
 
 
 def cmd_info(args):
-    from . import ensemble
+    from . import hbm
     from .store import StoreError, describe, iter_records, partial_path
 
     path = Path(args.file)
@@ -430,7 +430,7 @@ def cmd_info(args):
         + (f", mistuning {sa['mistuning']:g} per {sa['mistuning_per']}"
            if sa["mistuning"] else ""),
         f"converged:   {pts - bad:,} of {pts:,} points ({bad:,} not converged)",
-        (f"metric:      {q} {ensemble.METRIC_UNITS[q]}, {lo:.4g} to {hi:.4g}" if pts - bad
+        (f"metric:      {q} {hbm.METRIC_UNITS[q]}, {lo:.4g} to {hi:.4g}" if pts - bad
          else f"metric:      {q}, no converged points"),
     ]
     if a.get("complete") == 1:
@@ -466,8 +466,7 @@ def cmd_hbm(args):
                     max_iter=cfg["solver"]["max_iter"],
                     n_threads=cfg["run"]["threads"] or None)
     q = cfg["metric"]["quantity"]
-    from .ensemble import METRIC_UNITS
-    unit = METRIC_UNITS[q]
+    unit = hbm.METRIC_UNITS[q]
     amp = np.abs(res.response[0])                       # (n_f, n_beams), m
     metric = res.metric(q, cfg.metric_beams())[0]
     conv = res.converged[0]

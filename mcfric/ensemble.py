@@ -34,7 +34,6 @@ from .store import Store, StoreError, iter_records, partial_path, read_attrs
 RECORD = "sample"
 #: Kernel output per chunk when run.chunk = 0 (auto).
 CHUNK_TARGET_BYTES = 32 << 20
-METRIC_UNITS = {"displacement": "m", "velocity": "m/s", "acceleration": "m/s^2"}
 #: Source files whose change can change a result: a resume across such a change is refused.
 FINGERPRINT_FILES = ("core/*.py", "hbm.py", "model.py", "sampling.py")
 
@@ -101,33 +100,6 @@ class Summary:
         return "\n".join(lines)
 
 
-def metric(response, freq_hz, quantity="displacement", beams=None):
-    """Response metric ``M`` (physics.md 5), bitwise equal to
-    :func:`mcfric.hbm.response_metric` and ~2.4x faster (measured): numpy reduces a short
-    last axis slowly, so the maximum over beams is taken slice by slice.
-
-    Parameters
-    ----------
-    response : ndarray of complex, shape (n_s, n_f, n_beams), m
-    freq_hz : ndarray, shape (n_f,), Hz
-    quantity : {"displacement", "velocity", "acceleration"}
-    beams : list of int, optional
-        0-based beams; default all.
-
-    Returns
-    -------
-    ndarray, shape (n_s, n_f): m, m/s or m/s^2; NaN where the response is NaN.
-    """
-    amp = np.abs(response if beams is None else response[..., list(beams)])
-    m = amp[..., 0].copy()
-    for b in range(1, amp.shape[-1]):
-        np.maximum(m, amp[..., b], out=m)    # propagates NaN like ndarray.max
-    power = hbm.QUANTITIES.index(quantity)
-    if power:
-        m *= (2 * np.pi * np.asarray(freq_hz)) ** power
-    return m
-
-
 def fingerprint():
     """sha256 of the sources that determine results, plus numpy/scipy/numba versions."""
     import numba
@@ -176,7 +148,7 @@ def layout(cfg, model, freq):
     P = (RECORD, "damper")
     variables = {
         "metric": ((RECORD, "frequency"), np.float64,
-                   {"units": METRIC_UNITS[q],
+                   {"units": hbm.METRIC_UNITS[q],
                     "long_name": f"max over beams of the {q} amplitude at the output "
                                  f"position (physics.md 5); NaN where not converged",
                     "quantity": q, "beams": json.dumps(cfg["metric"]["beams"])}),
@@ -427,7 +399,7 @@ def _drive(cfg, model, freq, store, done, not_conv_before, progress, t_start):
                 start, d, res = item
                 n = len(d.index)
                 conv = res.converged
-                arrays = {"metric": metric(res.response, freq, quantity, beams),
+                arrays = {"metric": hbm.response_metric(res.response, freq, quantity, beams),
                           "converged": conv, "mu0": d.mu0, "kc": d.kc, "N0": d.N0}
                 if keep_response:
                     arrays["response"] = res.response

@@ -31,8 +31,7 @@ from .modal_io import (UFF_SUFFIXES, _as_int, _atomic_uff_write, _short, csv_row
                        uff_datasets, uff_date, uff_units_dataset)
 
 KINDS = ("stepped", "sweep")
-QUANTITIES = ("displacement", "velocity", "acceleration")
-UNITS = {"displacement": "m", "velocity": "m/s", "acceleration": "m/s^2"}
+from .hbm import METRIC_UNITS as UNITS, QUANTITIES
 #: UFF specific data types of the ordinate (record 9) for each quantity.
 SPEC_TYPE = {"displacement": 8, "velocity": 11, "acceleration": 12}
 QUANTITY_OF_SPEC = {v: k for k, v in SPEC_TYPE.items()}
