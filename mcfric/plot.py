@@ -27,11 +27,7 @@ def _figure(size=(8, 4.5)):
 
 
 def _stored_quantity(attrs):
-    import json
-    try:
-        return json.loads(attrs["config_json"])["metric"]["quantity"]
-    except (KeyError, ValueError, TypeError):
-        return "displacement"
+    return _config(attrs).get("metric", {}).get("quantity", "displacement")
 
 
 def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lines=400,
