@@ -60,14 +60,14 @@ def _factor_inverse(G, K, Tinv, T, piv, nd):
 
 
 @inline_jit
-def _state(G, q0, ylin, H, K, Tinv, q, y, nd, nb):
-    """``q = Tinv q0`` and ``y = y_lin - H (K q)``."""
+def _state(G, q0, ylin, H, K, Tinv, q, y, nd, b0, b1):
+    """``q = Tinv q0`` and ``y = y_lin - H (K q)`` for the beams b0..b1-1."""
     for i in range(nd):
         acc = 0.0j
         for m in range(nd):
             acc += Tinv[i, m] * q0[m]
         q[i] = acc
-    for b in range(nb):
+    for b in range(b0, b1):
         acc = ylin[b]
         for m in range(nd):
             acc -= H[b, m] * K[m] * q[m]
@@ -75,8 +75,11 @@ def _state(G, q0, ylin, H, K, Tinv, q, y, nd, nb):
 
 
 @inline_jit
-def _coefficients(G, ylin, H, K, Tinv, q, y, j, u, alpha, beta, nd, nb):
-    """Moebius coefficients of every ``y_b`` in ``z = K_j``. Returns (d0, d1)."""
+def _coefficients(G, ylin, H, K, Tinv, q, y, j, u, alpha, beta, nd, b0, b1):
+    """Moebius coefficients of ``y_b`` (b0 <= b < b1) in ``z = K_j``. Returns (d0, d1).
+
+    Only the objective's beams are needed: a search of one beam's maximum costs O(nd)
+    per coordinate here instead of O(nb nd)."""
     for i in range(nd):
         acc = 0.0j
         for m in range(nd):
@@ -85,7 +88,7 @@ def _coefficients(G, ylin, H, K, Tinv, q, y, j, u, alpha, beta, nd, nb):
     d1 = u[j]
     d0 = 1.0 - K[j] * d1
     qj = q[j]
-    for b in range(nb):
+    for b in range(b0, b1):
         P = 0.0j
         for m in range(nd):
             if m != j:
@@ -105,6 +108,17 @@ def _metric(alpha, beta, d0, d1, z, b0, b1):
         v = alpha[b] + beta[b] * z
         m = max(m, v.real * v.real + v.imag * v.imag)
     return math.sqrt(m / (den.real * den.real + den.imag * den.imag))
+
+
+@inline_jit
+def _dominated(alpha_b, beta_b, d0, d1, z, best_val):
+    """``|y_b(z)| >= best_val``, hence ``M(z) >= best_val``: a candidate that cannot
+    improve the minimum. Computed with the operations of :func:`_metric`, whose maximum
+    over beams is then >= this term in floating point too: skipping changes no result."""
+    den = d0 + d1 * z
+    v = alpha_b + beta_b * z
+    return math.sqrt((v.real * v.real + v.imag * v.imag) /
+                     (den.real * den.real + den.imag * den.imag)) >= best_val
 
 
 @inline_jit
@@ -156,6 +170,8 @@ def _edge_candidates(alpha, beta, d0, d1, z0, z1, want_max, b0, b1, best_val, be
                         best_z = z0 + t * dz
                     continue
                 z = z0 + t * dz
+                if _dominated(alpha[b], beta[b], d0, d1, z, best_val):
+                    continue            # skips most full evaluations
                 v = _metric(alpha, beta, d0, d1, z, b0, b1)
                 if v < best_val:
                     best_val = v
@@ -171,6 +187,8 @@ def _edge_candidates(alpha, beta, d0, d1, z0, z1, want_max, b0, b1, best_val, be
                 for t in (s1, s2):
                     if t > 0.0 and t < 1.0:
                         z = z0 + t * dz
+                        if _dominated(alpha[b], beta[b], d0, d1, z, best_val):
+                            continue
                         v = _metric(alpha, beta, d0, d1, z, b0, b1)
                         if v < best_val:
                             best_val = v
@@ -251,15 +269,15 @@ def _search(G, q0, ylin, H, kr, ki, K, want_max, b0, b1, max_sweeps, tol, w):
     """
     Tinv, T, piv, q, y, u, alpha, beta, rowj = w[:9]
     nd = K.shape[0]
-    nb = ylin.shape[0]
     if not _factor_inverse(G, K, Tinv, T, piv, nd):
         return math.nan
-    _state(G, q0, ylin, H, K, Tinv, q, y, nd, nb)
+    _state(G, q0, ylin, H, K, Tinv, q, y, nd, b0, b1)
     best = _objective(y, b0, b1)
     for sweep in range(max_sweeps):
         old = best
         for j in range(nd):
-            d0, d1 = _coefficients(G, ylin, H, K, Tinv, q, y, j, u, alpha, beta, nd, nb)
+            d0, d1 = _coefficients(G, ylin, H, K, Tinv, q, y, j, u, alpha, beta, nd, b0,
+                                   b1)
             # the interior pattern search only in tight searches (exploring relies on
             # the edges and on the smoothed-gradient polish)
             val, z = _best_on_rectangle(alpha, beta, d0, d1, kr, ki, want_max, K[j], b0, b1,
@@ -279,13 +297,13 @@ def _search(G, q0, ylin, H, kr, ki, K, want_max, b0, b1, max_sweeps, tol, w):
                 for m in range(nd):
                     Tinv[i, m] -= ui * rowj[m]
             K[j] = z
-            for b in range(nb):
+            for b in range(b0, b1):
                 y[b] = (alpha[b] + beta[b] * z) / (d0 + d1 * z)
             best = val
         # refresh the inverse: Sherman-Morrison updates accumulate rounding
         if not _factor_inverse(G, K, Tinv, T, piv, nd):
             return math.nan
-        _state(G, q0, ylin, H, K, Tinv, q, y, nd, nb)
+        _state(G, q0, ylin, H, K, Tinv, q, y, nd, b0, b1)
         best = _objective(y, b0, b1)
         if abs(best - old) <= tol * max(best, old):
             break
@@ -636,36 +654,58 @@ def _multistart(G, q0, ylin, H, kr, ki, starts, want_max, objectives, cap, max_s
 
 @jit(parallel=True, nogil=True)
 def _propagate(G, q0, ylin, H, kr, ki, want_max, objectives, cap, max_sweeps, tol, best,
-               K_best, cand, K_cand):
+               K_best, cand, K_cand, first, prev_best, ran):
     """Phase 2: continuation along frequency, upward (d = 0) and downward (d = 1) in
-    parallel; each frequency starts from the neighbour's best and keeps what improves."""
+    parallel; each frequency starts from the neighbour's best and keeps what improves.
+
+    Later rounds (``first`` False) recompute only where something changed: a frequency
+    whose own best (``prev_best``: the previous round's), whose decision to search
+    (``ran``) and whose neighbour's result are those of the previous round would repeat
+    the previous round's deterministic search, so its ``cand``/``K_cand`` are kept. The
+    result is bitwise that of recomputing everything.
+    """
     n_f, nd = q0.shape
     nb = ylin.shape[1]
     for d in prange(2):
         w = _workspace(nd, nb)
         K = np.zeros(nd, dtype=np.complex128)
+        K_old = np.zeros(nd, dtype=np.complex128)
         for o in range(objectives.shape[0]):
+            same_up = False         # the neighbour's result equals the previous round's
             for i in range(n_f):
                 k = i if d == 0 else n_f - 1 - i
+                kp = k - 1 if d == 0 else k + 1
+                run = i > 0 and not math.isnan(cand[d, o, kp])
+                if run and want_max and (best[o, k] >= cap[k, o] or
+                                         _irrelevant(best, cap, o, k, objectives.shape[0])):
+                    run = False         # at the force limit, or cannot set the bound
+                start_same = (best[o, k] == prev_best[o, k] or
+                              (math.isnan(best[o, k]) and math.isnan(prev_best[o, k])))
+                if (not first and start_same and same_up and run and ran[d, o, k]):
+                    continue            # same inputs as the previous round: same result
+                v_old = cand[d, o, k]
+                for j in range(nd):
+                    K_old[j] = K_cand[d, o, k, j]
                 cand[d, o, k] = best[o, k]
                 for j in range(nd):
                     K_cand[d, o, k, j] = K_best[o, k, j]
-                if i == 0:
-                    continue
-                kp = k - 1 if d == 0 else k + 1
-                if math.isnan(cand[d, o, kp]):
-                    continue
-                for j in range(nd):
-                    K[j] = K_cand[d, o, kp, j]
-                if want_max and (cand[d, o, k] >= cap[k, o] or
-                                 _irrelevant(best, cap, o, k, objectives.shape[0])):
-                    continue            # at the force limit, or cannot set the bound
-                v = _improve(G[k], q0[k], ylin[k], H[k], kr, ki, K, want_max, objectives[o],
-                             max_sweeps, tol, w)
-                if _better(v, cand[d, o, k], want_max):
-                    cand[d, o, k] = v
+                ran[d, o, k] = run
+                if run:
                     for j in range(nd):
-                        K_cand[d, o, k, j] = K[j]
+                        K[j] = K_cand[d, o, kp, j]
+                    v = _improve(G[k], q0[k], ylin[k], H[k], kr, ki, K, want_max,
+                                 objectives[o], max_sweeps, tol, w)
+                    if _better(v, cand[d, o, k], want_max):
+                        cand[d, o, k] = v
+                        for j in range(nd):
+                            K_cand[d, o, k, j] = K[j]
+                same_up = not first and (cand[d, o, k] == v_old or (
+                    math.isnan(cand[d, o, k]) and math.isnan(v_old)))
+                if same_up:
+                    for j in range(nd):
+                        if K_cand[d, o, k, j] != K_old[j]:
+                            same_up = False
+                            break
 
 
 @jit(parallel=True, nogil=True)
@@ -756,9 +796,12 @@ def box_extreme(G, q0, ylin, H, kr, ki, starts, want_max, cap=None, max_sweeps=2
     K_cand = np.empty((2, n_o, n_f, nd), complex)
     pick = np.nanargmax if want_max else np.nanargmin
     idx = np.arange(n_f)
-    for _ in range(rounds):
+    prev_best = best.copy()
+    ran = np.zeros((2, n_o, n_f), dtype=np.bool_)
+    for r in range(rounds):
         _propagate(G, q0, ylin, H, kr, ki, want_max, objectives, cap, max_sweeps,
-                   EXPLORE_TOL, best, K_best, cand, K_cand)
+                   EXPLORE_TOL, best, K_best, cand, K_cand, r == 0, prev_best, ran)
+        prev_best[...] = best
         any_better = False
         for o in range(n_o):
             c = cand[:, o]
