@@ -315,7 +315,7 @@ def _smooth_max(G, q0, ylin, H, K, mu, b0, b1, grad, w):
     """``mu log sum_b exp(log|y_b| / mu)`` (a smooth max of log|y_b|) and its gradient
     with respect to (Re K_j, Im K_j), stored as ``grad[j] = d/dRe + i d/dIm``.
     Returns (value, log M); value = inf if the system is singular."""
-    Tinv, T, piv, q, y, u, alpha, beta, rowj, r = w
+    T, piv, q, y, u, r, lb = w[1], w[2], w[3], w[4], w[5], w[9], w[10]
     nd = K.shape[0]
     if contact_solve(G, K, q0, T, piv, q, nd) != 0:
         return math.inf, math.inf
@@ -325,15 +325,14 @@ def _smooth_max(G, q0, ylin, H, K, mu, b0, b1, grad, w):
         for m in range(nd):
             acc -= H[b, m] * K[m] * q[m]
         y[b] = acc
-        lmax = max(lmax, 0.5 * math.log(max(acc.real * acc.real + acc.imag * acc.imag,
-                                            _TINY)))
+        lb[b] = 0.5 * math.log(max(acc.real * acc.real + acc.imag * acc.imag, _TINY))
+        lmax = max(lmax, lb[b])
     if not math.isfinite(lmax):
         return math.inf, math.inf
     tot = 0.0
     for b in range(b0, b1):
-        yb = y[b]
-        tot += math.exp((0.5 * math.log(max(yb.real * yb.real + yb.imag * yb.imag, _TINY))
-                         - lmax) / mu)
+        lb[b] = math.exp((lb[b] - lmax) / mu)      # from here on: unnormalised weights
+        tot += lb[b]
     val = lmax + mu * math.log(tot)
     # v_b = w_b / y_b with softmax weights w_b; r = v^T H; g_j = -q_j (r_j - (s^T G)_j)
     # where T^T s = r o K (adjoint solve; G symmetric, T^T = I + diag(K) G)
@@ -342,7 +341,7 @@ def _smooth_max(G, q0, ylin, H, K, mu, b0, b1, grad, w):
     for b in range(b0, b1):
         yb = y[b]
         a2 = max(yb.real * yb.real + yb.imag * yb.imag, _TINY)   # an exact zero (undriven beam)
-        wb = math.exp((0.5 * math.log(a2) - lmax) / mu) / tot
+        wb = lb[b] / tot
         vb = wb * yb.conjugate() / a2
         for m in range(nd):
             r[m] += vb * H[b, m]
@@ -460,7 +459,7 @@ def _lsq_valley(G, q0, ylin, H, kr, ki, K, w, n_iter=40):
     fit of every ``y_b`` to zero does (its minimiser starts the minimax search). Returns
     ``M`` at the final ``K`` (NaN if singular).
     """
-    Tinv, T, piv, q, y, u, alpha, beta, rowj, r = w
+    T, piv, q, y = w[1], w[2], w[3], w[4]
     nd = K.shape[0]
     nb = ylin.shape[0]
     n = 2 * nd
@@ -556,7 +555,7 @@ def _workspace(nd, nb):
     c16 = np.complex128
     return (np.zeros((nd, nd), c16), np.zeros((nd, nd), c16), np.zeros(nd, np.int64),
             np.zeros(nd, c16), np.zeros(nb, c16), np.zeros(nd, c16), np.zeros(nb, c16),
-            np.zeros(nb, c16), np.zeros(nd, c16), np.zeros(nd, c16))
+            np.zeros(nb, c16), np.zeros(nd, c16), np.zeros(nd, c16), np.zeros(nb))
 
 
 @inline_jit

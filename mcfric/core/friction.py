@@ -84,6 +84,25 @@ def kappa_dlogs(s):
 
 
 @inline_jit
+def kappa_slip(s):
+    """``K / kc`` and its derivative with respect to ``log s`` in partial slip, sharing a sqrt.
+
+    Parameters
+    ----------
+    s : float
+        Slip ratio, dimensionless, ``0 < s < 1``.
+
+    Returns
+    -------
+    (complex, complex)
+        ``K / kc`` and ``d(K/kc)/d(log s)``, dimensionless.
+    """
+    r = math.sqrt(s * (1.0 - s))
+    return (complex(_re_kappa(s, r), 4.0 * _INV_PI * s * (1.0 - s)),
+            complex(8.0 * _INV_PI * s * r, 4.0 * _INV_PI * s * (1.0 - 2.0 * s)))
+
+
+@inline_jit
 def kappa_logs(x):
     """``K / kc`` and its derivative with respect to ``x = log s``, sharing one exp and sqrt.
 
@@ -105,9 +124,7 @@ def kappa_logs(x):
     s = math.exp(x)
     if s <= 0.0:
         return 0.0j, 0.0j
-    r = math.sqrt(s * (1.0 - s))
-    k = complex(_re_kappa(s, r), 4.0 * _INV_PI * s * (1.0 - s))
-    return k, complex(8.0 * _INV_PI * s * r, 4.0 * _INV_PI * s * (1.0 - 2.0 * s))
+    return kappa_slip(s)
 
 
 @jit

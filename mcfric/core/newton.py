@@ -24,7 +24,7 @@ import math
 import numpy as np
 
 from ._jit import inline_jit, jit
-from .friction import kappa_logs
+from .friction import kappa_logs, kappa_slip
 from .linalg import cinv, contact_solve, lm_step, lu_factor, lu_solve
 
 #: Status codes of one solve.
@@ -286,18 +286,43 @@ def workspace(nd):
 
 # --- one damper (two beams): scalar specialisation, ~2x faster than the general path ---
 
+_SLIP_SIDE = complex(0.0, -4.0 / math.pi)   # d(K/kc)/dlog s at s = 1 from the slip side
+
+
 @inline_jit
 def _scalar_eval(x, kc, c, g, q0):
-    """Residual of the one-damper problem. Returns (f, x, q, K); updates x when stuck."""
-    K = kc * kappa_logs(x)[0]
-    q = q0 * cinv(1.0 + g * K)
+    """Residual of the one-damper problem at ``x = log s``, with its derivative.
+
+    Returns ``(f, x, s, q, K, d)``: ``x`` is updated when stuck (solved exactly),
+    ``s = exp(x)``, and ``d = df/dx`` at the returned ``x`` (slip-side at ``x = 0``),
+    so that the Newton step needs no second evaluation of ``K``.
+    """
+    if x >= 0.0:
+        K = complex(kc, 0.0)
+        Kp = 0.0j
+        s = 1.0
+    else:
+        s = math.exp(x)
+        if s > 0.0:
+            k, dk = kappa_slip(s)
+            K = kc * k
+            Kp = kc * dk
+        else:
+            K = 0.0j
+            Kp = 0.0j
+    inv = cinv(1.0 + g * K)
+    q = q0 * inv
     lq = 0.5 * math.log(q.real * q.real + q.imag * q.imag)
     if x >= 0.0:
         t = c - lq
-        if t >= 0.0:
-            return 0.0, t, q, K
-        return -t, 0.0, q, K
-    return x + lq - c, x, q, K
+        if t >= 0.0:                # stuck and consistent: an exact root
+            return 0.0, t, math.exp(t), q, K, 1.0
+        f = -t                      # no longer stuck: park at s = 1, K unchanged
+        x = 0.0
+        Kp = kc * _SLIP_SIDE
+    else:
+        f = x + lq - c
+    return f, x, s, q, K, 1.0 - (g * Kp * inv).real
 
 
 @inline_jit
@@ -321,34 +346,34 @@ def newton_scalar(x, kc, c, g, q0, tol, max_iter):
 
     Returns
     -------
-    ok, iterations, x, q, K, f
+    ok, iterations, x, s, q, K, f
+        ``s = exp(x)``; ``q``, ``K`` and ``f`` at ``x``.
     """
-    f, x, q, K = _scalar_eval(x, kc, c, g, q0)
+    f, x, s, q, K, d = _scalar_eval(x, kc, c, g, q0)
     if not math.isfinite(f):
-        return False, 0, x, q, K, f
+        return False, 0, x, s, q, K, f
     target = _TARGET * tol
     for it in range(max_iter + 1):
         if abs(f) <= target:
-            return True, it, x, q, K, f
+            return True, it, x, s, q, K, f
         if it == max_iter:
             break
-        d = 1.0 - (g * kc * kappa_logs(x)[1] * cinv(1.0 + g * K)).real
         dx = -f / d
         if not math.isfinite(dx):
-            return abs(f) <= tol, it, x, q, K, f
+            return abs(f) <= tol, it, x, s, q, K, f
         dx = max(-_MAX_STEP, min(_MAX_STEP, dx))
         lam = 1.0
         accepted = False
         for _ in range(_MAX_HALVINGS):
-            ft, xt, qt, Kt = _scalar_eval(x + lam * dx, kc, c, g, q0)
+            ft, xt, st, qt, Kt, dt = _scalar_eval(x + lam * dx, kc, c, g, q0)
             if ft * ft <= (1.0 - 2.0 * _ARMIJO * lam) * f * f:
                 accepted = True
                 break
             lam *= 0.5
         if not accepted:
-            return abs(f) <= tol, it + 1, x, q, K, f
-        f, x, q, K = ft, xt, qt, Kt
-    return abs(f) <= tol, max_iter, x, q, K, f
+            return abs(f) <= tol, it + 1, x, s, q, K, f
+        f, x, s, q, K, d = ft, xt, st, qt, Kt, dt
+    return abs(f) <= tol, max_iter, x, s, q, K, f
 
 
 @jit
@@ -360,33 +385,33 @@ def bracket_scalar(kc, c, g, q0, tol):
 
     Returns
     -------
-    ok, iterations, x, q, K, f
+    ok, iterations, x, s, q, K, f
     """
-    fh, xh, qh, Kh = _scalar_eval(0.0, kc, c, g, q0)
+    fh, xh, sh, qh, Kh, _ = _scalar_eval(0.0, kc, c, g, q0)
     if fh <= tol:                       # stuck solution (f == 0 after the exact update)
-        return math.isfinite(fh), 0, xh, qh, Kh, fh
+        return math.isfinite(fh), 0, xh, sh, qh, Kh, fh
     lo = -1.0
-    fl, _, ql, Kl = _scalar_eval(lo, kc, c, g, q0)
+    fl, _, sl, ql, Kl, _ = _scalar_eval(lo, kc, c, g, q0)
     it = 0
     while fl > 0.0 and it < 200:       # walk down until the sign changes
         lo *= 2.0
-        fl, _, ql, Kl = _scalar_eval(lo, kc, c, g, q0)
+        fl, _, sl, ql, Kl, _ = _scalar_eval(lo, kc, c, g, q0)
         it += 1
     if not (fl <= 0.0):
-        return False, it, lo, ql, Kl, fl
+        return False, it, lo, sl, ql, Kl, fl
     hi = 0.0
     target = _TARGET * tol
     for k in range(300):
         mid = 0.5 * (lo + hi)
-        fm, _, qm, Km = _scalar_eval(mid, kc, c, g, q0)
+        fm, _, sm, qm, Km, _ = _scalar_eval(mid, kc, c, g, q0)
         if abs(fm) <= target:
-            return True, it + k + 1, mid, qm, Km, fm
+            return True, it + k + 1, mid, sm, qm, Km, fm
         if not math.isfinite(fm):
-            return False, it + k + 1, mid, qm, Km, fm
+            return False, it + k + 1, mid, sm, qm, Km, fm
         if fm > 0.0:
             hi = mid
         else:
             lo = mid
         if hi - lo <= 4e-16 * max(1.0, abs(lo)):
-            return abs(fm) <= tol, it + k + 1, mid, qm, Km, fm
-    return abs(fm) <= tol, it + 300, mid, qm, Km, fm
+            return abs(fm) <= tol, it + k + 1, mid, sm, qm, Km, fm
+    return abs(fm) <= tol, it + 300, mid, sm, qm, Km, fm
