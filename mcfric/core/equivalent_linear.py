@@ -609,20 +609,21 @@ def _irrelevant(best, cap, o, k, n_o):
 
 @jit(parallel=True, nogil=True)
 def _multistart(G, q0, ylin, H, kr, ki, starts, want_max, objectives, cap, max_sweeps, tol,
-                best, K_best):
+                best, K_best, freq_order):
     """Phase 1: coordinate search from every start, for every objective, at every
     frequency (in parallel over frequencies)."""
     n_f, nd = q0.shape
     nb = ylin.shape[1]
     n_o = objectives.shape[0]
-    for k in prange(n_f):
+    for i in prange(n_f):
+        k = freq_order[i]
         w = _workspace(nd, nb)
         K = np.zeros(nd, dtype=np.complex128)
         for o in range(n_o):
             best[o, k] = math.nan
         # beams with the largest force bound first: the others may then be skipped
-        order = np.argsort(-cap[k]) if want_max else np.arange(n_o)
-        for o in order:
+        by_cap = np.argsort(-cap[k]) if want_max else np.arange(n_o)
+        for o in by_cap:
             if want_max and _irrelevant(best, cap, o, k, n_o):
                 continue
             b0, b1 = _beam_range(objectives[o], nb)
@@ -709,11 +710,12 @@ def _propagate(G, q0, ylin, H, kr, ki, want_max, objectives, cap, max_sweeps, to
 
 @jit(parallel=True, nogil=True)
 def _polish(G, q0, ylin, H, kr, ki, want_max, objectives, cap, max_sweeps, tol, best,
-            K_best):
+            K_best, freq_order):
     """Phase 3: a tight local search from the best point of every objective and frequency."""
     n_f, nd = q0.shape
     nb = ylin.shape[1]
-    for k in prange(n_f):
+    for i in prange(n_f):
+        k = freq_order[i]
         w = _workspace(nd, nb)
         K = np.empty(nd, dtype=np.complex128)
         for o in range(objectives.shape[0]):
@@ -729,6 +731,13 @@ def _polish(G, q0, ylin, H, kr, ki, want_max, objectives, cap, max_sweeps, tol, 
                 best[o, k] = v
                 for j in range(nd):
                     K_best[o, k, j] = K[j]
+
+
+def _spread(n_f):
+    """A permutation of the frequency indices that spreads any contiguous block over the
+    band: numba splits a prange into contiguous blocks per thread, and the search costs
+    vary ~2x across the band (measured), so in band order one thread waits."""
+    return np.argsort((np.arange(n_f) * 0.6180339887498949) % 1.0, kind="stable")
 
 
 #: Exploration (multistart, continuation) stops sweeps at this relative change; the final
@@ -789,8 +798,9 @@ def box_extreme(G, q0, ylin, H, kr, ki, starts, want_max, cap=None, max_sweeps=2
     cap = np.ascontiguousarray(cap, dtype=float)
     best = np.full((n_o, n_f), np.nan)
     K_best = np.zeros((n_o, n_f, nd), complex)
+    order = _spread(n_f)
     _multistart(G, q0, ylin, H, kr, ki, starts, want_max, objectives, cap, max_sweeps,
-                EXPLORE_TOL, best, K_best)
+                EXPLORE_TOL, best, K_best, order)
     cand = np.empty((2, n_o, n_f))
     K_cand = np.empty((2, n_o, n_f, nd), complex)
     pick = np.nanargmax if want_max else np.nanargmin
@@ -816,5 +826,5 @@ def box_extreme(G, q0, ylin, H, kr, ki, starts, want_max, cap=None, max_sweeps=2
         if not any_better:
             break
     _polish(G, q0, ylin, H, kr, ki, want_max, objectives, cap, 5 * max_sweeps, POLISH_TOL,
-            best, K_best)
+            best, K_best, order)
     return best, K_best
