@@ -312,11 +312,13 @@ def _scalar_eval(x, kc, c, g, q0):
             Kp = 0.0j
     inv = cinv(1.0 + g * K)
     q = q0 * inv
-    lq = 0.5 * math.log(q.real * q.real + q.imag * q.imag)
+    q2 = q.real * q.real + q.imag * q.imag
+    lq = 0.5 * math.log(q2)
     if x >= 0.0:
         t = c - lq
         if t >= 0.0:                # stuck and consistent: an exact root
-            return 0.0, t, math.exp(t), q, K, 1.0
+            # s = e^t = (mu0 N0 / kc) / |q|: a sqrt instead of a call to exp
+            return 0.0, t, math.exp(c) / math.sqrt(q2), q, K, 1.0
         f = -t                      # no longer stuck: park at s = 1, K unchanged
         x = 0.0
         Kp = kc * _SLIP_SIDE

@@ -413,10 +413,7 @@ def _one_damper_sample(i, rec, force, a, b, W, mu0, N0, kc, tol, max_iter,
     active, c, s_off = _damper_constants(mu0, N0, kc, i, 0)
     kci = kc[i, 0]
     # log s at the last N_PREDICT converged frequencies, newest first
-    x1 = 0.0
-    x2 = 0.0
-    x3 = 0.0
-    x4 = 0.0
+    xh = np.zeros(N_PREDICT)
     have = 0
     for k in range(n_f):
         g = rec[r, k, D11, ia] + rec[r, k, D11, ib]
@@ -430,8 +427,9 @@ def _one_damper_sample(i, rec, force, a, b, W, mu0, N0, kc, tol, max_iter,
         ss = s_off
         if active:
             # W[have, k, m] is 0 for m >= have, where the history holds 0
-            x0 = (W[have, k, 0] * x1 + W[have, k, 1] * x2 + W[have, k, 2] * x3
-                  + W[have, k, 3] * x4)
+            x0 = 0.0
+            for m in range(N_PREDICT):
+                x0 += W[have, k, m] * xh[m]
             if not math.isfinite(x0):
                 x0 = 0.0
             ok, its, xs, ss, q, K, f = newton_scalar(x0, kci, c, g, q0, tol, max_iter)
@@ -444,17 +442,14 @@ def _one_damper_sample(i, rec, force, a, b, W, mu0, N0, kc, tol, max_iter,
                     ok, its2, xs, ss, q, K, f = bracket_scalar(kci, c, g, q0, tol)
                     its += its2
             if ok:
-                x4 = x3
-                x3 = x2
-                x2 = x1
-                x1 = xs
+                for m in range(N_PREDICT - 1, 0, -1):
+                    xh[m] = xh[m - 1]
+                xh[0] = xs
                 have = min(have + 1, N_PREDICT)
             else:
                 have = 0
-                x1 = 0.0
-                x2 = 0.0
-                x3 = 0.0
-                x4 = 0.0
+                for m in range(N_PREDICT):
+                    xh[m] = 0.0
         iterations[i, k] = min(its, 32767)
         res = _abs_expm1(f)
         residual[i, k] = res if math.isfinite(res) else math.inf
