@@ -746,7 +746,7 @@ EXPLORE_TOL = 1e-6
 POLISH_TOL = 1e-11
 
 
-def box_extreme(G, q0, ylin, H, kr, ki, starts, want_max, cap=None, max_sweeps=20, rounds=3):
+def box_extreme(G, q0, ylin, H, kr, ki, starts, want_max, cap=None, max_sweeps=20, rounds=2):
     """Max (``want_max``) or min of ``M = max_b |y_b|`` over the box at every frequency.
 
     The maximum is sought beam by beam (the maximum over the box of a maximum over beams
