@@ -139,11 +139,12 @@ def _quad_roots(a, b, c):
 
 
 @inline_jit
-def _edge_candidates(alpha, beta, d0, d1, z0, z1, want_max, b0, b1, best_val, best_z, pair):
+def _edge_candidates(alpha, beta, d0, d1, z0, z1, want_max, b0, b1, best_val, best_z, pair,
+                     E):
     """Best ``M`` on the segment ``z0 -> z1``, exactly (see module docstring).
 
     Updates and returns (best_val, best_z). ``pair``: also try pairwise crossings
-    (needed for the minimum only).
+    (needed for the minimum only). ``E``: scratch, shape (>= 6, nb).
     """
     dz = z1 - z0
     den0 = d0 + d1 * z0
@@ -151,15 +152,34 @@ def _edge_candidates(alpha, beta, d0, d1, z0, z1, want_max, b0, b1, best_val, be
     c0 = den0.real * den0.real + den0.imag * den0.imag
     c1 = 2.0 * (den0.real * den1.real + den0.imag * den1.imag)
     c2 = den1.real * den1.real + den1.imag * den1.imag
+    # |y_b|^2 |den|^2 along the edge is a2 t^2 + a1 t + a0 (rows 0-2), its stationary
+    # points are rows 3-4; row 5 flags (1.0) the beams that come below the best value on
+    # this edge: a crossing of two beams can lower M only if both do, and most pairs are
+    # skipped (the 1e-6 margin covers the rounding of the quadratic forms)
+    lim = best_val * best_val * (1.0 + 1e-6)
     for b in range(b0, b1):
         A = alpha[b] + beta[b] * z0
         B = beta[b] * dz
         a0 = A.real * A.real + A.imag * A.imag
         a1 = 2.0 * (A.real * B.real + A.imag * B.imag)
         a2 = B.real * B.real + B.imag * B.imag
-        # stationary points of (a2 t^2 + a1 t + a0) / (c2 t^2 + c1 t + c0)
         r1, r2 = _quad_roots(a2 * c1 - a1 * c2, 2.0 * (a2 * c0 - a0 * c2), a1 * c0 - a0 * c1)
-        for t in (r1, r2):
+        E[0, b] = a0
+        E[1, b] = a1
+        E[2, b] = a2
+        E[3, b] = r1
+        E[4, b] = r2
+        if pair:
+            emin = min(a0 / c0, (a0 + a1 + a2) / (c0 + c1 + c2))
+            for t in (r1, r2):
+                if t > 0.0 and t < 1.0:
+                    emin = min(emin, (a0 + t * (a1 + t * a2)) / (c0 + t * (c1 + t * c2)))
+            E[5, b] = 0.0 if emin >= lim else 1.0
+    for b in range(b0, b1):
+        a0 = E[0, b]
+        a1 = E[1, b]
+        a2 = E[2, b]
+        for t in (E[3, b], E[4, b]):
             if t > 0.0 and t < 1.0:
                 if want_max:
                     # the edge maximum of M is the largest of each beam's own maximum:
@@ -176,14 +196,11 @@ def _edge_candidates(alpha, beta, d0, d1, z0, z1, want_max, b0, b1, best_val, be
                 if v < best_val:
                     best_val = v
                     best_z = z
-        if pair:
+        if pair and E[5, b] != 0.0:
             for c in range(b + 1, b1):
-                Ac = alpha[c] + beta[c] * z0
-                Bc = beta[c] * dz
-                e0 = Ac.real * Ac.real + Ac.imag * Ac.imag - a0
-                e1 = 2.0 * (Ac.real * Bc.real + Ac.imag * Bc.imag) - a1
-                e2 = Bc.real * Bc.real + Bc.imag * Bc.imag - a2
-                s1, s2 = _quad_roots(e2, e1, e0)
+                if E[5, c] == 0.0:
+                    continue
+                s1, s2 = _quad_roots(E[2, c] - a2, E[1, c] - a1, E[0, c] - a0)
                 for t in (s1, s2):
                     if t > 0.0 and t < 1.0:
                         z = z0 + t * dz
@@ -197,7 +214,7 @@ def _edge_candidates(alpha, beta, d0, d1, z0, z1, want_max, b0, b1, best_val, be
 
 
 @inline_jit
-def _best_on_rectangle(alpha, beta, d0, d1, kr, ki, want_max, z_now, b0, b1, ptol):
+def _best_on_rectangle(alpha, beta, d0, d1, kr, ki, want_max, z_now, b0, b1, ptol, E):
     """Exact extreme of ``M`` over the perimeter of ``[0, kr] x [0, ki]`` (and, for the
     minimum, the interior by a pattern search). Never worse than ``z_now``."""
     best_z = z_now
@@ -212,7 +229,7 @@ def _best_on_rectangle(alpha, beta, d0, d1, kr, ki, want_max, z_now, b0, b1, pto
     for c in range(4):
         best_val, best_z = _edge_candidates(alpha, beta, d0, d1, corners[c],
                                             corners[(c + 1) % 4], want_max, b0, b1,
-                                            best_val, best_z, not want_max)
+                                            best_val, best_z, not want_max, E)
     if want_max or ptol <= 0.0:
         return best_val, best_z
     # interior: pattern search (8 directions) from the best of the centre and the
@@ -281,7 +298,7 @@ def _search(G, q0, ylin, H, kr, ki, K, want_max, b0, b1, max_sweeps, tol, w):
             # the interior pattern search only in tight searches (exploring relies on
             # the edges and on the smoothed-gradient polish)
             val, z = _best_on_rectangle(alpha, beta, d0, d1, kr, ki, want_max, K[j], b0, b1,
-                                        1e-9 if tol < 1e-9 else 0.0)
+                                        1e-9 if tol < 1e-9 else 0.0, w[11])
             delta = z - K[j]
             if delta == 0.0:
                 continue
@@ -555,7 +572,8 @@ def _workspace(nd, nb):
     c16 = np.complex128
     return (np.zeros((nd, nd), c16), np.zeros((nd, nd), c16), np.zeros(nd, np.int64),
             np.zeros(nd, c16), np.zeros(nb, c16), np.zeros(nd, c16), np.zeros(nb, c16),
-            np.zeros(nb, c16), np.zeros(nd, c16), np.zeros(nd, c16), np.zeros(nb))
+            np.zeros(nb, c16), np.zeros(nd, c16), np.zeros(nd, c16), np.zeros(nb),
+            np.zeros((6, nb)))
 
 
 @inline_jit
