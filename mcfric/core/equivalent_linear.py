@@ -112,13 +112,14 @@ def _metric(alpha, beta, d0, d1, z, b0, b1):
 
 @inline_jit
 def _dominated(alpha_b, beta_b, d0, d1, z, best_val):
-    """``|y_b(z)| >= best_val``, hence ``M(z) >= best_val``: a candidate that cannot
-    improve the minimum. Computed with the operations of :func:`_metric`, whose maximum
-    over beams is then >= this term in floating point too: skipping changes no result."""
+    """``|y_b(z)| > best_val`` with a 1e-12 margin, hence ``M(z) > best_val``: a candidate
+    that cannot improve the minimum. The margin covers the rounding of :func:`_metric`,
+    so skipping changes no result; no square root or division (most candidates end
+    here)."""
     den = d0 + d1 * z
     v = alpha_b + beta_b * z
-    return math.sqrt((v.real * v.real + v.imag * v.imag) /
-                     (den.real * den.real + den.imag * den.imag)) >= best_val
+    return (v.real * v.real + v.imag * v.imag) >= best_val * best_val * (1.0 + 1e-12) * (
+        den.real * den.real + den.imag * den.imag)
 
 
 @inline_jit
