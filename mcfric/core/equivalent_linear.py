@@ -671,6 +671,19 @@ def _multistart(G, q0, ylin, H, kr, ki, starts, want_max, objectives, cap, max_s
                         K_best[o, k, j] = K[j]
 
 
+#: Relative change below which a continuation round treats a value or a describing
+#: function (relative to the box) as unchanged and does not repeat the search after it.
+_SAME = 1e-9
+
+
+@inline_jit
+def _same(v, ref):
+    """``v`` equals ``ref`` within ``_SAME`` (relative); both NaN counts as equal."""
+    if math.isnan(v) or math.isnan(ref):
+        return math.isnan(v) and math.isnan(ref)
+    return abs(v - ref) <= _SAME * abs(ref)
+
+
 @jit(parallel=True, nogil=True)
 def _propagate(G, q0, ylin, H, kr, ki, want_max, objectives, cap, max_sweeps, tol, best,
                K_best, cand, K_cand, first, prev_best, ran):
@@ -679,9 +692,9 @@ def _propagate(G, q0, ylin, H, kr, ki, want_max, objectives, cap, max_sweeps, to
 
     Later rounds (``first`` False) recompute only where something changed: a frequency
     whose own best (``prev_best``: the previous round's), whose decision to search
-    (``ran``) and whose neighbour's result are those of the previous round would repeat
-    the previous round's deterministic search, so its ``cand``/``K_cand`` are kept. The
-    result is bitwise that of recomputing everything.
+    (``ran``) and whose neighbour's result are those of the previous round (within
+    ``_SAME``) would repeat the previous round's search, so its ``cand``/``K_cand`` are
+    kept.
     """
     n_f, nd = q0.shape
     nb = ylin.shape[1]
@@ -698,8 +711,7 @@ def _propagate(G, q0, ylin, H, kr, ki, want_max, objectives, cap, max_sweeps, to
                 if run and want_max and (best[o, k] >= cap[k, o] or
                                          _irrelevant(best, cap, o, k, objectives.shape[0])):
                     run = False         # at the force limit, or cannot set the bound
-                start_same = (best[o, k] == prev_best[o, k] or
-                              (math.isnan(best[o, k]) and math.isnan(prev_best[o, k])))
+                start_same = _same(best[o, k], prev_best[o, k])
                 if (not first and start_same and same_up and run and ran[d, o, k]):
                     continue            # same inputs as the previous round: same result
                 v_old = cand[d, o, k]
@@ -718,11 +730,11 @@ def _propagate(G, q0, ylin, H, kr, ki, want_max, objectives, cap, max_sweeps, to
                         cand[d, o, k] = v
                         for j in range(nd):
                             K_cand[d, o, k, j] = K[j]
-                same_up = not first and (cand[d, o, k] == v_old or (
-                    math.isnan(cand[d, o, k]) and math.isnan(v_old)))
+                same_up = not first and _same(cand[d, o, k], v_old)
                 if same_up:
                     for j in range(nd):
-                        if K_cand[d, o, k, j] != K_old[j]:
+                        dK = K_cand[d, o, k, j] - K_old[j]
+                        if abs(dK.real) > _SAME * kr or abs(dK.imag) > _SAME * ki:
                             same_up = False
                             break
 
