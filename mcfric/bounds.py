@@ -43,11 +43,11 @@ from .model import Model
 
 #: ``limited_by`` codes: which constraint sets the upper bound.
 LIMITED_BY = ("box", "force")
-N_STARTS = 8
+N_STARTS = 5
 #: Starts over the whole frequency grid at least: the continuation along frequency shares
 #: what the starts find, so a coarse grid gets more starts per frequency (the total effort
 #: stays about that of a 1000-point grid).
-MIN_TOTAL_STARTS = 8000
+MIN_TOTAL_STARTS = 5000
 MAX_SWEEPS = 20
 
 
@@ -144,8 +144,9 @@ def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity
         0-based beams of the metric; default all.
     n_starts : int
         Starts of the search for the minimum per frequency (at least
-        ``MIN_TOTAL_STARTS / n_f``); the maximum, sought beam by beam, uses half as many
-        per beam.
+        ``MIN_TOTAL_STARTS / n_f``; the default 5 on a 1000-point grid: the uniform
+        corners and the centre); the maximum, sought beam by beam, uses half as many per
+        beam, at least the four uniform corners.
     max_sweeps : int
         Coordinate sweeps per start.
     seed : int
@@ -179,7 +180,7 @@ def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity
     H = np.ascontiguousarray(H[:, sel, :])
     n_starts = max(int(n_starts), -(-MIN_TOTAL_STARTS // len(f)))
     # the maximum runs once per beam (each a smoother problem): half the starts each
-    starts_max, _ = _starts(len(f), model.n_dampers, max(1, n_starts // 2), seed)
+    starts_max, _ = _starts(len(f), model.n_dampers, max(4, n_starts // 2), seed)
     _, starts_min = _starts(len(f), model.n_dampers, n_starts, seed + 1)
     G = np.ascontiguousarray(G)
     q0 = np.ascontiguousarray(q0)
