@@ -129,12 +129,12 @@ def _predict(x, xp, W, l, k, have, nd):
 
 @inline_jit
 def _remember(xp, l, x, have, nd):
-    """Push a converged point into the predictor history; returns the new ``have``."""
+    """Push column ``l`` of ``x`` into the predictor history; returns the new ``have``."""
     for m in range(N_PREDICT - 1, 0, -1):
         for j in range(nd):
             xp[m, j, l] = xp[m - 1, j, l]
     for j in range(nd):
-        xp[0, j, l] = x[j]
+        xp[0, j, l] = x[j, l]
     return min(have + 1, N_PREDICT)
 
 
@@ -181,14 +181,30 @@ def _fallback(rec, r, k, a, b, kc, c, active, q0, G, x, tol, max_iter, w):
 
 
 @inline_jit
-def _write_point(rec, r, k, force, a, b, K, q, f, x, active, s_off, ok, st, its,
+def _abs_expm1(f):
+    """``|expm1(f)|``, the relative force residual of a damper with log residual ``f``.
+
+    Converged points have ``|f| <= 1e-10``, where three terms of the series are exact to
+    rounding (truncation ``f^3/24`` relative), which saves a libm call per point.
+    """
+    if abs(f) < 1e-5:
+        return abs(f * (1.0 + f * (0.5 + f * (1.0 / 6.0))))
+    return abs(math.expm1(f))
+
+
+@inline_jit
+def _write_point(rec, r, k, force, a, b, K, q, f, x, active, s_off, sq, l, ok, st, its,
                  i, y, s, status, iterations, residual, fb, nd, n_beams):
-    """Outputs of one (sample, frequency): ``y2 = D23 F + D21 B^T f``, ``f_j = -K_j q_j``."""
+    """Outputs of one (sample, frequency): ``y2 = D23 F + D21 B^T f``, ``f_j = -K_j q_j``.
+
+    The state is column ``l`` of the (nd, lanes) arrays ``K``, ``q``, ``f``, ``x``,
+    ``active``, ``s_off`` (s of an inactive damper) and ``sq = mu0 N0 / kc`` (m).
+    """
     iterations[i, k] = min(its, 32767)
     res = 0.0
     for j in range(nd):
-        if active[j]:
-            res = max(res, abs(math.expm1(f[j])))
+        if active[j, l]:
+            res = max(res, _abs_expm1(f[j, l]))
     residual[i, k] = res if math.isfinite(res) else math.inf
     if not ok:
         status[i, k] = NOT_CONVERGED
@@ -201,13 +217,20 @@ def _write_point(rec, r, k, force, a, b, K, q, f, x, active, s_off, ok, st, its,
     for bb in range(n_beams):
         fb[bb] = 0.0j
     for j in range(nd):
-        fj = -K[j] * q[j]
+        fj = -K[j, l] * q[j, l]
         fb[a[j]] += fj
         fb[b[j]] -= fj
     for bb in range(n_beams):
         y[i, k, bb] = rec[r, k, D23, bb] * force[bb] + rec[r, k, D21, bb] * fb[bb]
     for j in range(nd):
-        s[i, k, j] = math.exp(x[j]) if active[j] else s_off[j]
+        if not active[j, l]:
+            s[i, k, j] = s_off[j, l]
+        elif x[j, l] > 0.0:
+            # stuck, x = log(mu0 N0 / (kc |q|)) exactly: s without a call to exp
+            qq = q[j, l]
+            s[i, k, j] = sq[j, l] / math.sqrt(qq.real * qq.real + qq.imag * qq.imag)
+        else:
+            s[i, k, j] = math.exp(x[j, l])
 
 
 @jit(parallel=True, nogil=True)
@@ -239,6 +262,7 @@ def _chain_batch(g, rec, force, a, b, W, mu0, N0, kc, tol, max_iter,
     cl = np.zeros((nd, LANES))
     actl = np.zeros((nd, LANES), dtype=np.bool_)
     s_off = np.zeros((nd, LANES))
+    sq = np.zeros((nd, LANES))
     x = np.zeros((nd, LANES))
     xp = np.zeros((N_PREDICT, nd, LANES))
     Gd = np.zeros((nd, LANES), dtype=np.complex128)
@@ -249,17 +273,13 @@ def _chain_batch(g, rec, force, a, b, W, mu0, N0, kc, tol, max_iter,
     its = np.zeros(LANES, dtype=np.int64)
     have = np.zeros(LANES, dtype=np.int64)
     rl = np.zeros(LANES, dtype=np.int64)
-    # one sample's view for the output and the dense fallback
+    # one sample's copy for the dense fallback
     wd = workspace(nd)
     G = np.zeros((nd, nd), dtype=np.complex128)
-    K1 = np.zeros(nd, dtype=np.complex128)
-    q1 = np.zeros(nd, dtype=np.complex128)
-    f1 = np.zeros(nd)
     xs = np.zeros(nd)
     kc1 = np.zeros(nd)
     c1 = np.zeros(nd)
     act1 = np.zeros(nd, dtype=np.bool_)
-    off1 = np.zeros(nd)
     q01 = np.zeros(nd, dtype=np.complex128)
     fb = np.zeros(n_beams, dtype=np.complex128)
     for l in range(LANES):
@@ -271,6 +291,7 @@ def _chain_batch(g, rec, force, a, b, W, mu0, N0, kc, tol, max_iter,
             for j in range(nd):
                 actl[j, l], cl[j, l], s_off[j, l] = _damper_constants(mu0, N0, kc, i, j)
                 kcl[j, l] = kc[i, j]
+                sq[j, l] = mu0[i, j] * N0[i, j] / kc[i, j] if actl[j, l] else 0.0
     for k in range(n_f):
         for l in range(LANES):
             if not need[l]:
@@ -289,32 +310,27 @@ def _chain_batch(g, rec, force, a, b, W, mu0, N0, kc, tol, max_iter,
                 continue
             i = g * LANES + l
             r = rl[l]
-            for j in range(nd):
-                xs[j] = x[j, l]
-                K1[j] = K[j, l]
-                q1[j] = q[j, l]
-                f1[j] = f[j, l]
-                act1[j] = actl[j, l]
-                off1[j] = s_off[j, l]
             st = CONVERGED
             n_it = its[l]
             good = ok[l]
-            if not good:
+            if not good:            # rare: one sample's copy through the dense solvers
                 for j in range(nd):
                     kc1[j] = kcl[j, l]
                     c1[j] = cl[j, l]
+                    act1[j] = actl[j, l]
                     q01[j] = q0[j, l]
                 good, n2, st = _fallback(rec, r, k, a, b, kc1, c1, act1, q01, G, xs,
                                          tol, max_iter, wd)
                 n_it += n2
                 for j in range(nd):
-                    K1[j] = wd[0][j]
-                    q1[j] = wd[1][j]
-                    f1[j] = wd[2][j]
-            _write_point(rec, r, k, force, a, b, K1, q1, f1, xs, act1, off1, good, st,
+                    x[j, l] = xs[j]
+                    K[j, l] = wd[0][j]
+                    q[j, l] = wd[1][j]
+                    f[j, l] = wd[2][j]
+            _write_point(rec, r, k, force, a, b, K, q, f, x, actl, s_off, sq, l, good, st,
                          n_it, i, y, s, status, iterations, residual, fb, nd, n_beams)
             if good:
-                have[l] = _remember(xp, l, xs, have[l], nd)
+                have[l] = _remember(xp, l, x, have[l], nd)
             else:
                 have[l] = 0
 
@@ -344,10 +360,18 @@ def _dense_sample(i, rec, force, a, b, W, mu0, N0, kc, tol, max_iter,
     kc1 = np.empty(nd)
     c1 = np.empty(nd)
     act1 = np.empty(nd, dtype=np.bool_)
-    off1 = np.empty(nd)
+    # the state as one-lane columns for _write_point
+    act2 = np.zeros((nd, 1), dtype=np.bool_)
+    off2 = np.zeros((nd, 1))
+    sq2 = np.zeros((nd, 1))
+    K2 = np.zeros((nd, 1), dtype=np.complex128)
+    q2 = np.zeros((nd, 1), dtype=np.complex128)
+    f2 = np.zeros((nd, 1))
     for j in range(nd):
-        act1[j], c1[j], off1[j] = _damper_constants(mu0, N0, kc, i, j)
+        act1[j], c1[j], off2[j, 0] = _damper_constants(mu0, N0, kc, i, j)
+        act2[j, 0] = act1[j]
         kc1[j] = kc[i, j]
+        sq2[j, 0] = mu0[i, j] * N0[i, j] / kc[i, j] if act1[j] else 0.0
     x = np.zeros(nd)
     xg = np.zeros((nd, 1))
     xp = np.zeros((N_PREDICT, nd, 1))
@@ -368,10 +392,15 @@ def _dense_sample(i, rec, force, a, b, W, mu0, N0, kc, tol, max_iter,
             ok, its2, st = _fallback(rec, r, k, a, b, kc1, c1, act1, q0, G, x, tol,
                                      max_iter, w)
             its += its2
-        _write_point(rec, r, k, force, a, b, w[0], w[1], w[2], x, act1, off1, ok, st,
+        for j in range(nd):
+            xg[j, 0] = x[j]
+            K2[j, 0] = w[0][j]
+            q2[j, 0] = w[1][j]
+            f2[j, 0] = w[2][j]
+        _write_point(rec, r, k, force, a, b, K2, q2, f2, xg, act2, off2, sq2, 0, ok, st,
                      its, i, y, s, status, iterations, residual, fb, nd, n_beams)
         if ok:
-            have = _remember(xp, 0, x, have, nd)
+            have = _remember(xp, 0, xg, have, nd)
         else:
             have = 0
 
@@ -384,18 +413,6 @@ def sweep_one_damper(rec, force, a, b, omega, mu0, N0, kc, tol, max_iter,
     for i in prange(mu0.shape[0]):
         _one_damper_sample(i, rec, force, a, b, W, mu0, N0, kc, tol, max_iter,
                            y, s, status, iterations, residual)
-
-
-@inline_jit
-def _abs_expm1(f):
-    """``|expm1(f)|``, the relative force residual of a damper with log residual ``f``.
-
-    Converged points have ``|f| <= 1e-10``, where three terms of the series are exact to
-    rounding (truncation ``f^3/24`` relative), which saves a libm call per point.
-    """
-    if abs(f) < 1e-5:
-        return abs(f * (1.0 + f * (0.5 + f * (1.0 / 6.0))))
-    return abs(math.expm1(f))
 
 
 @jit
