@@ -398,6 +398,12 @@ def _lu_solve_transposed(A, piv, b, n):
             b[p] = t
 
 
+#: Memory of the nonmonotone line search of :func:`_spg` (Grippo-Lampariello-Lucidi):
+#: a step is accepted against the worst of the last ``_GLL`` values, so the spectral
+#: (Barzilai-Borwein) step is rarely cut back.
+_GLL = 8
+
+
 @jit
 def _spg(G, q0, ylin, H, kr, ki, K, sign, b0, b1, w):
     """Spectral projected gradient on ``sign`` times a smoothed max of ``log|y_b|``
@@ -406,7 +412,8 @@ def _spg(G, q0, ylin, H, kr, ki, K, sign, b0, b1, w):
     Coordinate searches move one damper at a time: they stall where beams are equal (a
     ridge of the minimum) and crawl along resonance ridges, where the best direction
     moves several dampers together (the maximum). A joint gradient step does not. The
-    smoothing ``mu`` is reduced in stages. Returns M at the final ``K``.
+    smoothing ``mu`` is reduced in stages; the line search is nonmonotone (``_GLL``), so
+    the best point evaluated (by M itself) is the one returned. Returns M at ``K``.
     """
     nd = K.shape[0]
     g = np.zeros(nd, dtype=np.complex128)
@@ -415,15 +422,25 @@ def _spg(G, q0, ylin, H, kr, ki, K, sign, b0, b1, w):
     Kt = np.zeros(nd, dtype=np.complex128)
     d = np.zeros(nd, dtype=np.complex128)
     gt = np.zeros(nd, dtype=np.complex128)
+    x_best = np.zeros(nd, dtype=np.complex128)
+    hist = np.empty(_GLL)
     for j in range(nd):
         x[j] = complex(K[j].real / kr, K[j].imag / ki)
+        x_best[j] = x[j]
+    l_best = math.nan                           # sign * log M at x_best
     for mu in (0.01, 0.002):
         for j in range(nd):
             K[j] = complex(kr * x[j].real, ki * x[j].imag)
-        f, _ = _smooth_max(G, q0, ylin, H, K, mu, b0, b1, g, w)
+        f, lm = _smooth_max(G, q0, ylin, H, K, mu, b0, b1, g, w)
         if not math.isfinite(f):
             break
         f *= sign
+        if math.isnan(l_best) or sign * lm < l_best:
+            l_best = sign * lm
+            for j in range(nd):
+                x_best[j] = x[j]
+        for m in range(_GLL):
+            hist[m] = f
         for j in range(nd):
             g[j] = complex(sign * g[j].real * kr, sign * g[j].imag * ki)
         alpha = 0.1
@@ -436,20 +453,27 @@ def _spg(G, q0, ylin, H, kr, ki, K, sign, b0, b1, w):
                 gd += g[j].real * d[j].real + g[j].imag * d[j].imag
             if gd >= -1e-14:
                 break
+            f_ref = hist[0]
+            for m in range(1, _GLL):
+                f_ref = max(f_ref, hist[m])
             lam = 1.0
             ok = False
             for _ in range(20):
                 for j in range(nd):
                     xt[j] = x[j] + lam * d[j]
                     Kt[j] = complex(kr * xt[j].real, ki * xt[j].imag)
-                ft, _ = _smooth_max(G, q0, ylin, H, Kt, mu, b0, b1, gt, w)
+                ft, lt = _smooth_max(G, q0, ylin, H, Kt, mu, b0, b1, gt, w)
                 ft *= sign
-                if ft <= f + 1e-4 * lam * gd:
+                if ft <= f_ref + 1e-4 * lam * gd:
                     ok = True
                     break
                 lam *= 0.5
             if not ok:
                 break
+            if sign * lt < l_best:
+                l_best = sign * lt
+                for j in range(nd):
+                    x_best[j] = xt[j]
             ss = 0.0
             sy = 0.0
             for j in range(nd):
@@ -461,9 +485,13 @@ def _spg(G, q0, ylin, H, kr, ki, K, sign, b0, b1, w):
                 x[j] = xt[j]
                 g[j] = gt[j]
             f = ft
+            hist[(it + 1) % _GLL] = f
             alpha = min(max(ss / sy, 1e-6), 10.0) if sy > 0.0 else 1.0
+        # the next stage starts from the best point so far
+        for j in range(nd):
+            x[j] = x_best[j]
     for j in range(nd):
-        K[j] = complex(kr * x[j].real, ki * x[j].imag)
+        K[j] = complex(kr * x_best[j].real, ki * x_best[j].imag)
     _, lm = _smooth_max(G, q0, ylin, H, K, 1.0, b0, b1, g, w)
     return math.exp(lm)
 
