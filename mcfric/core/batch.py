@@ -11,6 +11,11 @@ Each lane runs exactly the single-sample algorithm of :mod:`mcfric.core.newton` 
 arithmetic (damped Newton in ``x = log s`` with an Armijo line search, stuck dampers
 solved exactly in each evaluation); lanes never exchange values, so a sample's result
 does not depend on which samples share its batch, its thread, or its chunk.
+
+The scratch state lives in five arrays indexed by the slot constants below (``C[K_]``,
+``R[F_]``, ...) rather than in some twenty separate arrays: every array passed to or
+unpacked in a compiled function costs an atomic reference count and a struct copy per
+call, which was ~10 % of the eight-beam time.
 """
 
 import math
@@ -24,75 +29,91 @@ from .newton import _ARMIJO, _MAX_HALVINGS, _MAX_STEP, _TARGET
 
 _SLIP_SIDE = complex(0.0, -4.0 / math.pi)   # d(K/kc)/dlog s at s = 1 from the slip side
 
+# Slots of the complex scratch C (n, nd, LANES): K and dK/dlog s (N/m) and q (m) at the
+# accepted point, the same at the trial point, the step's h and e, the tridiagonal system.
+K_, KP_, Q_, KT_, KPT_, QT_, H_, E_, LO_, DI_, UP_ = range(11)
+# Slots of the real scratch R (n, nd, LANES): log residual at the accepted point, trial
+# x = log s, its residual, the Newton step.
+F_, XT_, FT_, DX_ = range(4)
+# Slots of the block scratch B (n, nd, 4, LANES): the 2x2 blocks of the Newton step and
+# its right-hand side (first two columns).
+LB_, DB_, UB_, RB_ = range(4)
+# Slots of the per-lane reals V (n, LANES): |f|^2 accepted and trial, the step length.
+PHI_, PHIT_, LAM_ = range(3)
+# Slots of the per-lane flags M (n, LANES): need a step, have a trial to evaluate, a
+# failed solve.
+RUN_, PEND_, BAD_ = range(3)
+
 
 @jit
-def _eval(x, K, Kp, q, f, phi, mask, bad, kc, c, active, Gd, Gu, q0, lo, di, up, nd):
-    """Residual of the lanes in ``mask``: fills K, dK/dlog s, q, f and ``phi = |f|^2``.
+def _eval(C, R, V, M, kc, c, active, Gd, Gu, q0, nd):
+    """Residual at the trial points of the lanes in ``M[PEND_]``.
 
-    Stuck dampers are solved exactly (``x`` is updated); ``phi`` is inf for a lane whose
-    linear solve failed or whose residual is not finite.
+    Fills ``C[KT_]``, ``C[KPT_]``, ``C[QT_]``, ``R[FT_]`` and ``V[PHIT_] = |f|^2``.
+    Stuck dampers are solved exactly (``R[XT_]`` is updated); ``V[PHIT_]`` is inf for a
+    lane whose linear solve failed or whose residual is not finite.
     """
     for j in range(nd):
         for l in range(LANES):
-            if mask[l]:
+            if M[PEND_, l]:
                 if active[j, l]:
-                    k, d = kappa_logs(x[j, l])
-                    K[j, l] = kc[j, l] * k
-                    Kp[j, l] = kc[j, l] * d
+                    k, d = kappa_logs(R[XT_, j, l])
+                    C[KT_, j, l] = kc[j, l] * k
+                    C[KPT_, j, l] = kc[j, l] * d
                 else:
-                    K[j, l] = 0.0j
-                    Kp[j, l] = 0.0j
+                    C[KT_, j, l] = 0.0j
+                    C[KPT_, j, l] = 0.0j
     for j in range(nd):
         for l in range(LANES):
-            if mask[l]:
-                di[j, l] = 1.0 + Gd[j, l] * K[j, l]
-                q[j, l] = q0[j, l]
+            if M[PEND_, l]:
+                C[DI_, j, l] = 1.0 + Gd[j, l] * C[KT_, j, l]
+                C[QT_, j, l] = q0[j, l]
                 if j > 0:
-                    lo[j, l] = Gu[j - 1, l] * K[j - 1, l]
+                    C[LO_, j, l] = Gu[j - 1, l] * C[KT_, j - 1, l]
                 if j < nd - 1:
-                    up[j, l] = Gu[j, l] * K[j + 1, l]
-    tridiag_solve_lanes(lo, di, up, q, mask, bad, nd)
+                    C[UP_, j, l] = Gu[j, l] * C[KT_, j + 1, l]
+    tridiag_solve_lanes(C, LO_, DI_, UP_, QT_, M, PEND_, BAD_, nd)
     for l in range(LANES):
-        phi[l] = 0.0
+        V[PHIT_, l] = 0.0
     for j in range(nd):
         for l in range(LANES):
-            if not mask[l]:
+            if not M[PEND_, l]:
                 continue
             if not active[j, l]:
-                f[j, l] = 0.0
+                R[FT_, j, l] = 0.0
                 continue
-            qq = q[j, l]
+            qq = C[QT_, j, l]
             lq = 0.5 * math.log(qq.real * qq.real + qq.imag * qq.imag)
-            if x[j, l] >= 0.0:
+            if R[XT_, j, l] >= 0.0:
                 t = c[j, l] - lq        # log s that makes damper j consistent with this q
                 if t > 0.0:
-                    x[j, l] = t
-                    f[j, l] = 0.0
-                    Kp[j, l] = 0.0j
+                    R[XT_, j, l] = t
+                    R[FT_, j, l] = 0.0
+                    C[KPT_, j, l] = 0.0j
                 else:                   # no longer stuck: park at s = 1, K unchanged
-                    x[j, l] = 0.0
-                    f[j, l] = -t
-                    Kp[j, l] = kc[j, l] * _SLIP_SIDE
+                    R[XT_, j, l] = 0.0
+                    R[FT_, j, l] = -t
+                    C[KPT_, j, l] = kc[j, l] * _SLIP_SIDE
             else:
-                f[j, l] = x[j, l] + lq - c[j, l]
-            phi[l] += f[j, l] * f[j, l]
+                R[FT_, j, l] = R[XT_, j, l] + lq - c[j, l]
+            V[PHIT_, l] += R[FT_, j, l] * R[FT_, j, l]
     for l in range(LANES):
-        if mask[l] and (bad[l] or not math.isfinite(phi[l])):
-            phi[l] = math.inf
+        if M[PEND_, l] and (M[BAD_, l] or not math.isfinite(V[PHIT_, l])):
+            V[PHIT_, l] = math.inf
 
 
 @inline_jit
-def _put_block(B, i, l, t, m, e):
-    """Real 2x2 block of ``w -> t w - m Re(e w)`` (complex t, m, e) at ``B[i, :, l]``."""
-    B[i, 0, l] = t.real - m.real * e.real
-    B[i, 1, l] = -t.imag + m.real * e.imag
-    B[i, 2, l] = t.imag - m.imag * e.real
-    B[i, 3, l] = t.real + m.imag * e.imag
+def _put_block(B, s, i, l, t, m, e):
+    """Real 2x2 block of ``w -> t w - m Re(e w)`` (complex t, m, e) at ``B[s, i, :, l]``."""
+    B[s, i, 0, l] = t.real - m.real * e.real
+    B[s, i, 1, l] = -t.imag + m.real * e.imag
+    B[s, i, 2, l] = t.imag - m.imag * e.real
+    B[s, i, 3, l] = t.real + m.imag * e.imag
 
 
 @jit
-def _step(K, Kp, q, f, dx, mask, bad, active, Gd, Gu, h, e, Lb, Db, Ub, rb, nd):
-    """Newton step ``dx`` of the lanes in ``mask`` (``bad[l]`` if it could not be formed).
+def _step(C, R, B, M, active, Gd, Gu, nd):
+    """Newton step ``R[DX_]`` of the lanes in ``M[RUN_]`` (``M[BAD_]`` if not formed).
 
     Linearising ``(I + G K) q = q0`` and ``f = x + log|q| - c`` gives, with
     ``h_j = dK_j/dx_j q_j``, ``e_j = conj(q_j)/|q_j|^2`` and ``w = dq``:
@@ -100,59 +121,63 @@ def _step(K, Kp, q, f, dx, mask, bad, active, Gd, Gu, h, e, Lb, Db, Ub, rb, nd):
     """
     for j in range(nd):
         for l in range(LANES):
-            if mask[l]:
-                qq = q[j, l]
+            if M[RUN_, l]:
+                qq = C[Q_, j, l]
                 q2 = qq.real * qq.real + qq.imag * qq.imag
                 if active[j, l] and q2 > 0.0:
-                    h[j, l] = Kp[j, l] * qq
+                    C[H_, j, l] = C[KP_, j, l] * qq
                     r2 = 1.0 / q2
-                    e[j, l] = complex(qq.real * r2, -qq.imag * r2)
+                    C[E_, j, l] = complex(qq.real * r2, -qq.imag * r2)
                 else:
-                    h[j, l] = 0.0j
-                    e[j, l] = 0.0j
+                    C[H_, j, l] = 0.0j
+                    C[E_, j, l] = 0.0j
     for i in range(nd):
         for l in range(LANES):
-            if not mask[l]:
+            if not M[RUN_, l]:
                 continue
-            _put_block(Db, i, l, 1.0 + Gd[i, l] * K[i, l], Gd[i, l] * h[i, l], e[i, l])
-            rhs = Gd[i, l] * h[i, l] * f[i, l]
+            g = Gd[i, l]
+            _put_block(B, DB_, i, l, 1.0 + g * C[K_, i, l], g * C[H_, i, l], C[E_, i, l])
+            rhs = g * C[H_, i, l] * R[F_, i, l]
             if i > 0:
                 g = Gu[i - 1, l]
-                _put_block(Lb, i, l, g * K[i - 1, l], g * h[i - 1, l], e[i - 1, l])
-                rhs += g * h[i - 1, l] * f[i - 1, l]
+                _put_block(B, LB_, i, l, g * C[K_, i - 1, l], g * C[H_, i - 1, l],
+                           C[E_, i - 1, l])
+                rhs += g * C[H_, i - 1, l] * R[F_, i - 1, l]
             if i < nd - 1:
                 g = Gu[i, l]
-                _put_block(Ub, i, l, g * K[i + 1, l], g * h[i + 1, l], e[i + 1, l])
-                rhs += g * h[i + 1, l] * f[i + 1, l]
-            rb[i, 0, l] = rhs.real
-            rb[i, 1, l] = rhs.imag
-    block2_tridiag_solve_lanes(Lb, Db, Ub, rb, mask, bad, nd)
+                _put_block(B, UB_, i, l, g * C[K_, i + 1, l], g * C[H_, i + 1, l],
+                           C[E_, i + 1, l])
+                rhs += g * C[H_, i + 1, l] * R[F_, i + 1, l]
+            B[RB_, i, 0, l] = rhs.real
+            B[RB_, i, 1, l] = rhs.imag
+    block2_tridiag_solve_lanes(B, LB_, DB_, UB_, RB_, M, RUN_, BAD_, nd)
     for l in range(LANES):
-        if not mask[l]:
+        if not M[RUN_, l]:
             continue
         big = 0.0
         for j in range(nd):
-            ee = e[j, l]
-            dx[j, l] = -f[j, l] - (ee.real * rb[j, 0, l] - ee.imag * rb[j, 1, l])
-            big = max(big, abs(dx[j, l]))
+            ee = C[E_, j, l]
+            R[DX_, j, l] = -R[F_, j, l] - (ee.real * B[RB_, j, 0, l] - ee.imag * B[RB_, j, 1, l])
+            big = max(big, abs(R[DX_, j, l]))
         if not math.isfinite(big):
-            bad[l] = True
+            M[BAD_, l] = True
         elif big > _MAX_STEP:
             sc = _MAX_STEP / big
             for j in range(nd):
-                dx[j, l] *= sc
+                R[DX_, j, l] *= sc
 
 
 @inline_jit
-def _max_abs(f, l, nd):
+def _max_abs(R, l, nd):
     m = 0.0
     for j in range(nd):
-        m = max(m, abs(f[j, l]))
+        m = max(m, abs(R[F_, j, l]))
     return m
 
 
 @jit
-def newton_lanes(x, need, ok, its, kc, c, active, Gd, Gu, q0, tol, max_iter, w, nd):
+def newton_lanes(x, need, ok, its, kc, c, active, Gd, Gu, q0, tol, max_iter,
+                 C, R, B, V, M, nd):
     """Damped Newton in ``x = log s`` for the lanes in ``need``, from the guesses in ``x``.
 
     Every lane runs its own iteration (evaluate, accept or halve the step, new step),
@@ -175,87 +200,77 @@ def newton_lanes(x, need, ok, its, kc, c, active, Gd, Gu, q0, tol, max_iter, w, 
         Diagonal and super-diagonal of ``G = B D11 B^T`` (m/N) and ``q0`` (m).
     tol, max_iter : float, int
         As :func:`mcfric.core.newton.newton`.
-    w : tuple
-        Workspace from :func:`workspace`; on return ``w[0]`` (K), ``w[2]`` (q) and
-        ``w[3]`` (f) hold the state at ``x``.
+    C, R, B, V, M : ndarray
+        Scratch from :func:`workspace`; on return ``C[K_]``, ``C[Q_]`` and ``R[F_]``
+        hold K (N/m), q (m) and the log residual at ``x``.
     """
-    (K, Kp, q, f, xt, Kt, Kpt, qt, ft, dx, h, e, lo, di, up, Lb, Db, Ub, rb,
-     phi, phit, lam, run, pend, bad) = w
     target = _TARGET * tol
     n_pend = 0
     for l in range(LANES):
         its[l] = 0
         ok[l] = False
-        run[l] = False              # lanes that need a new Newton step
-        pend[l] = need[l]           # lanes with a trial point to evaluate
-        lam[l] = 0.0                # lam = 0 marks the initial point: always accepted
-        n_pend += pend[l]
+        M[RUN_, l] = False          # lanes that need a new Newton step
+        M[PEND_, l] = need[l]       # lanes with a trial point to evaluate
+        V[LAM_, l] = 0.0            # lam = 0 marks the initial point: always accepted
+        n_pend += need[l]
         for j in range(nd):
-            xt[j, l] = x[j, l]
+            R[XT_, j, l] = x[j, l]
     while n_pend > 0:
-        _eval(xt, Kt, Kpt, qt, ft, phit, pend, bad, kc, c, active, Gd, Gu, q0,
-              lo, di, up, nd)
+        _eval(C, R, V, M, kc, c, active, Gd, Gu, q0, nd)
         n_run = 0
         for l in range(LANES):
-            if not pend[l]:
+            if not M[PEND_, l]:
                 continue
-            first = lam[l] == 0.0
-            if first or phit[l] <= (1.0 - 2.0 * _ARMIJO * lam[l]) * phi[l]:
-                pend[l] = False
-                if first and not math.isfinite(phit[l]):
+            lam = V[LAM_, l]
+            first = lam == 0.0
+            if first or V[PHIT_, l] <= (1.0 - 2.0 * _ARMIJO * lam) * V[PHI_, l]:
+                M[PEND_, l] = False
+                if first and not math.isfinite(V[PHIT_, l]):
                     continue        # no finite start: ok stays False
                 for j in range(nd):
-                    x[j, l] = xt[j, l]
-                    K[j, l] = Kt[j, l]
-                    Kp[j, l] = Kpt[j, l]
-                    q[j, l] = qt[j, l]
-                    f[j, l] = ft[j, l]
-                phi[l] = phit[l]
-                if _max_abs(f, l, nd) <= target:
+                    x[j, l] = R[XT_, j, l]
+                    C[K_, j, l] = C[KT_, j, l]
+                    C[KP_, j, l] = C[KPT_, j, l]
+                    C[Q_, j, l] = C[QT_, j, l]
+                    R[F_, j, l] = R[FT_, j, l]
+                V[PHI_, l] = V[PHIT_, l]
+                if _max_abs(R, l, nd) <= target:
                     ok[l] = True
                 elif its[l] >= max_iter:
-                    ok[l] = _max_abs(f, l, nd) <= tol
+                    ok[l] = _max_abs(R, l, nd) <= tol
                 else:
-                    run[l] = True
+                    M[RUN_, l] = True
                     n_run += 1
-            elif lam[l] > 0.5 ** (_MAX_HALVINGS - 1):
-                lam[l] *= 0.5
+            elif lam > 0.5 ** (_MAX_HALVINGS - 1):
+                lam *= 0.5
+                V[LAM_, l] = lam
                 for j in range(nd):
-                    xt[j, l] = x[j, l] + lam[l] * dx[j, l]
+                    R[XT_, j, l] = x[j, l] + lam * R[DX_, j, l]
             else:                   # no acceptable step: a stall at the rounding floor?
-                pend[l] = False
-                ok[l] = _max_abs(f, l, nd) <= tol
+                M[PEND_, l] = False
+                ok[l] = _max_abs(R, l, nd) <= tol
         if n_run > 0:
-            _step(K, Kp, q, f, dx, run, bad, active, Gd, Gu, h, e, Lb, Db, Ub, rb, nd)
+            _step(C, R, B, M, active, Gd, Gu, nd)
             for l in range(LANES):
-                if not run[l]:
+                if not M[RUN_, l]:
                     continue
-                run[l] = False
-                if bad[l]:
-                    ok[l] = _max_abs(f, l, nd) <= tol
+                M[RUN_, l] = False
+                if M[BAD_, l]:
+                    ok[l] = _max_abs(R, l, nd) <= tol
                     continue
                 its[l] += 1
-                lam[l] = 1.0
-                pend[l] = True
+                V[LAM_, l] = 1.0
+                M[PEND_, l] = True
                 for j in range(nd):
-                    xt[j, l] = x[j, l] + dx[j, l]
+                    R[XT_, j, l] = x[j, l] + R[DX_, j, l]
         n_pend = 0
         for l in range(LANES):
-            n_pend += pend[l]
+            n_pend += M[PEND_, l]
 
 
 @jit
 def workspace(nd):
-    """Scratch arrays for :func:`newton_lanes` (one set per batch)."""
-    c16 = np.complex128
-    n = LANES
-    return (np.zeros((nd, n), c16), np.zeros((nd, n), c16), np.zeros((nd, n), c16),
-            np.zeros((nd, n)),
-            np.zeros((nd, n)), np.zeros((nd, n), c16), np.zeros((nd, n), c16),
-            np.zeros((nd, n), c16), np.zeros((nd, n)),
-            np.zeros((nd, n)), np.zeros((nd, n), c16), np.zeros((nd, n), c16),
-            np.zeros((nd, n), c16), np.zeros((nd, n), c16), np.zeros((nd, n), c16),
-            np.zeros((nd, 4, n)), np.zeros((nd, 4, n)), np.zeros((nd, 4, n)),
-            np.zeros((nd, 2, n)),
-            np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n, np.bool_),
-            np.zeros(n, np.bool_), np.zeros(n, np.bool_))
+    """Scratch arrays ``(C, R, B, V, M)`` for :func:`newton_lanes` (one set per batch)."""
+    return (np.zeros((11, nd, LANES), np.complex128), np.zeros((4, nd, LANES)),
+            np.zeros((4, nd, 4, LANES)), np.zeros((3, LANES)),
+            np.zeros((3, LANES), np.bool_))

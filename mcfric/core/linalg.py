@@ -127,96 +127,99 @@ LANES = 4
 
 
 @inline_jit
-def tridiag_solve_lanes(lower, diag, upper, rhs, mask, bad, n):
+def tridiag_solve_lanes(A, lo, di, up, rhs, M, mask, bad, n):
     """Thomas algorithm (no pivoting) for ``LANES`` tridiagonal complex systems, in place.
 
-    Arrays have shape (n, LANES), the lane last. Row ``i`` of lane ``l`` reads
-    ``lower[i,l] x[i-1,l] + diag[i,l] x[i,l] + upper[i,l] x[i+1,l] = rhs[i,l]``.
-    Only lanes with ``mask[l]`` are touched; ``diag`` is overwritten with the reciprocals
-    of the pivots and ``rhs`` with the solution. ``bad[l]`` is set when a pivot of lane
-    ``l`` is zero or not finite (its solution is then garbage; the caller falls back to a
-    pivoting LU).
+    The systems are slots of one complex array ``A`` of shape (slots, >= n, LANES), the
+    lane last: row ``i`` of lane ``l`` reads
+    ``A[lo,i,l] x[i-1,l] + A[di,i,l] x[i,l] + A[up,i,l] x[i+1,l] = A[rhs,i,l]``.
+    Only lanes with ``M[mask, l]`` are touched; slot ``di`` is overwritten with the
+    reciprocals of the pivots and slot ``rhs`` with the solution. ``M[bad, l]`` is set
+    when a pivot of lane ``l`` is zero or not finite (its solution is then garbage; the
+    caller falls back to a pivoting LU).
     """
     for l in range(LANES):
-        bad[l] = False
+        M[bad, l] = False
     for i in range(n):
         for l in range(LANES):
-            if mask[l]:
+            if M[mask, l]:
                 if i > 0:
-                    m = lower[i, l] * diag[i - 1, l]
-                    diag[i, l] -= m * upper[i - 1, l]
-                    rhs[i, l] -= m * rhs[i - 1, l]
-                d = diag[i, l]
+                    m = A[lo, i, l] * A[di, i - 1, l]
+                    A[di, i, l] -= m * A[up, i - 1, l]
+                    A[rhs, i, l] -= m * A[rhs, i - 1, l]
+                d = A[di, i, l]
                 a2 = d.real * d.real + d.imag * d.imag
                 if not (a2 > 0.0 and a2 < math.inf):
-                    bad[l] = True
-                diag[i, l] = cinv(d)
+                    M[bad, l] = True
+                A[di, i, l] = cinv(d)
     for l in range(LANES):
-        if mask[l]:
-            rhs[n - 1, l] *= diag[n - 1, l]
+        if M[mask, l]:
+            A[rhs, n - 1, l] *= A[di, n - 1, l]
     for i in range(n - 2, -1, -1):
         for l in range(LANES):
-            if mask[l]:
-                rhs[i, l] = (rhs[i, l] - upper[i, l] * rhs[i + 1, l]) * diag[i, l]
+            if M[mask, l]:
+                A[rhs, i, l] = (A[rhs, i, l] - A[up, i, l] * A[rhs, i + 1, l]) * A[di, i, l]
 
 
 @inline_jit
-def block2_tridiag_solve_lanes(L, D, U, r, mask, bad, n):
+def block2_tridiag_solve_lanes(B, lo, di, up, r, M, mask, bad, n):
     """Block-tridiagonal solves with real 2x2 blocks for ``LANES`` systems (block Thomas).
 
-    Block row ``i`` of lane ``l``: ``L[i] x[i-1] + D[i] x[i] + U[i] x[i+1] = r[i]`` with
-    blocks stored as ``B[i, 0:4, l]`` = (b00, b01, b10, b11) and ``r[i, 0:2, l]``.
-    ``D``, ``U`` and ``r`` are overwritten (``r`` becomes the solution). Only lanes with
-    ``mask[l]``; ``bad[l]`` is set for a singular or non-finite block pivot.
+    The blocks are slots of one array ``B`` of shape (slots, >= n, 4, LANES): block row
+    ``i`` of lane ``l`` reads ``L[i] x[i-1] + D[i] x[i] + U[i] x[i+1] = r[i]`` with
+    ``L[i] = B[lo, i, 0:4, l]`` = (b00, b01, b10, b11) (likewise ``di``, ``up``) and
+    ``r[i] = B[r, i, 0:2, l]``. Slots ``di``, ``up`` and ``r`` are overwritten (``r``
+    becomes the solution). Only lanes with ``M[mask, l]``; ``M[bad, l]`` is set for a
+    singular or non-finite block pivot.
     """
     for l in range(LANES):
-        bad[l] = False
+        M[bad, l] = False
     for i in range(n):
         for l in range(LANES):
-            if not mask[l]:
+            if not M[mask, l]:
                 continue
-            d00 = D[i, 0, l]
-            d01 = D[i, 1, l]
-            d10 = D[i, 2, l]
-            d11 = D[i, 3, l]
-            r0 = r[i, 0, l]
-            r1 = r[i, 1, l]
+            d00 = B[di, i, 0, l]
+            d01 = B[di, i, 1, l]
+            d10 = B[di, i, 2, l]
+            d11 = B[di, i, 3, l]
+            r0 = B[r, i, 0, l]
+            r1 = B[r, i, 1, l]
             if i > 0:
                 # D[i] -= L[i] X[i-1], r[i] -= L[i] y[i-1]; X[i-1] = inv(D[i-1]) U[i-1] is in U
-                l00 = L[i, 0, l]
-                l01 = L[i, 1, l]
-                l10 = L[i, 2, l]
-                l11 = L[i, 3, l]
-                x00 = U[i - 1, 0, l]
-                x01 = U[i - 1, 1, l]
-                x10 = U[i - 1, 2, l]
-                x11 = U[i - 1, 3, l]
+                l00 = B[lo, i, 0, l]
+                l01 = B[lo, i, 1, l]
+                l10 = B[lo, i, 2, l]
+                l11 = B[lo, i, 3, l]
+                x00 = B[up, i - 1, 0, l]
+                x01 = B[up, i - 1, 1, l]
+                x10 = B[up, i - 1, 2, l]
+                x11 = B[up, i - 1, 3, l]
                 d00 -= l00 * x00 + l01 * x10
                 d01 -= l00 * x01 + l01 * x11
                 d10 -= l10 * x00 + l11 * x10
                 d11 -= l10 * x01 + l11 * x11
-                r0 -= l00 * r[i - 1, 0, l] + l01 * r[i - 1, 1, l]
-                r1 -= l10 * r[i - 1, 0, l] + l11 * r[i - 1, 1, l]
+                r0 -= l00 * B[r, i - 1, 0, l] + l01 * B[r, i - 1, 1, l]
+                r1 -= l10 * B[r, i - 1, 0, l] + l11 * B[r, i - 1, 1, l]
             det = d00 * d11 - d01 * d10
             scale = abs(d00) + abs(d01) + abs(d10) + abs(d11)
             if not (abs(det) > 1e-300 * scale * scale) or not math.isfinite(det):
-                bad[l] = True
+                M[bad, l] = True
             inv = 1.0 / det
-            r[i, 0, l] = (d11 * r0 - d01 * r1) * inv
-            r[i, 1, l] = (d00 * r1 - d10 * r0) * inv
+            B[r, i, 0, l] = (d11 * r0 - d01 * r1) * inv
+            B[r, i, 1, l] = (d00 * r1 - d10 * r0) * inv
             if i < n - 1:
-                u00 = U[i, 0, l]
-                u01 = U[i, 1, l]
-                u10 = U[i, 2, l]
-                u11 = U[i, 3, l]
-                U[i, 0, l] = (d11 * u00 - d01 * u10) * inv
-                U[i, 1, l] = (d11 * u01 - d01 * u11) * inv
-                U[i, 2, l] = (d00 * u10 - d10 * u00) * inv
-                U[i, 3, l] = (d00 * u11 - d10 * u01) * inv
+                u00 = B[up, i, 0, l]
+                u01 = B[up, i, 1, l]
+                u10 = B[up, i, 2, l]
+                u11 = B[up, i, 3, l]
+                B[up, i, 0, l] = (d11 * u00 - d01 * u10) * inv
+                B[up, i, 1, l] = (d11 * u01 - d01 * u11) * inv
+                B[up, i, 2, l] = (d00 * u10 - d10 * u00) * inv
+                B[up, i, 3, l] = (d00 * u11 - d10 * u01) * inv
     for i in range(n - 2, -1, -1):
         for l in range(LANES):
-            if mask[l]:
-                y0 = r[i + 1, 0, l]
-                y1 = r[i + 1, 1, l]
-                r[i, 0, l] -= U[i, 0, l] * y0 + U[i, 1, l] * y1
-                r[i, 1, l] -= U[i, 2, l] * y0 + U[i, 3, l] * y1
+            if M[mask, l]:
+                y0 = B[r, i + 1, 0, l]
+                y1 = B[r, i + 1, 1, l]
+                B[r, i, 0, l] -= B[up, i, 0, l] * y0 + B[up, i, 1, l] * y1
+                B[r, i, 1, l] -= B[up, i, 2, l] * y0 + B[up, i, 3, l] * y1

@@ -256,8 +256,12 @@ def _chain_batch(g, rec, force, a, b, W, mu0, N0, kc, tol, max_iter,
     n_f = W.shape[1]
     nd = a.shape[0]
     n_beams = force.shape[0]
-    w = batch.workspace(nd)
-    K, q, f = w[0], w[2], w[3]
+    C, R, B, V, M = batch.workspace(nd)
+    # the state at the solution, as views made once per batch (a view's reference
+    # count is this thread's own: no contention, unlike views of rec)
+    K = C[batch.K_]
+    q = C[batch.Q_]
+    f = R[batch.F_]
     kcl = np.zeros((nd, LANES))
     cl = np.zeros((nd, LANES))
     actl = np.zeros((nd, LANES), dtype=np.bool_)
@@ -304,7 +308,7 @@ def _chain_batch(g, rec, force, a, b, W, mu0, N0, kc, tol, max_iter,
                     Gu[j, l] = -rec[r, k, D11, b[j]]
             _predict(x, xp, W, l, k, have[l], nd)
         batch.newton_lanes(x, need, ok, its, kcl, cl, actl, Gd, Gu, q0, tol, max_iter,
-                           w, nd)
+                           C, R, B, V, M, nd)
         for l in range(LANES):
             if not need[l]:
                 continue
