@@ -614,9 +614,12 @@ def _beam_range(objective, nb):
 
 
 @jit
-def _improve(G, q0, ylin, H, kr, ki, K, want_max, objective, max_sweeps, tol, w):
+def _improve(G, q0, ylin, H, kr, ki, K, want_max, objective, max_sweeps, tol, w,
+             polish_sweeps=0, polish_tol=0.0):
     """One local search: coordinate search, the smoothed-gradient search from where it
-    ends, and a second coordinate search from there; keeps the better end point."""
+    ends, and a second coordinate search from there; keeps the better end point. With
+    ``polish_sweeps > 0``, a tight coordinate search (``polish_tol``) from that point
+    ends it (once: tight searches of the minimum are costly)."""
     b0, b1 = _beam_range(objective, ylin.shape[0])
     v = _search(G, q0, ylin, H, kr, ki, K, want_max, b0, b1, max_sweeps, tol, w)
     if not math.isfinite(v):
@@ -630,6 +633,8 @@ def _improve(G, q0, ylin, H, kr, ki, K, want_max, objective, max_sweeps, tol, w)
             for j in range(nd):
                 K[j] = K2[j]
             v = v2
+    if polish_sweeps > 0:
+        v = _search(G, q0, ylin, H, kr, ki, K, want_max, b0, b1, polish_sweeps, polish_tol, w)
     return v
 
 
@@ -769,8 +774,9 @@ def _propagate(G, q0, ylin, H, kr, ki, want_max, objectives, cap, max_sweeps, to
 
 @jit(parallel=True, nogil=True)
 def _polish(G, q0, ylin, H, kr, ki, want_max, objectives, cap, max_sweeps, tol, best,
-            K_best, freq_order):
-    """Phase 3: a tight local search from the best point of every objective and frequency."""
+            K_best, freq_order, polish_sweeps, polish_tol):
+    """Phase 3: a local search from the best point of every objective and frequency,
+    ended by a tight one (``polish_sweeps``, ``polish_tol``)."""
     n_f, nd = q0.shape
     nb = ylin.shape[1]
     for i in prange(n_f):
@@ -785,7 +791,7 @@ def _polish(G, q0, ylin, H, kr, ki, want_max, objectives, cap, max_sweeps, tol, 
             for j in range(nd):
                 K[j] = K_best[o, k, j]
             v = _improve(G[k], q0[k], ylin[k], H[k], kr, ki, K, want_max, objectives[o],
-                         max_sweeps, tol, w)
+                         max_sweeps, tol, w, polish_sweeps, polish_tol)
             if math.isfinite(v) and ((v >= best[o, k]) if want_max else (v <= best[o, k])):
                 best[o, k] = v
                 for j in range(nd):
@@ -884,6 +890,12 @@ def box_extreme(G, q0, ylin, H, kr, ki, starts, want_max, cap=None, max_sweeps=2
             any_better |= bool(better.any())
         if not any_better:
             break
-    _polish(G, q0, ylin, H, kr, ki, want_max, objectives, cap, 5 * max_sweeps, POLISH_TOL,
-            best, K_best, order)
+    if want_max:
+        # tight searches of the maximum are cheap (no interior search), and the maximum
+        # is sensitive to the path: tight from the start
+        _polish(G, q0, ylin, H, kr, ki, want_max, objectives, cap, 5 * max_sweeps,
+                POLISH_TOL, best, K_best, order, 0, 0.0)
+    else:
+        _polish(G, q0, ylin, H, kr, ki, want_max, objectives, cap, max_sweeps, EXPLORE_TOL,
+                best, K_best, order, 5 * max_sweeps, POLISH_TOL)
     return best, K_best
