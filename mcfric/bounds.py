@@ -43,11 +43,11 @@ from .model import Model
 
 #: ``limited_by`` codes: which constraint sets the upper bound.
 LIMITED_BY = ("box", "force")
-N_STARTS = 5
+N_STARTS = 3
 #: Starts over the whole frequency grid at least: the continuation along frequency shares
 #: what the starts find, so a coarse grid gets more starts per frequency (the total effort
 #: stays about that of a 1000-point grid).
-MIN_TOTAL_STARTS = 5000
+MIN_TOTAL_STARTS = 3000
 MAX_SWEEPS = 20
 
 
@@ -144,9 +144,9 @@ def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity
         0-based beams of the metric; default all.
     n_starts : int
         Starts of the search for the minimum per frequency (at least
-        ``MIN_TOTAL_STARTS / n_f``; the default 5 on a 1000-point grid: the uniform
-        corners and the centre); the maximum, sought beam by beam, uses half as many per
-        beam, at least the four uniform corners.
+        ``MIN_TOTAL_STARTS / n_f``; the default 3 on a 1000-point grid: the centre and
+        the uniform corners K = 0 and K = k_max); the maximum, sought beam by beam, uses
+        half as many per beam, at least the four uniform corners.
     max_sweeps : int
         Coordinate sweeps per start.
     seed : int
@@ -213,9 +213,10 @@ def _starts(n_f, nd, n_starts, seed):
     """Starting points in normalised box coordinates, shape (n_f, n_starts, nd) each.
 
     Max: the four uniform corners, then random corners (the box maximum lies on the
-    perimeter of every damper's rectangle). Min: the uniform corners and the centre,
-    then random interior points and corners. The random starts differ from frequency to
-    frequency; the continuation along frequency shares what each of them finds.
+    perimeter of every damper's rectangle). Min: the centre, the uniform corners (no
+    friction first, then fully stuck), then random interior points and corners. The
+    random starts differ from frequency to frequency; the continuation along frequency
+    shares what each of them finds.
     """
     rng = np.random.default_rng(seed)
     corners = np.array([0, 1, 1 + 1j, 1j])
@@ -224,9 +225,10 @@ def _starts(n_f, nd, n_starts, seed):
     starts_max = np.concatenate([uniform, corners[rng.integers(0, 4, (n_f, n_rand, nd))]],
                                 axis=1)[:, :n_starts]
     centre = np.full((n_f, 1, nd), 0.5 + 0.5j)
+    n_rand = max(n_starts - 5, 0)
     n_int = n_rand // 2
     interior = rng.uniform(0, 1, (n_f, n_int, nd)) + 1j * rng.uniform(0, 1, (n_f, n_int, nd))
-    starts_min = np.concatenate([uniform, centre, interior,
+    starts_min = np.concatenate([centre, uniform, interior,
                                  corners[rng.integers(0, 4, (n_f, n_rand - n_int, nd))]],
                                 axis=1)[:, :n_starts]
     return (np.ascontiguousarray(starts_max, dtype=complex),

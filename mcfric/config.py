@@ -86,7 +86,7 @@ def defaults(preset=DEFAULT_PRESET):
         "output": {"keep_response": True},
         "run": {"threads": 0, "chunk": 0, "checkpoint_s": 0.0},
         "bounds": {"enabled": True, "k_max": "auto", "k_max_im": "auto", "F_lim": "auto",
-                   "n_starts": 5},
+                   "n_starts": 3},
     }
 
 
