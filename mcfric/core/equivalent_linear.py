@@ -405,15 +405,16 @@ _GLL = 8
 
 
 @jit
-def _spg(G, q0, ylin, H, kr, ki, K, sign, b0, b1, w):
+def _spg(G, q0, ylin, H, kr, ki, K, sign, b0, b1, w, max_iter=40):
     """Spectral projected gradient on ``sign`` times a smoothed max of ``log|y_b|``
     (sign = 1: the minimum of M; sign = -1: the maximum).
 
     Coordinate searches move one damper at a time: they stall where beams are equal (a
     ridge of the minimum) and crawl along resonance ridges, where the best direction
     moves several dampers together (the maximum). A joint gradient step does not. The
-    smoothing ``mu`` is reduced in stages; the line search is nonmonotone (``_GLL``), so
-    the best point evaluated (by M itself) is the one returned. Returns M at ``K``.
+    smoothing ``mu`` is reduced in stages of at most ``max_iter`` iterations; the line
+    search is nonmonotone (``_GLL``), so the best point evaluated (by M itself) is the
+    one returned. Returns M at ``K``.
     """
     nd = K.shape[0]
     g = np.zeros(nd, dtype=np.complex128)
@@ -444,7 +445,7 @@ def _spg(G, q0, ylin, H, kr, ki, K, sign, b0, b1, w):
         for j in range(nd):
             g[j] = complex(sign * g[j].real * kr, sign * g[j].imag * ki)
         alpha = 0.1
-        for it in range(40):
+        for it in range(max_iter):
             gd = 0.0
             for j in range(nd):
                 v = x[j] - alpha * g[j]
@@ -626,7 +627,10 @@ def _improve(G, q0, ylin, H, kr, ki, K, want_max, objective, max_sweeps, tol, w,
         return v
     nd = K.shape[0]
     K2 = K.copy()
-    v2 = _spg(G, q0, ylin, H, kr, ki, K2, -1.0 if want_max else 1.0, b0, b1, w)
+    # the minimum's continuation takes a short gradient search (its polish a full one):
+    # measured, 12 % less time for a lower bound higher by 0.005 % (geometric mean)
+    v2 = _spg(G, q0, ylin, H, kr, ki, K2, -1.0 if want_max else 1.0, b0, b1, w,
+              40 if want_max or polish_sweeps > 0 else 12)
     if math.isfinite(v2):
         v2 = _search(G, q0, ylin, H, kr, ki, K2, want_max, b0, b1, max_sweeps, tol, w)
         if (v2 > v) if want_max else (v2 < v):
