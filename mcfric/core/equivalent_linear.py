@@ -724,8 +724,9 @@ def _same(v, ref):
 @jit(parallel=True, nogil=True)
 def _propagate(G, q0, ylin, H, kr, ki, want_max, objectives, cap, max_sweeps, tol, best,
                K_best, cand, K_cand, first, prev_best, ran):
-    """Phase 2: continuation along frequency, upward (d = 0) and downward (d = 1) in
-    parallel; each frequency starts from the neighbour's best and keeps what improves.
+    """Phase 2: continuation along frequency, upward (d = 0) and downward (d = 1), one
+    chain per direction and objective, in parallel; each frequency starts from the
+    neighbour's best and keeps what improves.
 
     Later rounds (``first`` False) recompute only where something changed: a frequency
     whose own best (``prev_best``: the previous round's), whose decision to search
@@ -733,47 +734,55 @@ def _propagate(G, q0, ylin, H, kr, ki, want_max, objectives, cap, max_sweeps, to
     ``_SAME``) would repeat the previous round's search, so its ``cand``/``K_cand`` are
     kept.
     """
+    # chains interleaved by direction: numba gives each thread a contiguous block
+    for t in prange(2 * objectives.shape[0]):
+        _chain(t % 2, t // 2, G, q0, ylin, H, kr, ki, want_max, objectives, cap, max_sweeps,
+               tol, best, K_best, cand, K_cand, first, prev_best, ran)
+
+
+@jit
+def _chain(d, o, G, q0, ylin, H, kr, ki, want_max, objectives, cap, max_sweeps, tol, best,
+           K_best, cand, K_cand, first, prev_best, ran):
+    """One chain of :func:`_propagate`: direction ``d``, objective ``o``."""
     n_f, nd = q0.shape
     nb = ylin.shape[1]
-    for d in prange(2):
-        w = _workspace(nd, nb)
-        K = np.zeros(nd, dtype=np.complex128)
-        K_old = np.zeros(nd, dtype=np.complex128)
-        for o in range(objectives.shape[0]):
-            same_up = False         # the neighbour's result equals the previous round's
-            for i in range(n_f):
-                k = i if d == 0 else n_f - 1 - i
-                kp = k - 1 if d == 0 else k + 1
-                run = i > 0 and not math.isnan(cand[d, o, kp])
-                if run and want_max and (best[o, k] >= cap[k, o] or
-                                         _irrelevant(best, cap, o, k, objectives.shape[0])):
-                    run = False         # at the force limit, or cannot set the bound
-                start_same = _same(best[o, k], prev_best[o, k])
-                if (not first and start_same and same_up and run and ran[d, o, k]):
-                    continue            # same inputs as the previous round: same result
-                v_old = cand[d, o, k]
+    w = _workspace(nd, nb)
+    K = np.zeros(nd, dtype=np.complex128)
+    K_old = np.zeros(nd, dtype=np.complex128)
+    same_up = False         # the neighbour's result equals the previous round's
+    for i in range(n_f):
+        k = i if d == 0 else n_f - 1 - i
+        kp = k - 1 if d == 0 else k + 1
+        run = i > 0 and not math.isnan(cand[d, o, kp])
+        if run and want_max and (best[o, k] >= cap[k, o] or
+                                 _irrelevant(best, cap, o, k, objectives.shape[0])):
+            run = False         # at the force limit, or cannot set the bound
+        start_same = _same(best[o, k], prev_best[o, k])
+        if (not first and start_same and same_up and run and ran[d, o, k]):
+            continue            # same inputs as the previous round: same result
+        v_old = cand[d, o, k]
+        for j in range(nd):
+            K_old[j] = K_cand[d, o, k, j]
+        cand[d, o, k] = best[o, k]
+        for j in range(nd):
+            K_cand[d, o, k, j] = K_best[o, k, j]
+        ran[d, o, k] = run
+        if run:
+            for j in range(nd):
+                K[j] = K_cand[d, o, kp, j]
+            v = _improve(G[k], q0[k], ylin[k], H[k], kr, ki, K, want_max,
+                         objectives[o], max_sweeps, tol, w)
+            if _better(v, cand[d, o, k], want_max):
+                cand[d, o, k] = v
                 for j in range(nd):
-                    K_old[j] = K_cand[d, o, k, j]
-                cand[d, o, k] = best[o, k]
-                for j in range(nd):
-                    K_cand[d, o, k, j] = K_best[o, k, j]
-                ran[d, o, k] = run
-                if run:
-                    for j in range(nd):
-                        K[j] = K_cand[d, o, kp, j]
-                    v = _improve(G[k], q0[k], ylin[k], H[k], kr, ki, K, want_max,
-                                 objectives[o], max_sweeps, tol, w)
-                    if _better(v, cand[d, o, k], want_max):
-                        cand[d, o, k] = v
-                        for j in range(nd):
-                            K_cand[d, o, k, j] = K[j]
-                same_up = not first and _same(cand[d, o, k], v_old)
-                if same_up:
-                    for j in range(nd):
-                        dK = K_cand[d, o, k, j] - K_old[j]
-                        if abs(dK.real) > _SAME * kr or abs(dK.imag) > _SAME * ki:
-                            same_up = False
-                            break
+                    K_cand[d, o, k, j] = K[j]
+        same_up = not first and _same(cand[d, o, k], v_old)
+        if same_up:
+            for j in range(nd):
+                dK = K_cand[d, o, k, j] - K_old[j]
+                if abs(dK.real) > _SAME * kr or abs(dK.imag) > _SAME * ki:
+                    same_up = False
+                    break
 
 
 @jit(parallel=True, nogil=True)
