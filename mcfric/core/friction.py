@@ -23,19 +23,61 @@ _INV_PI = 1.0 / math.pi
 _SMALL_S = 0.02
 
 
+# asin(x) = x + x R(x^2) for |x| <= 0.5, R a rational function (fdlibm's e_asin.c, < 1 ulp)
+_PS0 = 1.66666666666666657415e-01
+_PS1 = -3.25565818622400915405e-01
+_PS2 = 2.01212532134862925881e-01
+_PS3 = -4.00555345006794114027e-02
+_PS4 = 7.91534994289814532176e-04
+_PS5 = 3.47933107596021167570e-05
+_QS1 = -2.40339491173441421878e+00
+_QS2 = 2.02094576023350569471e+00
+_QS3 = -6.88283971605453293030e-01
+_QS4 = 7.70381505559019352791e-02
+_PIO2_HI = 1.57079632679489655800e+00
+_PIO2_LO = 6.12323399573676603587e-17
+_PI = 3.14159265358979311600e+00
+
+
+@inline_jit
+def _asin_r(z):
+    """``R(z)`` of ``asin(x) = x + x R(x^2)``, for ``0 <= z <= 1/4``."""
+    p = z * (_PS0 + z * (_PS1 + z * (_PS2 + z * (_PS3 + z * (_PS4 + z * _PS5)))))
+    q = 1.0 + z * (_QS1 + z * (_QS2 + z * (_QS3 + z * _QS4)))
+    return p / q
+
+
+@inline_jit
+def _acos_1m2s(s):
+    """``arccos(1 - 2 s)`` for ``0 <= s <= 1``, inline (no libm call; a few ulp).
+
+    Each branch evaluates the asin kernel on ``[0, 1/4]`` from a quantity known exactly:
+    ``2 asin(sqrt s)``, ``pi/2 - asin(1 - 2s)`` and ``pi - 2 asin(sqrt(1 - s))``.
+    """
+    if s < 0.25:
+        w = math.sqrt(s)
+        return 2.0 * (w + w * _asin_r(s))
+    if s <= 0.75:
+        t = 1.0 - 2.0 * s
+        return _PIO2_HI - (t - (_PIO2_LO - t * _asin_r(t * t)))
+    z = 1.0 - s
+    w = math.sqrt(z)
+    return _PI - 2.0 * (w + (w * _asin_r(z) - _PIO2_LO))
+
+
 @inline_jit
 def _re_kappa(s, r):
     """``Re K / kc`` for ``0 < s < 1`` given ``r = sqrt(s (1 - s))``."""
     if s < _SMALL_S:
         # arccos(1-2s) - 2(1-2s)sqrt(s(1-s)) = (u - sin u)/2 with u = 4 asin(sqrt s):
         # the closed form cancels to ~s^1.5 here, so sum the series of u - sin u instead
-        u = 4.0 * math.asin(math.sqrt(s))
+        u = 2.0 * _acos_1m2s(s)
         u2 = u * u
         series = u * u2 / 6.0 * (1.0 - u2 / 20.0 * (1.0 - u2 / 42.0 * (1.0 - u2 / 72.0 * (
             1.0 - u2 / 110.0 * (1.0 - u2 / 156.0)))))
         return 0.5 * _INV_PI * series
     t = 1.0 - 2.0 * s
-    return _INV_PI * (math.acos(t) - 2.0 * t * r)
+    return _INV_PI * (_acos_1m2s(s) - 2.0 * t * r)
 
 
 @inline_jit
