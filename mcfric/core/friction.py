@@ -68,16 +68,17 @@ def _acos_1m2s(s):
 @inline_jit
 def _re_kappa(s, r):
     """``Re K / kc`` for ``0 < s < 1`` given ``r = sqrt(s (1 - s))``."""
+    a = _acos_1m2s(s)               # once: each copy is inlined wherever K is (compile time)
     if s < _SMALL_S:
         # arccos(1-2s) - 2(1-2s)sqrt(s(1-s)) = (u - sin u)/2 with u = 4 asin(sqrt s):
         # the closed form cancels to ~s^1.5 here, so sum the series of u - sin u instead
-        u = 2.0 * _acos_1m2s(s)
+        u = 2.0 * a
         u2 = u * u
         series = u * u2 / 6.0 * (1.0 - u2 / 20.0 * (1.0 - u2 / 42.0 * (1.0 - u2 / 72.0 * (
             1.0 - u2 / 110.0 * (1.0 - u2 / 156.0)))))
         return 0.5 * _INV_PI * series
     t = 1.0 - 2.0 * s
-    return _INV_PI * (_acos_1m2s(s) - 2.0 * t * r)
+    return _INV_PI * (a - 2.0 * t * r)
 
 
 @inline_jit
