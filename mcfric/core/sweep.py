@@ -54,7 +54,7 @@ from numba import prange
 
 from . import batch
 from ._jit import inline_jit, jit
-from .linalg import LANES, cinv
+from .linalg import LANES
 from .newton import (CONVERGED, CONVERGED_LM, CONVERGED_RESTART, NOT_CONVERGED,
                      bracket_scalar, levenberg_marquardt, newton, newton_scalar,
                      workspace)
