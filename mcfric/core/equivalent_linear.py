@@ -293,6 +293,7 @@ def _search(G, q0, ylin, H, kr, ki, K, want_max, b0, b1, max_sweeps, tol, w):
     best = _objective(y, b0, b1)
     for sweep in range(max_sweeps):
         old = best
+        changed = False
         for j in range(nd):
             d0, d1 = _coefficients(G, ylin, H, K, Tinv, q, y, j, u, alpha, beta, nd, b0,
                                    b1)
@@ -303,6 +304,7 @@ def _search(G, q0, ylin, H, kr, ki, K, want_max, b0, b1, max_sweeps, tol, w):
             delta = z - K[j]
             if delta == 0.0:
                 continue
+            changed = True
             # Sherman-Morrison update of Tinv, q and y for K_j -> z
             fac = delta / (1.0 + delta * u[j])
             qj = q[j]
@@ -318,6 +320,8 @@ def _search(G, q0, ylin, H, kr, ki, K, want_max, b0, b1, max_sweeps, tol, w):
             for b in range(b0, b1):
                 y[b] = (alpha[b] + beta[b] * z) / (d0 + d1 * z)
             best = val
+        if not changed:
+            break                   # converged: a refresh would reproduce the same state
         # refresh the inverse: Sherman-Morrison updates accumulate rounding
         if not _factor_inverse(G, K, Tinv, T, piv, nd):
             return math.nan
