@@ -402,6 +402,11 @@ def _lu_solve_transposed(A, piv, b, n):
             b[p] = t
 
 
+#: Iterations per smoothing stage of :func:`_spg`; the minimum's continuation takes
+#: shorter ones (its polish the full length): measured, 12 % less time for a lower bound
+#: higher by 0.005 % (geometric mean over 1000 frequencies).
+_SPG_ITER = 40
+_SPG_ITER_CONTINUATION = 12
 #: Memory of the nonmonotone line search of :func:`_spg` (Grippo-Lampariello-Lucidi):
 #: a step is accepted against the worst of the last ``_GLL`` values, so the spectral
 #: (Barzilai-Borwein) step is rarely cut back.
@@ -409,7 +414,7 @@ _GLL = 8
 
 
 @jit
-def _spg(G, q0, ylin, H, kr, ki, K, sign, b0, b1, w, max_iter=40):
+def _spg(G, q0, ylin, H, kr, ki, K, sign, b0, b1, w, max_iter=_SPG_ITER):
     """Spectral projected gradient on ``sign`` times a smoothed max of ``log|y_b|``
     (sign = 1: the minimum of M; sign = -1: the maximum).
 
@@ -631,10 +636,8 @@ def _improve(G, q0, ylin, H, kr, ki, K, want_max, objective, max_sweeps, tol, w,
         return v
     nd = K.shape[0]
     K2 = K.copy()
-    # the minimum's continuation takes a short gradient search (its polish a full one):
-    # measured, 12 % less time for a lower bound higher by 0.005 % (geometric mean)
     v2 = _spg(G, q0, ylin, H, kr, ki, K2, -1.0 if want_max else 1.0, b0, b1, w,
-              40 if want_max or polish_sweeps > 0 else 12)
+              _SPG_ITER if want_max or polish_sweeps > 0 else _SPG_ITER_CONTINUATION)
     if math.isfinite(v2):
         v2 = _search(G, q0, ylin, H, kr, ki, K2, want_max, b0, b1, max_sweeps, tol, w)
         if (v2 > v) if want_max else (v2 < v):
@@ -654,6 +657,16 @@ def _better(v, ref, want_max):
     if math.isnan(ref):
         return True
     return v > ref if want_max else v < ref
+
+
+@inline_jit
+def _keep_if_better(v, K, best, K_best, o, k, want_max):
+    """Store ``v`` and its describing functions ``K`` as the best of objective ``o`` at
+    frequency ``k`` if it improves on what is there."""
+    if _better(v, best[o, k], want_max):
+        best[o, k] = v
+        for j in range(K.shape[0]):
+            K_best[o, k, j] = K[j]
 
 
 @inline_jit
@@ -692,10 +705,7 @@ def _multistart(G, q0, ylin, H, kr, ki, starts, want_max, objectives, cap, max_s
                     K[j] = complex(kr * starts[k, s, j].real, ki * starts[k, s, j].imag)
                 v = _search(G[k], q0[k], ylin[k], H[k], kr, ki, K, want_max, b0, b1,
                             max_sweeps, tol, w)
-                if _better(v, best[o, k], want_max):
-                    best[o, k] = v
-                    for j in range(nd):
-                        K_best[o, k, j] = K[j]
+                _keep_if_better(v, K, best, K_best, o, k, want_max)
                 if want_max and best[o, k] >= cap[k, o]:
                     break               # at the force limit: the box no longer matters
             if not want_max and objectives[o] < 0 and nd > 1:
@@ -706,10 +716,7 @@ def _multistart(G, q0, ylin, H, kr, ki, starts, want_max, objectives, cap, max_s
                 if math.isfinite(v):
                     v = _search(G[k], q0[k], ylin[k], H[k], kr, ki, K, False, b0, b1,
                                 max_sweeps, tol, w)
-                if _better(v, best[o, k], want_max):
-                    best[o, k] = v
-                    for j in range(nd):
-                        K_best[o, k, j] = K[j]
+                _keep_if_better(v, K, best, K_best, o, k, want_max)
 
 
 #: Relative change below which a continuation round treats a value or a describing
@@ -910,9 +917,10 @@ def box_extreme(G, q0, ylin, H, kr, ki, starts, want_max, cap=None, max_sweeps=2
     if want_max:
         # tight searches of the maximum are cheap (no interior search), and the maximum
         # is sensitive to the path: tight from the start
-        _polish(G, q0, ylin, H, kr, ki, want_max, objectives, cap, 5 * max_sweeps,
-                POLISH_TOL, best, K_best, order, 0, 0.0)
+        sweeps, tol, end_sweeps, end_tol = 5 * max_sweeps, POLISH_TOL, 0, 0.0
     else:
-        _polish(G, q0, ylin, H, kr, ki, want_max, objectives, cap, max_sweeps, EXPLORE_TOL,
-                best, K_best, order, 5 * max_sweeps, POLISH_TOL)
+        # the minimum's tight searches are costly: explore, then one tight search
+        sweeps, tol, end_sweeps, end_tol = max_sweeps, EXPLORE_TOL, 5 * max_sweeps, POLISH_TOL
+    _polish(G, q0, ylin, H, kr, ki, want_max, objectives, cap, sweeps, tol, best, K_best,
+            order, end_sweeps, end_tol)
     return best, K_best

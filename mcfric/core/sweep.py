@@ -3,9 +3,10 @@
 Each sample sweeps its frequencies in the given order, starting each point from a cubic
 extrapolation in ``log s`` of its previous solutions (a linear one alone is measured ~2.8x
 faster than cold starts, kernel-notes.md); the extrapolation weights depend only on the
-frequencies and are computed once per call (:func:`predict_weights`). A sample's results depend only on its own inputs, never on which
-thread ran it or which other samples shared the call: results are bitwise identical for
-any thread count and any chunking of the samples.
+frequencies and are computed once per call (:func:`predict_weights`). A sample's results
+depend only on its own inputs, never on which thread ran it or which other samples shared
+the call: results are bitwise identical for any thread count and any chunking of the
+samples.
 
 Three kernels, one per structure:
 
