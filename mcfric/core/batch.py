@@ -15,7 +15,9 @@ does not depend on which samples share its batch, its thread, or its chunk.
 The scratch state lives in five arrays indexed by the slot constants below (``C[K_]``,
 ``R[F_]``, ...) rather than in some twenty separate arrays: every array passed to or
 unpacked in a compiled function costs an atomic reference count and a struct copy per
-call, which was ~10 % of the eight-beam time.
+call, which was ~10 % of the eight-beam time. The per-point inputs (iterate, damper
+constants, ``G`` and ``q0``) and the per-lane results live there too, so that the three
+kernels take no other arrays.
 """
 
 import math
@@ -30,23 +32,27 @@ from .newton import _ARMIJO, _MAX_HALVINGS, _MAX_STEP, _TARGET
 _SLIP_SIDE = complex(0.0, -4.0 / math.pi)   # d(K/kc)/dlog s at s = 1 from the slip side
 
 # Slots of the complex scratch C (n, nd, LANES): K and dK/dlog s (N/m) and q (m) at the
-# accepted point, the same at the trial point, the step's h and e, the tridiagonal system.
-K_, KP_, Q_, KT_, KPT_, QT_, H_, E_, LO_, DI_, UP_ = range(11)
+# accepted point, the same at the trial point, the step's h and e, the tridiagonal system;
+# inputs: diagonal and super-diagonal of G (m/N), q0 (m).
+K_, KP_, Q_, KT_, KPT_, QT_, H_, E_, LO_, DI_, UP_, GD_, GU_, Q0_ = range(14)
 # Slots of the real scratch R (n, nd, LANES): log residual at the accepted point, trial
-# x = log s, its residual, the Newton step.
-F_, XT_, FT_, DX_ = range(4)
+# x = log s, its residual, the Newton step; the iterate x = log s (in: the guess, out:
+# the last accepted point); inputs: kc (N/m) and c = log(mu0 N0 / kc).
+F_, XT_, FT_, DX_, X_, KC_, CC_ = range(7)
 # Slots of the block scratch B (n, nd, 4, LANES): the 2x2 blocks of the Newton step and
 # its right-hand side (first two columns).
 LB_, DB_, UB_, RB_ = range(4)
-# Slots of the per-lane reals V (n, LANES): |f|^2 accepted and trial, the step length.
-PHI_, PHIT_, LAM_ = range(3)
-# Slots of the per-lane flags M (n, LANES): need a step, have a trial to evaluate, a
-# failed solve.
-RUN_, PEND_, BAD_ = range(3)
+# Slots of the per-lane reals V (n, LANES): |f|^2 accepted and trial, the step length,
+# out: the Newton steps taken (a float holding an integer).
+PHI_, PHIT_, LAM_, ITS_ = range(4)
+# Rows of the flags M (n + nd, LANES): per lane, need a step, have a trial to evaluate, a
+# failed solve, in: holds a sample, out: converged; then per damper (row ACT_ + j), in:
+# damper j transmits force.
+RUN_, PEND_, BAD_, NEED_, OK_, ACT_ = range(6)
 
 
 @jit
-def _eval(C, R, V, M, kc, c, active, Gd, Gu, q0, nd):
+def _eval(C, R, V, M, nd):
     """Residual at the trial points of the lanes in ``M[PEND_]``.
 
     Fills ``C[KT_]``, ``C[KPT_]``, ``C[QT_]``, ``R[FT_]`` and ``V[PHIT_] = |f|^2``.
@@ -56,22 +62,22 @@ def _eval(C, R, V, M, kc, c, active, Gd, Gu, q0, nd):
     for j in range(nd):
         for l in range(LANES):
             if M[PEND_, l]:
-                if active[j, l]:
+                if M[ACT_ + j, l]:
                     k, d = kappa_logs(R[XT_, j, l])
-                    C[KT_, j, l] = kc[j, l] * k
-                    C[KPT_, j, l] = kc[j, l] * d
+                    C[KT_, j, l] = R[KC_, j, l] * k
+                    C[KPT_, j, l] = R[KC_, j, l] * d
                 else:
                     C[KT_, j, l] = 0.0j
                     C[KPT_, j, l] = 0.0j
     for j in range(nd):
         for l in range(LANES):
             if M[PEND_, l]:
-                C[DI_, j, l] = 1.0 + Gd[j, l] * C[KT_, j, l]
-                C[QT_, j, l] = q0[j, l]
+                C[DI_, j, l] = 1.0 + C[GD_, j, l] * C[KT_, j, l]
+                C[QT_, j, l] = C[Q0_, j, l]
                 if j > 0:
-                    C[LO_, j, l] = Gu[j - 1, l] * C[KT_, j - 1, l]
+                    C[LO_, j, l] = C[GU_, j - 1, l] * C[KT_, j - 1, l]
                 if j < nd - 1:
-                    C[UP_, j, l] = Gu[j, l] * C[KT_, j + 1, l]
+                    C[UP_, j, l] = C[GU_, j, l] * C[KT_, j + 1, l]
     tridiag_solve_lanes(C, LO_, DI_, UP_, QT_, M, PEND_, BAD_, nd)
     for l in range(LANES):
         V[PHIT_, l] = 0.0
@@ -79,13 +85,13 @@ def _eval(C, R, V, M, kc, c, active, Gd, Gu, q0, nd):
         for l in range(LANES):
             if not M[PEND_, l]:
                 continue
-            if not active[j, l]:
+            if not M[ACT_ + j, l]:
                 R[FT_, j, l] = 0.0
                 continue
             qq = C[QT_, j, l]
             lq = 0.5 * math.log(qq.real * qq.real + qq.imag * qq.imag)
             if R[XT_, j, l] >= 0.0:
-                t = c[j, l] - lq        # log s that makes damper j consistent with this q
+                t = R[CC_, j, l] - lq        # log s that makes damper j consistent with this q
                 if t > 0.0:
                     R[XT_, j, l] = t
                     R[FT_, j, l] = 0.0
@@ -93,9 +99,9 @@ def _eval(C, R, V, M, kc, c, active, Gd, Gu, q0, nd):
                 else:                   # no longer stuck: park at s = 1, K unchanged
                     R[XT_, j, l] = 0.0
                     R[FT_, j, l] = -t
-                    C[KPT_, j, l] = kc[j, l] * _SLIP_SIDE
+                    C[KPT_, j, l] = R[KC_, j, l] * _SLIP_SIDE
             else:
-                R[FT_, j, l] = R[XT_, j, l] + lq - c[j, l]
+                R[FT_, j, l] = R[XT_, j, l] + lq - R[CC_, j, l]
             V[PHIT_, l] += R[FT_, j, l] * R[FT_, j, l]
     for l in range(LANES):
         if M[PEND_, l] and (M[BAD_, l] or not math.isfinite(V[PHIT_, l])):
@@ -112,7 +118,7 @@ def _put_block(B, s, i, l, t, m, e):
 
 
 @jit
-def _step(C, R, B, M, active, Gd, Gu, nd):
+def _step(C, R, B, M, nd):
     """Newton step ``R[DX_]`` of the lanes in ``M[RUN_]`` (``M[BAD_]`` if not formed).
 
     Linearising ``(I + G K) q = q0`` and ``f = x + log|q| - c`` gives, with
@@ -124,7 +130,7 @@ def _step(C, R, B, M, active, Gd, Gu, nd):
             if M[RUN_, l]:
                 qq = C[Q_, j, l]
                 q2 = qq.real * qq.real + qq.imag * qq.imag
-                if active[j, l] and q2 > 0.0:
+                if M[ACT_ + j, l] and q2 > 0.0:
                     C[H_, j, l] = C[KP_, j, l] * qq
                     r2 = 1.0 / q2
                     C[E_, j, l] = complex(qq.real * r2, -qq.imag * r2)
@@ -135,16 +141,16 @@ def _step(C, R, B, M, active, Gd, Gu, nd):
         for l in range(LANES):
             if not M[RUN_, l]:
                 continue
-            g = Gd[i, l]
+            g = C[GD_, i, l]
             _put_block(B, DB_, i, l, 1.0 + g * C[K_, i, l], g * C[H_, i, l], C[E_, i, l])
             rhs = g * C[H_, i, l] * R[F_, i, l]
             if i > 0:
-                g = Gu[i - 1, l]
+                g = C[GU_, i - 1, l]
                 _put_block(B, LB_, i, l, g * C[K_, i - 1, l], g * C[H_, i - 1, l],
                            C[E_, i - 1, l])
                 rhs += g * C[H_, i - 1, l] * R[F_, i - 1, l]
             if i < nd - 1:
-                g = Gu[i, l]
+                g = C[GU_, i, l]
                 _put_block(B, UB_, i, l, g * C[K_, i + 1, l], g * C[H_, i + 1, l],
                            C[E_, i + 1, l])
                 rhs += g * C[H_, i + 1, l] * R[F_, i + 1, l]
@@ -176,9 +182,8 @@ def _max_abs(R, l, nd):
 
 
 @jit
-def newton_lanes(x, need, ok, its, kc, c, active, Gd, Gu, q0, tol, max_iter,
-                 C, R, B, V, M, nd):
-    """Damped Newton in ``x = log s`` for the lanes in ``need``, from the guesses in ``x``.
+def newton_lanes(tol, max_iter, C, R, B, V, M, nd):
+    """Damped Newton in ``x = log s`` for the lanes in ``M[NEED_]``, from ``R[X_]``.
 
     Every lane runs its own iteration (evaluate, accept or halve the step, new step),
     asynchronously; one loop drives all lanes so that the evaluation and the step each
@@ -186,37 +191,31 @@ def newton_lanes(x, need, ok, its, kc, c, active, Gd, Gu, q0, tol, max_iter,
 
     Parameters
     ----------
-    x : ndarray, shape (nd, LANES)
-        In: initial guesses; out: the last accepted iterates.
-    need : ndarray of bool, shape (LANES,)
-        Lanes that hold a sample.
-    ok : ndarray of bool, shape (LANES,)
-        Out: converged (``max |f| <= tol / 100``, or a stall within ``tol``).
-    its : ndarray of int64, shape (LANES,)
-        Out: Newton steps taken.
-    kc, c, active : ndarray, shape (nd, LANES)
-        Per damper: stiffness (N/m), ``log(mu0 N0 / kc)``, force-transmitting mask.
-    Gd, Gu, q0 : ndarray of complex, shape (nd, LANES)
-        Diagonal and super-diagonal of ``G = B D11 B^T`` (m/N) and ``q0`` (m).
     tol, max_iter : float, int
         As :func:`mcfric.core.newton.newton`.
     C, R, B, V, M : ndarray
-        Scratch from :func:`workspace`; on return ``C[K_]``, ``C[Q_]`` and ``R[F_]``
-        hold K (N/m), q (m) and the log residual at ``x``.
+        Scratch from :func:`workspace`, holding the inputs: ``R[X_]`` the initial
+        guesses (nd, LANES), ``M[NEED_]`` the lanes that hold a sample, per damper
+        ``R[KC_]`` stiffness (N/m), ``R[CC_]`` ``log(mu0 N0 / kc)``, ``M[ACT_ + j]``
+        force-transmitting, ``C[GD_]`` and ``C[GU_]`` the diagonal and super-diagonal of
+        ``G = B D11 B^T`` (m/N), ``C[Q0_]`` ``q0`` (m). On return ``R[X_]`` holds the last
+        accepted iterates, ``M[OK_]`` converged (``max |f| <= tol / 10``, or a stall
+        within ``tol``), ``V[ITS_]`` the Newton steps taken, and ``C[K_]``, ``C[Q_]`` and
+        ``R[F_]`` K (N/m), q (m) and the log residual at ``R[X_]``.
     """
     target = _TARGET * tol
     n_pend = 0
     for l in range(LANES):
-        its[l] = 0
-        ok[l] = False
+        V[ITS_, l] = 0.0
+        M[OK_, l] = False
         M[RUN_, l] = False          # lanes that need a new Newton step
-        M[PEND_, l] = need[l]       # lanes with a trial point to evaluate
+        M[PEND_, l] = M[NEED_, l]   # lanes with a trial point to evaluate
         V[LAM_, l] = 0.0            # lam = 0 marks the initial point: always accepted
-        n_pend += need[l]
+        n_pend += M[NEED_, l]
         for j in range(nd):
-            R[XT_, j, l] = x[j, l]
+            R[XT_, j, l] = R[X_, j, l]
     while n_pend > 0:
-        _eval(C, R, V, M, kc, c, active, Gd, Gu, q0, nd)
+        _eval(C, R, V, M, nd)
         n_run = 0
         for l in range(LANES):
             if not M[PEND_, l]:
@@ -228,16 +227,16 @@ def newton_lanes(x, need, ok, its, kc, c, active, Gd, Gu, q0, tol, max_iter,
                 if first and not math.isfinite(V[PHIT_, l]):
                     continue        # no finite start: ok stays False
                 for j in range(nd):
-                    x[j, l] = R[XT_, j, l]
+                    R[X_, j, l] = R[XT_, j, l]
                     C[K_, j, l] = C[KT_, j, l]
                     C[KP_, j, l] = C[KPT_, j, l]
                     C[Q_, j, l] = C[QT_, j, l]
                     R[F_, j, l] = R[FT_, j, l]
                 V[PHI_, l] = V[PHIT_, l]
                 if _max_abs(R, l, nd) <= target:
-                    ok[l] = True
-                elif its[l] >= max_iter:
-                    ok[l] = _max_abs(R, l, nd) <= tol
+                    M[OK_, l] = True
+                elif V[ITS_, l] >= max_iter:
+                    M[OK_, l] = _max_abs(R, l, nd) <= tol
                 else:
                     M[RUN_, l] = True
                     n_run += 1
@@ -245,24 +244,24 @@ def newton_lanes(x, need, ok, its, kc, c, active, Gd, Gu, q0, tol, max_iter,
                 lam *= 0.5
                 V[LAM_, l] = lam
                 for j in range(nd):
-                    R[XT_, j, l] = x[j, l] + lam * R[DX_, j, l]
+                    R[XT_, j, l] = R[X_, j, l] + lam * R[DX_, j, l]
             else:                   # no acceptable step: a stall at the rounding floor?
                 M[PEND_, l] = False
-                ok[l] = _max_abs(R, l, nd) <= tol
+                M[OK_, l] = _max_abs(R, l, nd) <= tol
         if n_run > 0:
-            _step(C, R, B, M, active, Gd, Gu, nd)
+            _step(C, R, B, M, nd)
             for l in range(LANES):
                 if not M[RUN_, l]:
                     continue
                 M[RUN_, l] = False
                 if M[BAD_, l]:
-                    ok[l] = _max_abs(R, l, nd) <= tol
+                    M[OK_, l] = _max_abs(R, l, nd) <= tol
                     continue
-                its[l] += 1
+                V[ITS_, l] += 1.0
                 V[LAM_, l] = 1.0
                 M[PEND_, l] = True
                 for j in range(nd):
-                    R[XT_, j, l] = x[j, l] + R[DX_, j, l]
+                    R[XT_, j, l] = R[X_, j, l] + R[DX_, j, l]
         n_pend = 0
         for l in range(LANES):
             n_pend += M[PEND_, l]
@@ -271,6 +270,6 @@ def newton_lanes(x, need, ok, its, kc, c, active, Gd, Gu, q0, tol, max_iter,
 @jit
 def workspace(nd):
     """Scratch arrays ``(C, R, B, V, M)`` for :func:`newton_lanes` (one set per batch)."""
-    return (np.zeros((11, nd, LANES), np.complex128), np.zeros((4, nd, LANES)),
-            np.zeros((4, nd, 4, LANES)), np.zeros((3, LANES)),
-            np.zeros((3, LANES), np.bool_))
+    return (np.zeros((14, nd, LANES), np.complex128), np.zeros((7, nd, LANES)),
+            np.zeros((4, nd, 4, LANES)), np.zeros((4, LANES)),
+            np.zeros((ACT_ + nd, LANES), np.bool_))

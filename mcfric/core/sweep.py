@@ -263,19 +263,19 @@ def _chain_batch(g, rec, force, a, b, W, mu0, N0, kc, tol, max_iter,
     K = C[batch.K_]
     q = C[batch.Q_]
     f = R[batch.F_]
-    kcl = np.zeros((nd, LANES))
-    cl = np.zeros((nd, LANES))
-    actl = np.zeros((nd, LANES), dtype=np.bool_)
+    # and the inputs of batch.newton_lanes, which takes no other arrays
+    x = R[batch.X_]
+    kcl = R[batch.KC_]
+    cl = R[batch.CC_]
+    actl = M[batch.ACT_:]
+    Gd = C[batch.GD_]
+    Gu = C[batch.GU_]
+    q0 = C[batch.Q0_]
+    need = M[batch.NEED_]
+    ok = M[batch.OK_]
     s_off = np.zeros((nd, LANES))
     sq = np.zeros((nd, LANES))
-    x = np.zeros((nd, LANES))
     xp = np.zeros((N_PREDICT, nd, LANES))
-    Gd = np.zeros((nd, LANES), dtype=np.complex128)
-    Gu = np.zeros((nd, LANES), dtype=np.complex128)
-    q0 = np.zeros((nd, LANES), dtype=np.complex128)
-    need = np.zeros(LANES, dtype=np.bool_)
-    ok = np.zeros(LANES, dtype=np.bool_)
-    its = np.zeros(LANES, dtype=np.int64)
     have = np.zeros(LANES, dtype=np.int64)
     rl = np.zeros(LANES, dtype=np.int64)
     # one sample's copy for the dense fallback
@@ -308,15 +308,14 @@ def _chain_batch(g, rec, force, a, b, W, mu0, N0, kc, tol, max_iter,
                 if j < nd - 1:      # dampers j and j+1 share beam b_j = a_{j+1}
                     Gu[j, l] = -rec[r, k, D11, b[j]]
             _predict(x, xp, W, l, k, have[l], nd)
-        batch.newton_lanes(x, need, ok, its, kcl, cl, actl, Gd, Gu, q0, tol, max_iter,
-                           C, R, B, V, M, nd)
+        batch.newton_lanes(tol, max_iter, C, R, B, V, M, nd)
         for l in range(LANES):
             if not need[l]:
                 continue
             i = g * LANES + l
             r = rl[l]
             st = CONVERGED
-            n_it = its[l]
+            n_it = int(V[batch.ITS_, l])
             good = ok[l]
             if not good:            # rare: one sample's copy through the dense solvers
                 for j in range(nd):
