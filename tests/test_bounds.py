@@ -5,6 +5,8 @@ box solved in physical space (naive.py) for one damper, harmonic-balance ensembl
 random + scipy multistart search of the box for seven dampers.
 """
 
+import dataclasses
+
 import numpy as np
 import pytest
 from scipy import optimize
@@ -154,6 +156,72 @@ def test_seven_dampers_random_and_multistart_search_stay_inside(F0):
                 vals = np.append(vals, sign * res.fun)
         assert vals.max() <= B.upper_box[k] * (1 + 1e-9), (grid[k], vals.max(), B.upper_box[k])
         assert vals.min() >= B.lower[k] * (1 - 1e-9), (grid[k], vals.min(), B.lower[k])
+
+
+def test_exact_coordinate_minimum_equals_a_dense_search_of_the_rectangle():
+    """One coordinate of the search: min over the rectangle of max_b |y_b| for Moebius
+    functions y_b = (alpha_b + beta_b z) / (d0 + d1 z) (edges exact, interior by the
+    weighted 1-centre), against a 301 x 301 grid polished by Nelder-Mead."""
+    from mcfric.core.equivalent_linear import _best_on_rectangle
+
+    rng = np.random.default_rng(1)
+    E = np.zeros((6, 8))
+    n_inside = 0
+    for trial in range(150):
+        nb = int(rng.integers(2, 9))
+        alpha = rng.normal(size=nb) + 1j * rng.normal(size=nb)
+        beta = (rng.normal(size=nb) + 1j * rng.normal(size=nb)) * rng.choice([0.1, 1, 3])
+        d0 = 1.0 + 0.3j
+        d1 = complex(rng.uniform(0, 0.3), rng.uniform(0, 0.3)) if trial % 5 else 0j
+        kr, ki = 1.0, float(rng.choice([0.3, 1.0]))
+
+        def M(z):
+            return np.max(np.abs(alpha[:, None] + beta[:, None] * np.ravel(z)), axis=0) / \
+                np.abs(d0 + d1 * np.ravel(z))
+
+        X, Y = np.meshgrid(np.linspace(0, kr, 301), np.linspace(0, ki, 301))
+        vals = M(X + 1j * Y)
+        i = np.argmin(vals)
+        res = optimize.minimize(lambda x: M(complex(*x))[0], [X.flat[i], Y.flat[i]],
+                                method="Nelder-Mead", bounds=[(0, kr), (0, ki)],
+                                options=dict(xatol=1e-12, fatol=1e-15, maxiter=5000))
+        ref = min(vals[i], res.fun)
+        v, z = _best_on_rectangle(alpha, beta, d0, d1, kr, ki, False, 0.5 * complex(kr, ki),
+                                  0, nb, True, E)
+        assert v <= ref * (1 + 1e-9), (trial, v, ref)
+        assert abs(M(z)[0] - v) <= 1e-12 * v            # the value is that of the point
+        n_inside += 0 < z.real < kr and 0 < z.imag < ki
+    assert n_inside >= 10                                # the interior case is exercised
+
+
+def test_chain_elimination_of_the_smoothed_maximum_equals_dense_lu():
+    """The smoothed maximum and its gradient by the O(nd) chain elimination equal those
+    of the dense LU path; a ring of beams keeps the dense path."""
+    from mcfric.core import equivalent_linear as el
+    from mcfric.core.receptance import contact_space
+
+    model = mcfric.eight_beam(0.25)
+    f = np.linspace(10, 150, 12)
+    rec = model.receptances(2 * np.pi * f)[0]
+    G, q0, ylin, H = contact_space(rec, model.force, *model.dampers)
+    nd, nb = G.shape[1], ylin.shape[1]
+    hr, gr = el._sparsity(G, H)
+    w_tri = el._workspace(nd, nb, hr, gr)
+    w_dense = el._workspace(nd, nb, np.tile([0, nd], (nb, 1)), np.tile([0, nd], (nd, 1)))
+    assert w_tri[14] and not w_dense[14]
+    rng = np.random.default_rng(2)
+    for k in range(len(f)):
+        for _ in range(10):
+            K = K_MAX * (rng.uniform(size=nd) + 1j * rng.uniform(size=nd))
+            g1, g2 = np.zeros(nd, complex), np.zeros(nd, complex)
+            v1, _ = el._smooth_max(G[k], q0[k], ylin[k], H[k], K, 0.01, 0, nb, g1, w_tri)
+            v2, _ = el._smooth_max(G[k], q0[k], ylin[k], H[k], K, 0.01, 0, nb, g2, w_dense)
+            assert abs(v1 - v2) <= 1e-10 * abs(v2)
+            assert np.max(np.abs(g1 - g2)) <= 1e-9 * np.max(np.abs(g2))
+    ring = dataclasses.replace(model, topology="circular")
+    Gr, _, _, Hr = contact_space(ring.receptances(2 * np.pi * f)[0], ring.force,
+                                 *ring.dampers)
+    assert not el._workspace(Gr.shape[1], nb, *el._sparsity(Gr, Hr))[14]
 
 
 def test_bounds_scale_with_the_metric_quantity():

@@ -19,8 +19,13 @@ Structure used (why a coordinate search is exact per coordinate):
   ``w = 1 / (d0 + d1 z)`` every ``|y_b|`` is a weighted distance ``|p_b + r_b w|``, so
   ``M`` is convex in ``w``: inside the rectangle there is no local minimum but the
   global one of that convex function. Edges are solved exactly (end points, critical
-  points, pairwise crossings ``|y_b| = |y_c|``, all quadratics); the interior by a pattern
-  search from the best candidate, which cannot stall in a spurious interior minimum.
+  points, pairwise crossings ``|y_b| = |y_c|``, all quadratics); the interior exactly
+  too: the minimiser of a maximum of weighted distances (the weighted 1-centre, at most
+  three beams active) is found by an Elzinga-Hearn iteration and kept if it maps back
+  inside the rectangle.
+* On a chain of beams G is tridiagonal and each row of H has two dampers: the searches
+  skip the exact zeros (:func:`_sparsity`) and the smoothed gradient solves by an O(nd)
+  elimination.
 
 Across dampers the problem is not convex: each search is run from many starts (uniform
 corners, the centre, random corners and interior points) and the extreme value over all
@@ -60,8 +65,9 @@ def _factor_inverse(G, K, Tinv, T, piv, nd):
 
 
 @inline_jit
-def _state(G, q0, ylin, H, K, Tinv, q, y, nd, b0, b1):
-    """``q = Tinv q0`` and ``y = y_lin - H (K q)`` for the beams b0..b1-1."""
+def _state(G, q0, ylin, H, K, Tinv, q, y, nd, b0, b1, hr):
+    """``q = Tinv q0`` and ``y = y_lin - H (K q)`` for the beams b0..b1-1 (``hr``: the
+    dampers each beam's row of H can be nonzero for, see :func:`_sparsity`)."""
     for i in range(nd):
         acc = 0.0j
         for m in range(nd):
@@ -69,20 +75,21 @@ def _state(G, q0, ylin, H, K, Tinv, q, y, nd, b0, b1):
         q[i] = acc
     for b in range(b0, b1):
         acc = ylin[b]
-        for m in range(nd):
+        for m in range(hr[b, 0], hr[b, 1]):
             acc -= H[b, m] * K[m] * q[m]
         y[b] = acc
 
 
 @inline_jit
-def _coefficients(G, ylin, H, K, Tinv, q, y, j, u, alpha, beta, nd, b0, b1):
+def _coefficients(G, ylin, H, K, Tinv, q, y, j, u, alpha, beta, nd, b0, b1, hr, gr):
     """Moebius coefficients of ``y_b`` (b0 <= b < b1) in ``z = K_j``. Returns (d0, d1).
 
     Only the objective's beams are needed: a search of one beam's maximum costs O(nd)
-    per coordinate here instead of O(nb nd)."""
+    per coordinate here instead of O(nb nd). ``hr``, ``gr``: nonzero ranges of the rows
+    of H and the columns of G (:func:`_sparsity`)."""
     for i in range(nd):
         acc = 0.0j
-        for m in range(nd):
+        for m in range(gr[j, 0], gr[j, 1]):
             acc += Tinv[i, m] * G[m, j]
         u[i] = acc
     d1 = u[j]
@@ -90,7 +97,7 @@ def _coefficients(G, ylin, H, K, Tinv, q, y, j, u, alpha, beta, nd, b0, b1):
     qj = q[j]
     for b in range(b0, b1):
         P = 0.0j
-        for m in range(nd):
+        for m in range(hr[b, 0], hr[b, 1]):
             if m != j:
                 P += H[b, m] * K[m] * u[m]
         base = y[b] + H[b, j] * K[j] * qj        # y_lin_b - S_b
@@ -215,9 +222,193 @@ def _edge_candidates(alpha, beta, d0, d1, z0, z1, want_max, b0, b1, best_val, be
 
 
 @inline_jit
-def _best_on_rectangle(alpha, beta, d0, d1, kr, ki, want_max, z_now, b0, b1, ptol, E):
+def _pair_centre(E, a, b):
+    """Minimax point and value of two weighted distances ``rho |w - c|`` (E rows 0-2:
+    Re c, Im c, rho): on the segment between the centres, where both are equal."""
+    ra = E[2, a]
+    rb = E[2, b]
+    s = ra + rb
+    wx = (ra * E[0, a] + rb * E[0, b]) / s
+    wy = (ra * E[1, a] + rb * E[1, b]) / s
+    return wx, wy, ra * rb * math.hypot(E[0, a] - E[0, b], E[1, a] - E[1, b]) / s
+
+
+@inline_jit
+def _wdist(E, b, wx, wy):
+    return E[2, b] * math.hypot(wx - E[0, b], wy - E[1, b])
+
+
+@inline_jit
+def _equal_point(E, a, b, c):
+    """The point where three weighted distances are equal and smallest (two points solve
+    ``rho_a |w - c_a| = rho_b |w - c_b| = rho_c |w - c_c|``: two circles of Apollonius).
+    Returns (wx, wy, value); value NaN if degenerate."""
+    Aa = E[2, a] * E[2, a]
+    xa, ya = E[0, a], E[1, a]
+    # rho_a^2 |w - c_a|^2 - rho_m^2 |w - c_m|^2 = al |w|^2 - 2 be . w + ga = 0
+    Ab = E[2, b] * E[2, b]
+    al1 = Aa - Ab
+    b1x = Aa * xa - Ab * E[0, b]
+    b1y = Aa * ya - Ab * E[1, b]
+    g1 = Aa * (xa * xa + ya * ya) - Ab * (E[0, b] * E[0, b] + E[1, b] * E[1, b])
+    Ac = E[2, c] * E[2, c]
+    al2 = Aa - Ac
+    b2x = Aa * xa - Ac * E[0, c]
+    b2y = Aa * ya - Ac * E[1, c]
+    g2 = Aa * (xa * xa + ya * ya) - Ac * (E[0, c] * E[0, c] + E[1, c] * E[1, c])
+    scale = max(Aa, Ab, Ac)
+    if abs(al1) <= 1e-12 * scale and abs(al2) <= 1e-12 * scale:
+        # equal weights: two lines (perpendicular bisectors)
+        det = b1x * b2y - b1y * b2x
+        if det == 0.0:
+            return 0.0, 0.0, math.nan
+        wx = 0.5 * (g1 * b2y - g2 * b1y) / det
+        wy = 0.5 * (b1x * g2 - b2x * g1) / det
+        return wx, wy, _wdist(E, a, wx, wy)
+    # eliminate |w|^2: a line L . w = h; then the circle with the larger |al| on it
+    lx = al2 * b1x - al1 * b2x
+    ly = al2 * b1y - al1 * b2y
+    h = 0.5 * (al2 * g1 - al1 * g2)
+    ll = lx * lx + ly * ly
+    if ll == 0.0:
+        return 0.0, 0.0, math.nan
+    if abs(al1) < abs(al2):
+        al1, b1x, b1y, g1 = al2, b2x, b2y, g2
+    x0 = h * lx / ll
+    y0 = h * ly / ll
+    nl = math.sqrt(ll)
+    ex = -ly / nl
+    ey = lx / nl
+    # al t^2 - 2 (be . e) t + (al |w0|^2 - 2 be . w0 + ga) = 0 (w0 . e = 0)
+    t1, t2 = _quad_roots(al1, -2.0 * (b1x * ex + b1y * ey),
+                         al1 * (x0 * x0 + y0 * y0) - 2.0 * (b1x * x0 + b1y * y0) + g1)
+    best = math.nan
+    bx = by = 0.0
+    for t in (t1, t2):
+        if not math.isnan(t):
+            wx = x0 + t * ex
+            wy = y0 + t * ey
+            v = _wdist(E, a, wx, wy)
+            if not (v >= best):
+                best, bx, by = v, wx, wy
+    return bx, by, best
+
+
+@inline_jit
+def _set_max(E, cands, m, wx, wy):
+    """Largest weighted distance at w over the beams in ``cands`` (-1: none) and m."""
+    v = _wdist(E, m, wx, wy)
+    for o in cands:
+        if o >= 0:
+            v = max(v, _wdist(E, o, wx, wy))
+    return v
+
+
+@inline_jit
+def _one_centre(E, b0, b1):
+    """Minimax point of the weighted distances ``rho_b |w - c_b|`` (beams b0..b1-1 with
+    rho > 0; E rows 0-2). Elzinga-Hearn: the optimum of a set of at most three active
+    beams, extended by the farthest beam until every beam is covered (the value grows
+    at every step, so it ends; at most 3 beams are ever active in the plane).
+    Returns (wx, wy); NaN if it did not settle."""
+    s0 = -1
+    for b in range(b0, b1):
+        if E[2, b] > 0.0:
+            s0 = b
+            break
+    if s0 < 0:
+        return math.nan, math.nan
+    sa, sb, sc = s0, -1, -1           # the active set (-1: empty slot)
+    wx, wy, v = E[0, s0], E[1, s0], 0.0
+    for _ in range(3 * (b1 - b0) + 3):
+        m = -1
+        fm = v * (1.0 + 1e-12)
+        for b in range(b0, b1):
+            if E[2, b] > 0.0:
+                d = _wdist(E, b, wx, wy)
+                if d > fm:
+                    fm, m = d, b
+        if m < 0:
+            return wx, wy           # every beam covered: optimal
+        if sb < 0:
+            sb = m
+            wx, wy, v = _pair_centre(E, sa, sb)
+            continue
+        # optimum of the set with m: m is active there (the old optimum does not
+        # cover it), so it is the pair point of m with one member or the equal point of
+        # m with two; the candidate of smallest max over the set is it
+        cands = (sa, sb, sc)
+        best_v = math.inf
+        nx, ny, na, nb_, nc = wx, wy, -1, -1, -1
+        for i in range(3):
+            p = cands[i]
+            if p < 0:
+                continue
+            px, py, _ = _pair_centre(E, p, m)
+            fv = _set_max(E, cands, m, px, py)
+            if fv < best_v:
+                best_v, nx, ny, na, nb_, nc = fv, px, py, p, m, -1
+            for i2 in range(i + 1, 3):
+                r = cands[i2]
+                if r < 0:
+                    continue
+                px, py, pv = _equal_point(E, p, r, m)
+                if math.isnan(pv):
+                    continue
+                fv = _set_max(E, cands, m, px, py)
+                if fv < best_v:
+                    best_v, nx, ny, na, nb_, nc = fv, px, py, p, r, m
+        if not (best_v > v):
+            return wx, wy           # no progress (rounding): the point reached
+        sa, sb, sc = na, nb_, nc
+        wx, wy, v = nx, ny, best_v
+    return math.nan, math.nan
+
+
+@inline_jit
+def _interior_min(alpha, beta, d0, d1, kr, ki, b0, b1, E):
+    """The minimum of ``M`` over the rectangle's interior, exactly, if it lies inside.
+
+    In ``w = 1 / (d0 + d1 z)``, ``|y_b| = rho_b |w - c_b|``: M is a maximum of weighted
+    distances, convex, with one minimiser (the weighted 1-centre, :func:`_one_centre`).
+    If that maps back inside the rectangle it is the interior minimum; otherwise the
+    minimum over the rectangle is on its perimeter (solved by the edges). With
+    ``d1 = 0`` M is convex in z itself. Returns (value, z); (inf, 0) if outside.
+    """
+    lin = d1 == 0.0
+    for b in range(b0, b1):
+        if lin:
+            # |alpha + beta z| / |d0|: centre -alpha / beta, weight |beta / d0|
+            r = beta[b] / d0
+            p = alpha[b] / d0
+        else:
+            r = alpha[b] - beta[b] * d0 / d1
+            p = beta[b] / d1
+        rho = abs(r)
+        if rho > 0.0:
+            cc = -p / r
+            E[0, b] = cc.real
+            E[1, b] = cc.imag
+        E[2, b] = rho
+    wx, wy = _one_centre(E, b0, b1)
+    if math.isnan(wx):
+        return math.inf, 0.0j
+    w = complex(wx, wy)
+    if lin:
+        z = w
+    else:
+        if w == 0.0:
+            return math.inf, 0.0j
+        z = (1.0 / w - d0) / d1
+    if not (0.0 <= z.real <= kr and 0.0 <= z.imag <= ki):
+        return math.inf, 0.0j
+    return _metric(alpha, beta, d0, d1, z, b0, b1), z
+
+
+@inline_jit
+def _best_on_rectangle(alpha, beta, d0, d1, kr, ki, want_max, z_now, b0, b1, interior, E):
     """Exact extreme of ``M`` over the perimeter of ``[0, kr] x [0, ki]`` (and, for the
-    minimum, the interior by a pattern search). Never worse than ``z_now``."""
+    minimum with ``interior``, over the inside). Never worse than ``z_now``."""
     best_z = z_now
     best_val = _metric(alpha, beta, d0, d1, z_now, b0, b1)
     corners = (0.0j, complex(kr, 0.0), complex(kr, ki), complex(0.0, ki))
@@ -231,36 +422,13 @@ def _best_on_rectangle(alpha, beta, d0, d1, kr, ki, want_max, z_now, b0, b1, pto
         best_val, best_z = _edge_candidates(alpha, beta, d0, d1, corners[c],
                                             corners[(c + 1) % 4], want_max, b0, b1,
                                             best_val, best_z, not want_max, E)
-    if want_max or ptol <= 0.0:
+    if want_max or not interior:
         return best_val, best_z
-    # interior: pattern search (8 directions) from the best of the centre and the
-    # candidates so far; no spurious interior minimum exists (convex in w)
-    zc = complex(0.5 * kr, 0.5 * ki)
-    vc = _metric(alpha, beta, d0, d1, zc, b0, b1)
-    x, yv, v = best_z.real, best_z.imag, best_val
-    if vc < v:
-        x, yv, v = zc.real, zc.imag, vc
-    hx = 0.25 * kr
-    hy = 0.25 * ki
-    for _ in range(200):
-        moved = False
-        for dxs, dys in ((1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0),
-                         (1.0, 1.0), (-1.0, -1.0), (1.0, -1.0), (-1.0, 1.0)):
-            xn = min(max(x + dxs * hx, 0.0), kr)
-            yn = min(max(yv + dys * hy, 0.0), ki)
-            vn = _metric(alpha, beta, d0, d1, complex(xn, yn), b0, b1)
-            if vn < v:
-                x, yv, v = xn, yn, vn
-                moved = True
-                break
-        if not moved:
-            hx *= 0.5
-            hy *= 0.5
-            if hx <= ptol * kr and hy <= ptol * ki:
-                break
+    # interior: the weighted 1-centre in w (exact; none inside: the perimeter has it)
+    v, z = _interior_min(alpha, beta, d0, d1, kr, ki, b0, b1, E)
     if v < best_val:
         best_val = v
-        best_z = complex(x, yv)
+        best_z = z
     return best_val, best_z
 
 
@@ -286,21 +454,22 @@ def _search(G, q0, ylin, H, kr, ki, K, want_max, b0, b1, max_sweeps, tol, w):
     was singular.
     """
     Tinv, T, piv, q, y, u, alpha, beta, rowj = w[:9]
+    hr, gr = w[12], w[13]
     nd = K.shape[0]
     if not _factor_inverse(G, K, Tinv, T, piv, nd):
         return math.nan
-    _state(G, q0, ylin, H, K, Tinv, q, y, nd, b0, b1)
+    _state(G, q0, ylin, H, K, Tinv, q, y, nd, b0, b1, hr)
     best = _objective(y, b0, b1)
     for sweep in range(max_sweeps):
         old = best
         changed = False
         for j in range(nd):
             d0, d1 = _coefficients(G, ylin, H, K, Tinv, q, y, j, u, alpha, beta, nd, b0,
-                                   b1)
-            # the interior pattern search only in tight searches (exploring relies on
-            # the edges and on the smoothed-gradient polish)
+                                   b1, hr, gr)
+            # the interior only in tight searches (exploring relies on the edges and on
+            # the smoothed-gradient polish)
             val, z = _best_on_rectangle(alpha, beta, d0, d1, kr, ki, want_max, K[j], b0, b1,
-                                        1e-9 if tol < 1e-9 else 0.0, w[11])
+                                        tol < 1e-9, w[11])
             delta = z - K[j]
             if delta == 0.0:
                 continue
@@ -325,7 +494,7 @@ def _search(G, q0, ylin, H, kr, ki, K, want_max, b0, b1, max_sweeps, tol, w):
         # refresh the inverse: Sherman-Morrison updates accumulate rounding
         if not _factor_inverse(G, K, Tinv, T, piv, nd):
             return math.nan
-        _state(G, q0, ylin, H, K, Tinv, q, y, nd, b0, b1)
+        _state(G, q0, ylin, H, K, Tinv, q, y, nd, b0, b1, hr)
         best = _objective(y, b0, b1)
         if abs(best - old) <= tol * max(best, old):
             break
@@ -338,13 +507,17 @@ def _smooth_max(G, q0, ylin, H, K, mu, b0, b1, grad, w):
     with respect to (Re K_j, Im K_j), stored as ``grad[j] = d/dRe + i d/dIm``.
     Returns (value, log M); value = inf if the system is singular."""
     T, piv, q, y, u, r, lb = w[1], w[2], w[3], w[4], w[5], w[9], w[10]
+    hr, gr = w[12], w[13]
     nd = K.shape[0]
-    if contact_solve(G, K, q0, T, piv, q, nd) != 0:
+    # a chain: O(nd) elimination; else (or at a tiny pivot) LU with pivoting. Only the
+    # search path depends on this: values are taken from the coordinate search's own
+    tri = w[14] and _tri_factor_solve(G, K, q0, T, q, nd)
+    if not tri and contact_solve(G, K, q0, T, piv, q, nd) != 0:
         return math.inf, math.inf
     lmax = -math.inf
     for b in range(b0, b1):
         acc = ylin[b]
-        for m in range(nd):
+        for m in range(hr[b, 0], hr[b, 1]):
             acc -= H[b, m] * K[m] * q[m]
         y[b] = acc
         lb[b] = 0.5 * math.log(max(acc.real * acc.real + acc.imag * acc.imag, _TINY))
@@ -365,19 +538,60 @@ def _smooth_max(G, q0, ylin, H, K, mu, b0, b1, grad, w):
         a2 = max(yb.real * yb.real + yb.imag * yb.imag, _TINY)   # an exact zero (undriven beam)
         wb = lb[b] / tot
         vb = wb * yb.conjugate() / a2
-        for m in range(nd):
+        for m in range(hr[b, 0], hr[b, 1]):
             r[m] += vb * H[b, m]
     # solve (I + diag(K) G) s = r o K by the transpose of the LU of I + G diag(K)
     for m in range(nd):
         u[m] = r[m] * K[m]
-    _lu_solve_transposed(T, piv, u, nd)
+    if tri:
+        _tri_solve_transposed(T, u, nd)
+    else:
+        _lu_solve_transposed(T, piv, u, nd)
     for j in range(nd):
         sg = 0.0j
-        for m in range(nd):
+        for m in range(gr[j, 0], gr[j, 1]):
             sg += u[m] * G[m, j]
         gj = -q[j] * (r[j] - sg)      # d(sum w_b log|y_b|)/dK_j as a complex derivative
         grad[j] = complex(gj.real, -gj.imag)
     return val, lmax
+
+
+@inline_jit
+def _tri_factor_solve(G, K, q0, T, q, nd):
+    """``q = (I + G diag(K))^-1 q0`` for a tridiagonal G, without pivoting. ``T`` keeps
+    the factors (row 0: 1 / pivots, row 1: the eliminated super-diagonal, row 2: the
+    sub-diagonal). Returns False (nothing usable) at a pivot small against its row."""
+    inv = 0.0j
+    cp = 0.0j
+    for i in range(nd):
+        a = 1.0 + G[i, i] * K[i]
+        rhs = q0[i]
+        if i > 0:
+            lo = G[i, i - 1] * K[i - 1]
+            a -= lo * cp
+            rhs -= lo * q[i - 1]
+            T[2, i - 1] = lo
+        if not (abs(a) > 1e-10 * (1.0 + abs(G[i, i] * K[i]))):
+            return False
+        inv = 1.0 / a
+        cp = G[i, i + 1] * K[i + 1] * inv if i < nd - 1 else 0.0j
+        T[0, i] = inv
+        T[1, i] = cp
+        q[i] = rhs * inv
+    for i in range(nd - 2, -1, -1):
+        q[i] -= T[1, i] * q[i + 1]
+    return True
+
+
+@inline_jit
+def _tri_solve_transposed(T, b, nd):
+    """Solve ``(I + G diag(K))^T x = b`` in place with the factors of
+    :func:`_tri_factor_solve` (``A = L U``, U unit upper: ``U^T`` forward, ``L^T`` back)."""
+    for i in range(1, nd):
+        b[i] -= T[1, i - 1] * b[i - 1]
+    b[nd - 1] *= T[0, nd - 1]
+    for i in range(nd - 2, -1, -1):
+        b[i] = (b[i] - T[2, i] * b[i + 1]) * T[0, i]
 
 
 @jit
@@ -607,12 +821,26 @@ def _sumsq(G, q0, ylin, H, K, T, piv, q, y, nd, nb):
 
 
 @jit
-def _workspace(nd, nb):
+def _workspace(nd, nb, hr, gr):
+    """Scratch of one thread's searches; ends with its own copies of the sparsity ranges
+    (an array shared by the threads would have its reference count contended)."""
     c16 = np.complex128
     return (np.zeros((nd, nd), c16), np.zeros((nd, nd), c16), np.zeros(nd, np.int64),
             np.zeros(nd, c16), np.zeros(nb, c16), np.zeros(nd, c16), np.zeros(nb, c16),
             np.zeros(nb, c16), np.zeros(nd, c16), np.zeros(nd, c16), np.zeros(nb),
-            np.zeros((6, nb)))
+            np.zeros((6, nb)), hr.copy(), gr.copy(), _is_tridiagonal(gr, nd))
+
+
+@jit
+def _is_tridiagonal(gr, nd):
+    """G is tridiagonal (a chain of dampers) and large enough for the row storage of
+    :func:`_tri_factor_solve`."""
+    if nd < 3:
+        return False
+    for j in range(nd):
+        if gr[j, 0] < j - 1 or gr[j, 1] > j + 2:
+            return False
+    return True
 
 
 @inline_jit
@@ -681,7 +909,7 @@ def _irrelevant(best, cap, o, k, n_o):
 
 
 @jit(parallel=True, nogil=True)
-def _multistart(G, q0, ylin, H, kr, ki, starts, want_max, objectives, cap, max_sweeps, tol,
+def _multistart(G, q0, ylin, H, hr, gr, kr, ki, starts, want_max, objectives, cap, max_sweeps, tol,
                 best, K_best, freq_order):
     """Phase 1: coordinate search from every start, for every objective, at every
     frequency (in parallel over frequencies)."""
@@ -690,7 +918,7 @@ def _multistart(G, q0, ylin, H, kr, ki, starts, want_max, objectives, cap, max_s
     n_o = objectives.shape[0]
     for i in prange(n_f):
         k = freq_order[i]
-        w = _workspace(nd, nb)
+        w = _workspace(nd, nb, hr, gr)
         K = np.zeros(nd, dtype=np.complex128)
         for o in range(n_o):
             best[o, k] = math.nan
@@ -733,7 +961,7 @@ def _same(v, ref):
 
 
 @jit(parallel=True, nogil=True)
-def _propagate(G, q0, ylin, H, kr, ki, want_max, objectives, cap, max_sweeps, tol, best,
+def _propagate(G, q0, ylin, H, hr, gr, kr, ki, want_max, objectives, cap, max_sweeps, tol, best,
                K_best, cand, K_cand, first, prev_best, ran):
     """Phase 2: continuation along frequency, upward (d = 0) and downward (d = 1), one
     chain per direction and objective, in parallel; each frequency starts from the
@@ -747,17 +975,17 @@ def _propagate(G, q0, ylin, H, kr, ki, want_max, objectives, cap, max_sweeps, to
     """
     # chains interleaved by direction: numba gives each thread a contiguous block
     for t in prange(2 * objectives.shape[0]):
-        _chain(t % 2, t // 2, G, q0, ylin, H, kr, ki, want_max, objectives, cap, max_sweeps,
+        _chain(t % 2, t // 2, G, q0, ylin, H, hr, gr, kr, ki, want_max, objectives, cap, max_sweeps,
                tol, best, K_best, cand, K_cand, first, prev_best, ran)
 
 
 @jit
-def _chain(d, o, G, q0, ylin, H, kr, ki, want_max, objectives, cap, max_sweeps, tol, best,
+def _chain(d, o, G, q0, ylin, H, hr, gr, kr, ki, want_max, objectives, cap, max_sweeps, tol, best,
            K_best, cand, K_cand, first, prev_best, ran):
     """One chain of :func:`_propagate`: direction ``d``, objective ``o``."""
     n_f, nd = q0.shape
     nb = ylin.shape[1]
-    w = _workspace(nd, nb)
+    w = _workspace(nd, nb, hr, gr)
     K = np.zeros(nd, dtype=np.complex128)
     K_old = np.zeros(nd, dtype=np.complex128)
     same_up = False         # the neighbour's result equals the previous round's
@@ -797,7 +1025,7 @@ def _chain(d, o, G, q0, ylin, H, kr, ki, want_max, objectives, cap, max_sweeps, 
 
 
 @jit(parallel=True, nogil=True)
-def _polish(G, q0, ylin, H, kr, ki, want_max, objectives, cap, max_sweeps, tol, best,
+def _polish(G, q0, ylin, H, hr, gr, kr, ki, want_max, objectives, cap, max_sweeps, tol, best,
             K_best, freq_order, polish_sweeps, polish_tol):
     """Phase 3: a local search from the best point of every objective and frequency,
     ended by a tight one (``polish_sweeps``, ``polish_tol``)."""
@@ -805,7 +1033,7 @@ def _polish(G, q0, ylin, H, kr, ki, want_max, objectives, cap, max_sweeps, tol, 
     nb = ylin.shape[1]
     for i in prange(n_f):
         k = freq_order[i]
-        w = _workspace(nd, nb)
+        w = _workspace(nd, nb, hr, gr)
         K = np.empty(nd, dtype=np.complex128)
         for o in range(objectives.shape[0]):
             if math.isnan(best[o, k]) or (want_max and (
@@ -820,6 +1048,25 @@ def _polish(G, q0, ylin, H, kr, ki, want_max, objectives, cap, max_sweeps, tol, 
                 best[o, k] = v
                 for j in range(nd):
                     K_best[o, k, j] = K[j]
+
+
+def _sparsity(G, H):
+    """Nonzero ranges: ``hr[b] = (first, last + 1)`` of the dampers with a nonzero
+    ``H[:, b, m]`` at some frequency, ``gr[j]`` the same for the rows of column j of G.
+
+    A damper acts on two beams, so on a chain of beams both are short (G tridiagonal, H
+    two dampers per beam) and the searches skip the exact zeros: the same results at a
+    fraction of the O(nd^2) work per coordinate. Any other damper graph gets the ranges
+    it has (at worst all dampers).
+    """
+    def ranges(nz):
+        out = np.zeros((nz.shape[0], 2), np.int64)
+        for i, row in enumerate(nz):
+            idx = np.flatnonzero(row)
+            out[i] = (idx[0], idx[-1] + 1) if idx.size else (0, 0)
+        return out
+
+    return ranges((H != 0).any(axis=0)), ranges((G != 0).any(axis=0).T)
 
 
 def _spread(n_f):
@@ -888,7 +1135,8 @@ def box_extreme(G, q0, ylin, H, kr, ki, starts, want_max, cap=None, max_sweeps=2
     best = np.full((n_o, n_f), np.nan)
     K_best = np.zeros((n_o, n_f, nd), complex)
     order = _spread(n_f)
-    _multistart(G, q0, ylin, H, kr, ki, starts, want_max, objectives, cap, max_sweeps,
+    hr, gr = _sparsity(G, H)
+    _multistart(G, q0, ylin, H, hr, gr, kr, ki, starts, want_max, objectives, cap, max_sweeps,
                 EXPLORE_TOL, best, K_best, order)
     cand = np.empty((2, n_o, n_f))
     K_cand = np.empty((2, n_o, n_f, nd), complex)
@@ -897,7 +1145,7 @@ def box_extreme(G, q0, ylin, H, kr, ki, starts, want_max, cap=None, max_sweeps=2
     prev_best = best.copy()
     ran = np.zeros((2, n_o, n_f), dtype=np.bool_)
     for r in range(rounds):
-        _propagate(G, q0, ylin, H, kr, ki, want_max, objectives, cap, max_sweeps,
+        _propagate(G, q0, ylin, H, hr, gr, kr, ki, want_max, objectives, cap, max_sweeps,
                    EXPLORE_TOL, best, K_best, cand, K_cand, r == 0, prev_best, ran)
         prev_best[...] = best
         any_better = False
@@ -921,6 +1169,6 @@ def box_extreme(G, q0, ylin, H, kr, ki, starts, want_max, cap=None, max_sweeps=2
     else:
         # the minimum's tight searches are costly: explore, then one tight search
         sweeps, tol, end_sweeps, end_tol = max_sweeps, EXPLORE_TOL, 5 * max_sweeps, POLISH_TOL
-    _polish(G, q0, ylin, H, kr, ki, want_max, objectives, cap, sweeps, tol, best, K_best,
+    _polish(G, q0, ylin, H, hr, gr, kr, ki, want_max, objectives, cap, sweeps, tol, best, K_best,
             order, end_sweeps, end_tol)
     return best, K_best
