@@ -43,8 +43,8 @@ F_, XT_, FT_, DX_, X_, KC_, CC_ = range(7)
 # its right-hand side (first two columns).
 LB_, DB_, UB_, RB_ = range(4)
 # Slots of the per-lane reals V (n, LANES): |f|^2 accepted and trial, the step length,
-# out: the Newton steps taken (a float holding an integer).
-PHI_, PHIT_, LAM_, ITS_ = range(4)
+# out: the Newton steps taken (a float holding an integer); max_j |f_j| accepted and trial.
+PHI_, PHIT_, LAM_, ITS_, FM_, FMT_ = range(6)
 # Rows of the flags M (n + nd, LANES): per lane, need a step, have a trial to evaluate, a
 # failed solve, in: holds a sample, out: converged; then per damper (row ACT_ + j), in:
 # damper j transmits force.
@@ -55,7 +55,8 @@ RUN_, PEND_, BAD_, NEED_, OK_, ACT_ = range(6)
 def _eval(C, R, V, M, nd):
     """Residual at the trial points of the lanes in ``M[PEND_]``.
 
-    Fills ``C[KT_]``, ``C[KPT_]``, ``C[QT_]``, ``R[FT_]`` and ``V[PHIT_] = |f|^2``.
+    Fills ``C[KT_]``, ``C[KPT_]``, ``C[QT_]``, ``R[FT_]``, ``V[PHIT_] = |f|^2`` and
+    ``V[FMT_] = max |f_j|``.
     Stuck dampers are solved exactly (``R[XT_]`` is updated); ``V[PHIT_]`` is inf for a
     lane whose linear solve failed or whose residual is not finite.
     """
@@ -81,28 +82,32 @@ def _eval(C, R, V, M, nd):
     tridiag_solve_lanes(C, LO_, DI_, UP_, QT_, M, PEND_, BAD_, nd)
     for l in range(LANES):
         V[PHIT_, l] = 0.0
+        V[FMT_, l] = 0.0
     for j in range(nd):
         for l in range(LANES):
             if not M[PEND_, l]:
                 continue
-            if not M[ACT_ + j, l]:
-                R[FT_, j, l] = 0.0
-                continue
-            qq = C[QT_, j, l]
-            lq = 0.5 * math.log(qq.real * qq.real + qq.imag * qq.imag)
-            if R[XT_, j, l] >= 0.0:
-                t = R[CC_, j, l] - lq        # log s that makes damper j consistent with this q
-                if t > 0.0:
-                    R[XT_, j, l] = t
-                    R[FT_, j, l] = 0.0
-                    C[KPT_, j, l] = 0.0j
-                else:                   # no longer stuck: park at s = 1, K unchanged
-                    R[XT_, j, l] = 0.0
-                    R[FT_, j, l] = -t
-                    C[KPT_, j, l] = R[KC_, j, l] * _SLIP_SIDE
+            if M[ACT_ + j, l]:
+                qq = C[QT_, j, l]
+                lq = 0.5 * math.log(qq.real * qq.real + qq.imag * qq.imag)
+                if R[XT_, j, l] >= 0.0:
+                    t = R[CC_, j, l] - lq   # log s that makes damper j consistent with q
+                    if t > 0.0:
+                        R[XT_, j, l] = t
+                        R[FT_, j, l] = 0.0
+                        C[KPT_, j, l] = 0.0j
+                    else:               # no longer stuck: park at s = 1, K unchanged
+                        R[XT_, j, l] = 0.0
+                        R[FT_, j, l] = -t
+                        C[KPT_, j, l] = R[KC_, j, l] * _SLIP_SIDE
+                else:
+                    R[FT_, j, l] = R[XT_, j, l] + lq - R[CC_, j, l]
+                V[PHIT_, l] += R[FT_, j, l] * R[FT_, j, l]
             else:
-                R[FT_, j, l] = R[XT_, j, l] + lq - R[CC_, j, l]
-            V[PHIT_, l] += R[FT_, j, l] * R[FT_, j, l]
+                R[FT_, j, l] = 0.0
+            # here rather than a loop over f at acceptance: an inlined helper taking R
+            # cost an atomic reference count per call
+            V[FMT_, l] = max(V[FMT_, l], abs(R[FT_, j, l]))
     for l in range(LANES):
         if M[PEND_, l] and (M[BAD_, l] or not math.isfinite(V[PHIT_, l])):
             V[PHIT_, l] = math.inf
@@ -173,14 +178,6 @@ def _step(C, R, B, M, nd):
                 R[DX_, j, l] *= sc
 
 
-@inline_jit
-def _max_abs(R, l, nd):
-    m = 0.0
-    for j in range(nd):
-        m = max(m, abs(R[F_, j, l]))
-    return m
-
-
 @jit
 def newton_lanes(tol, max_iter, C, R, B, V, M, nd):
     """Damped Newton in ``x = log s`` for the lanes in ``M[NEED_]``, from ``R[X_]``.
@@ -233,10 +230,11 @@ def newton_lanes(tol, max_iter, C, R, B, V, M, nd):
                     C[Q_, j, l] = C[QT_, j, l]
                     R[F_, j, l] = R[FT_, j, l]
                 V[PHI_, l] = V[PHIT_, l]
-                if _max_abs(R, l, nd) <= target:
+                V[FM_, l] = V[FMT_, l]
+                if V[FM_, l] <= target:
                     M[OK_, l] = True
                 elif V[ITS_, l] >= max_iter:
-                    M[OK_, l] = _max_abs(R, l, nd) <= tol
+                    M[OK_, l] = V[FM_, l] <= tol
                 else:
                     M[RUN_, l] = True
                     n_run += 1
@@ -247,7 +245,7 @@ def newton_lanes(tol, max_iter, C, R, B, V, M, nd):
                     R[XT_, j, l] = R[X_, j, l] + lam * R[DX_, j, l]
             else:                   # no acceptable step: a stall at the rounding floor?
                 M[PEND_, l] = False
-                M[OK_, l] = _max_abs(R, l, nd) <= tol
+                M[OK_, l] = V[FM_, l] <= tol
         if n_run > 0:
             _step(C, R, B, M, nd)
             for l in range(LANES):
@@ -255,7 +253,7 @@ def newton_lanes(tol, max_iter, C, R, B, V, M, nd):
                     continue
                 M[RUN_, l] = False
                 if M[BAD_, l]:
-                    M[OK_, l] = _max_abs(R, l, nd) <= tol
+                    M[OK_, l] = V[FM_, l] <= tol
                     continue
                 V[ITS_, l] += 1.0
                 V[LAM_, l] = 1.0
@@ -271,5 +269,5 @@ def newton_lanes(tol, max_iter, C, R, B, V, M, nd):
 def workspace(nd):
     """Scratch arrays ``(C, R, B, V, M)`` for :func:`newton_lanes` (one set per batch)."""
     return (np.zeros((14, nd, LANES), np.complex128), np.zeros((7, nd, LANES)),
-            np.zeros((4, nd, 4, LANES)), np.zeros((4, LANES)),
+            np.zeros((4, nd, 4, LANES)), np.zeros((6, LANES)),
             np.zeros((ACT_ + nd, LANES), np.bool_))

@@ -117,15 +117,11 @@ def _predict(x, xp, W, l, k, have, nd):
     :data:`N_PREDICT`, consecutive frequencies); ``W`` is from :func:`predict_weights`.
     """
     for j in range(nd):
-        x[j, l] = 0.0
-    for m in range(have):
-        cm = W[have, k, m]
-        for j in range(nd):
-            x[j, l] += cm * xp[m, j, l]
-    for j in range(nd):
+        v = 0.0                     # summed in a register, in the order of m
+        for m in range(have):
+            v += W[have, k, m] * xp[m, j, l]
         # a damper with no relative motion has s = inf: restart it from the stick limit
-        if not math.isfinite(x[j, l]):
-            x[j, l] = 0.0
+        x[j, l] = v if math.isfinite(v) else 0.0
 
 
 @inline_jit
@@ -302,11 +298,18 @@ def _chain_batch(g, rec, force, a, b, W, mu0, N0, kc, tol, max_iter,
             if not need[l]:
                 continue
             r = rl[l]
+            # damper j couples beams a_j = j and b_j = j + 1: read each beam's d11 and
+            # d13 F once (same products as _q0, so the same bits)
+            ua = rec[r, k, D13, 0] * force[0]
+            da = rec[r, k, D11, 0]
             for j in range(nd):
-                q0[j, l] = _q0(rec, r, k, force, a, b, j)
-                Gd[j, l] = rec[r, k, D11, a[j]] + rec[r, k, D11, b[j]]
-                if j < nd - 1:      # dampers j and j+1 share beam b_j = a_{j+1}
-                    Gu[j, l] = -rec[r, k, D11, b[j]]
+                ub = rec[r, k, D13, j + 1] * force[j + 1]
+                db = rec[r, k, D11, j + 1]
+                q0[j, l] = ua - ub
+                Gd[j, l] = da + db
+                Gu[j, l] = -db      # dampers j and j+1 share beam j+1 (last one unused)
+                ua = ub
+                da = db
             _predict(x, xp, W, l, k, have[l], nd)
         batch.newton_lanes(tol, max_iter, C, R, B, V, M, nd)
         for l in range(LANES):
