@@ -65,33 +65,59 @@ def _factor_inverse(G, K, Tinv, T, piv, nd):
 
 
 @inline_jit
-def _state(G, q0, ylin, H, K, Tinv, q, y, nd, b0, b1, hr):
-    """``q = Tinv q0`` and ``y = y_lin - H (K q)`` for the beams b0..b1-1 (``hr``: the
-    dampers each beam's row of H can be nonzero for, see :func:`_sparsity`)."""
-    for i in range(nd):
-        acc = 0.0j
-        for m in range(nd):
-            acc += Tinv[i, m] * q0[m]
-        q[i] = acc
+def _refresh(G, q0, ylin, H, K, Tinv, T, piv, q, y, nd, b0, b1, hr, tri):
+    """``q = (I + G diag(K))^-1 q0`` and ``y = y_lin - H (K q)`` for the beams b0..b1-1
+    (``hr``: the dampers each beam's row of H can be nonzero for, see
+    :func:`_sparsity`). With ``tri`` by the chain elimination (factors left in ``T``),
+    else, or at a tiny pivot, by the inverse ``Tinv``. Returns 1 (chain), 0 (inverse) or
+    -1 (singular)."""
+    mode = 1 if tri and _tri_factor(G, K, T, nd) else 0
+    if mode == 1:
+        for i in range(nd):
+            q[i] = q0[i]
+        _tri_solve(T, q, nd)
+    else:
+        if not _factor_inverse(G, K, Tinv, T, piv, nd):
+            return -1
+        for i in range(nd):
+            acc = 0.0j
+            for m in range(nd):
+                acc += Tinv[i, m] * q0[m]
+            q[i] = acc
     for b in range(b0, b1):
         acc = ylin[b]
         for m in range(hr[b, 0], hr[b, 1]):
             acc -= H[b, m] * K[m] * q[m]
         y[b] = acc
+    return mode
 
 
 @inline_jit
-def _coefficients(G, ylin, H, K, Tinv, q, y, j, u, alpha, beta, nd, b0, b1, hr, gr):
-    """Moebius coefficients of ``y_b`` (b0 <= b < b1) in ``z = K_j``. Returns (d0, d1).
-
-    Only the objective's beams are needed: a search of one beam's maximum costs O(nd)
-    per coordinate here instead of O(nb nd). ``hr``, ``gr``: nonzero ranges of the rows
-    of H and the columns of G (:func:`_sparsity`)."""
+def _column(G, Tinv, T, u, j, nd, gr, tri):
+    """``u = (I + G diag(K))^-1 G[:, j]``: from the inverse, or (``tri``) by the chain
+    elimination whose factors are in ``T``."""
+    if tri:
+        for i in range(nd):
+            u[i] = 0.0j
+        for m in range(gr[j, 0], gr[j, 1]):
+            u[m] = G[m, j]
+        _tri_solve(T, u, nd)
+        return
     for i in range(nd):
         acc = 0.0j
         for m in range(gr[j, 0], gr[j, 1]):
             acc += Tinv[i, m] * G[m, j]
         u[i] = acc
+
+
+@inline_jit
+def _coefficients(ylin, H, K, q, y, j, u, alpha, beta, b0, b1, hr):
+    """Moebius coefficients of ``y_b`` (b0 <= b < b1) in ``z = K_j``, given ``u`` from
+    :func:`_column`. Returns (d0, d1).
+
+    Only the objective's beams are needed: a search of one beam's maximum costs O(nd)
+    per coordinate here instead of O(nb nd). ``hr``: nonzero ranges of the rows of H
+    (:func:`_sparsity`)."""
     d1 = u[j]
     d0 = 1.0 - K[j] * d1
     qj = q[j]
@@ -456,16 +482,29 @@ def _search(G, q0, ylin, H, kr, ki, K, want_max, b0, b1, max_sweeps, tol, w):
     Tinv, T, piv, q, y, u, alpha, beta, rowj = w[:9]
     hr, gr = w[12], w[13]
     nd = K.shape[0]
-    if not _factor_inverse(G, K, Tinv, T, piv, nd):
+    # a chain: O(nd) eliminations instead of keeping the inverse (O(nd^2) per step,
+    # O(nd^3) per refresh); any other graph, or a tiny pivot, takes the inverse
+    tri = _refresh(G, q0, ylin, H, K, Tinv, T, piv, q, y, nd, b0, b1, hr, w[14])
+    if tri < 0:
         return math.nan
-    _state(G, q0, ylin, H, K, Tinv, q, y, nd, b0, b1, hr)
     best = _objective(y, b0, b1)
+    stale = False                   # the chain factors are those of an earlier K
+    K0, Kt = w[15], w[16]
     for sweep in range(max_sweeps):
         old = best
         changed = False
         for j in range(nd):
-            d0, d1 = _coefficients(G, ylin, H, K, Tinv, q, y, j, u, alpha, beta, nd, b0,
-                                   b1, hr, gr)
+            K0[j] = K[j]
+        for j in range(nd):
+            if tri and stale:
+                if _tri_factor(G, K, T, nd):
+                    stale = False
+                else:
+                    tri = 0
+                    if not _factor_inverse(G, K, Tinv, T, piv, nd):
+                        return math.nan
+            _column(G, Tinv, T, u, j, nd, gr, tri == 1)
+            d0, d1 = _coefficients(ylin, H, K, q, y, j, u, alpha, beta, b0, b1, hr)
             # the interior only in tight searches (exploring relies on the edges and on
             # the smoothed-gradient polish)
             val, z = _best_on_rectangle(alpha, beta, d0, d1, kr, ki, want_max, K[j], b0, b1,
@@ -474,31 +513,78 @@ def _search(G, q0, ylin, H, kr, ki, K, want_max, b0, b1, max_sweeps, tol, w):
             if delta == 0.0:
                 continue
             changed = True
-            # Sherman-Morrison update of Tinv, q and y for K_j -> z
+            # Sherman-Morrison update of q (and Tinv) and y for K_j -> z
             fac = delta / (1.0 + delta * u[j])
             qj = q[j]
             for i in range(nd):
                 q[i] -= fac * u[i] * qj
-            for m in range(nd):
-                rowj[m] = Tinv[j, m]
-            for i in range(nd):
-                ui = fac * u[i]
+            if tri:
+                stale = True
+            else:
                 for m in range(nd):
-                    Tinv[i, m] -= ui * rowj[m]
+                    rowj[m] = Tinv[j, m]
+                for i in range(nd):
+                    ui = fac * u[i]
+                    for m in range(nd):
+                        Tinv[i, m] -= ui * rowj[m]
             K[j] = z
             for b in range(b0, b1):
                 y[b] = (alpha[b] + beta[b] * z) / (d0 + d1 * z)
             best = val
         if not changed:
             break                   # converged: a refresh would reproduce the same state
-        # refresh the inverse: Sherman-Morrison updates accumulate rounding
-        if not _factor_inverse(G, K, Tinv, T, piv, nd):
+        if want_max:
+            # (for the minimum measured worse: lower bound 0.06 % higher on average)
+            _pattern_move(G, q0, ylin, H, kr, ki, K, K0, Kt, best, want_max, b0, b1, w)
+        # refresh: Sherman-Morrison updates accumulate rounding
+        tri = _refresh(G, q0, ylin, H, K, Tinv, T, piv, q, y, nd, b0, b1, hr, tri == 1)
+        if tri < 0:
             return math.nan
-        _state(G, q0, ylin, H, K, Tinv, q, y, nd, b0, b1, hr)
+        stale = False
         best = _objective(y, b0, b1)
         if abs(best - old) <= tol * max(best, old):
             break
     return best
+
+
+@jit
+def _pattern_move(G, q0, ylin, H, kr, ki, K, K0, Kt, best, want_max, b0, b1, w):
+    """Hooke-Jeeves pattern move after a sweep: along the sweep's displacement
+    ``K - K0``, steps 1, 2, 4, ... (projected on the box) while M improves; ``K`` takes
+    the best. On a resonance ridge (many dampers tuned together) a coordinate sweep
+    advances little and in the same direction each time: this takes the long step.
+    Clobbers the search state (the caller refreshes it)."""
+    T, piv, q, y = w[1], w[2], w[3], w[4]
+    hr = w[12]
+    nd = K.shape[0]
+    t = 1.0
+    v_best = best
+    t_best = 0.0
+    for _ in range(8):
+        for j in range(nd):
+            z = K[j] + t * (K[j] - K0[j])
+            Kt[j] = complex(min(max(z.real, 0.0), kr), min(max(z.imag, 0.0), ki))
+        if w[14] and _tri_factor(G, Kt, T, nd):
+            for i in range(nd):
+                q[i] = q0[i]
+            _tri_solve(T, q, nd)
+        elif contact_solve(G, Kt, q0, T, piv, q, nd) != 0:
+            break
+        for b in range(b0, b1):
+            acc = ylin[b]
+            for m in range(hr[b, 0], hr[b, 1]):
+                acc -= H[b, m] * Kt[m] * q[m]
+            y[b] = acc
+        v = _objective(y, b0, b1)
+        if not ((v > v_best) if want_max else (v < v_best)):
+            break
+        v_best = v
+        t_best = t
+        t *= 2.0
+    if t_best > 0.0:
+        for j in range(nd):
+            z = K[j] + t_best * (K[j] - K0[j])
+            K[j] = complex(min(max(z.real, 0.0), kr), min(max(z.imag, 0.0), ki))
 
 
 @jit
@@ -511,8 +597,12 @@ def _smooth_max(G, q0, ylin, H, K, mu, b0, b1, grad, w):
     nd = K.shape[0]
     # a chain: O(nd) elimination; else (or at a tiny pivot) LU with pivoting. Only the
     # search path depends on this: values are taken from the coordinate search's own
-    tri = w[14] and _tri_factor_solve(G, K, q0, T, q, nd)
-    if not tri and contact_solve(G, K, q0, T, piv, q, nd) != 0:
+    tri = w[14] and _tri_factor(G, K, T, nd)
+    if tri:
+        for i in range(nd):
+            q[i] = q0[i]
+        _tri_solve(T, q, nd)
+    elif contact_solve(G, K, q0, T, piv, q, nd) != 0:
         return math.inf, math.inf
     lmax = -math.inf
     for b in range(b0, b1):
@@ -557,19 +647,16 @@ def _smooth_max(G, q0, ylin, H, K, mu, b0, b1, grad, w):
 
 
 @inline_jit
-def _tri_factor_solve(G, K, q0, T, q, nd):
-    """``q = (I + G diag(K))^-1 q0`` for a tridiagonal G, without pivoting. ``T`` keeps
-    the factors (row 0: 1 / pivots, row 1: the eliminated super-diagonal, row 2: the
-    sub-diagonal). Returns False (nothing usable) at a pivot small against its row."""
-    inv = 0.0j
+def _tri_factor(G, K, T, nd):
+    """LU factors of ``I + G diag(K)`` for a tridiagonal G, without pivoting, in rows
+    0-2 of ``T`` (1 / pivots, the eliminated super-diagonal, the sub-diagonal). Returns
+    False (use pivoting instead) at a pivot small against its row."""
     cp = 0.0j
     for i in range(nd):
         a = 1.0 + G[i, i] * K[i]
-        rhs = q0[i]
         if i > 0:
             lo = G[i, i - 1] * K[i - 1]
             a -= lo * cp
-            rhs -= lo * q[i - 1]
             T[2, i - 1] = lo
         if not (abs(a) > 1e-10 * (1.0 + abs(G[i, i] * K[i]))):
             return False
@@ -577,16 +664,24 @@ def _tri_factor_solve(G, K, q0, T, q, nd):
         cp = G[i, i + 1] * K[i + 1] * inv if i < nd - 1 else 0.0j
         T[0, i] = inv
         T[1, i] = cp
-        q[i] = rhs * inv
-    for i in range(nd - 2, -1, -1):
-        q[i] -= T[1, i] * q[i + 1]
     return True
+
+
+@inline_jit
+def _tri_solve(T, x, nd):
+    """Solve ``(I + G diag(K)) x = b`` in place (``x`` holds b) with the factors of
+    :func:`_tri_factor`."""
+    x[0] *= T[0, 0]
+    for i in range(1, nd):
+        x[i] = (x[i] - T[2, i - 1] * x[i - 1]) * T[0, i]
+    for i in range(nd - 2, -1, -1):
+        x[i] -= T[1, i] * x[i + 1]
 
 
 @inline_jit
 def _tri_solve_transposed(T, b, nd):
     """Solve ``(I + G diag(K))^T x = b`` in place with the factors of
-    :func:`_tri_factor_solve` (``A = L U``, U unit upper: ``U^T`` forward, ``L^T`` back)."""
+    :func:`_tri_factor` (``A = L U``, U unit upper: ``U^T`` forward, ``L^T`` back)."""
     for i in range(1, nd):
         b[i] -= T[1, i - 1] * b[i - 1]
     b[nd - 1] *= T[0, nd - 1]
@@ -828,13 +923,14 @@ def _workspace(nd, nb, hr, gr):
     return (np.zeros((nd, nd), c16), np.zeros((nd, nd), c16), np.zeros(nd, np.int64),
             np.zeros(nd, c16), np.zeros(nb, c16), np.zeros(nd, c16), np.zeros(nb, c16),
             np.zeros(nb, c16), np.zeros(nd, c16), np.zeros(nd, c16), np.zeros(nb),
-            np.zeros((6, nb)), hr.copy(), gr.copy(), _is_tridiagonal(gr, nd))
+            np.zeros((6, nb)), hr.copy(), gr.copy(), _is_tridiagonal(gr, nd),
+            np.zeros(nd, c16), np.zeros(nd, c16))
 
 
 @jit
 def _is_tridiagonal(gr, nd):
     """G is tridiagonal (a chain of dampers) and large enough for the row storage of
-    :func:`_tri_factor_solve`."""
+    :func:`_tri_factor`."""
     if nd < 3:
         return False
     for j in range(nd):
@@ -1050,6 +1146,34 @@ def _polish(G, q0, ylin, H, hr, gr, kr, ki, want_max, objectives, cap, max_sweep
                     K_best[o, k, j] = K[j]
 
 
+@jit(parallel=True, nogil=True)
+def _evaluate(G, q0, ylin, H, objectives, best, K_best):
+    """``best[o, k]``: the objective at ``K_best[o, k]`` by LU with partial pivoting.
+
+    The searches may have used the unpivoted chain elimination; the values reported are
+    computed afresh by the pivoted solve."""
+    n_f, nd = q0.shape
+    nb = ylin.shape[1]
+    for k in prange(n_f):
+        T = np.empty((nd, nd), dtype=np.complex128)
+        piv = np.empty(nd, dtype=np.int64)
+        q = np.empty(nd, dtype=np.complex128)
+        y = np.empty(nb, dtype=np.complex128)
+        for o in range(objectives.shape[0]):
+            if math.isnan(best[o, k]):
+                continue
+            b0, b1 = _beam_range(objectives[o], nb)
+            if contact_solve(G[k], K_best[o, k], q0[k], T, piv, q, nd) != 0:
+                best[o, k] = math.nan
+                continue
+            for b in range(b0, b1):
+                acc = ylin[k, b]
+                for m in range(nd):
+                    acc -= H[k, b, m] * K_best[o, k, m] * q[m]
+                y[b] = acc
+            best[o, k] = _objective(y, b0, b1)
+
+
 def _sparsity(G, H):
     """Nonzero ranges: ``hr[b] = (first, last + 1)`` of the dampers with a nonzero
     ``H[:, b, m]`` at some frequency, ``gr[j]`` the same for the rows of column j of G.
@@ -1171,4 +1295,5 @@ def box_extreme(G, q0, ylin, H, kr, ki, starts, want_max, cap=None, max_sweeps=2
         sweeps, tol, end_sweeps, end_tol = max_sweeps, EXPLORE_TOL, 5 * max_sweeps, POLISH_TOL
     _polish(G, q0, ylin, H, hr, gr, kr, ki, want_max, objectives, cap, sweeps, tol, best, K_best,
             order, end_sweeps, end_tol)
+    _evaluate(G, q0, ylin, H, objectives, best, K_best)
     return best, K_best
