@@ -26,22 +26,22 @@ import numpy as np
 
 from ._jit import inline_jit, jit
 from .friction import kappa_logs
-from .linalg import LANES, block2_tridiag_solve_lanes, tridiag_solve_lanes
+from .linalg import LANES, cinv
 from .newton import _ARMIJO, _MAX_HALVINGS, _MAX_STEP, _TARGET
 
 _SLIP_SIDE = complex(0.0, -4.0 / math.pi)   # d(K/kc)/dlog s at s = 1 from the slip side
 
 # Slots of the complex scratch C (n, nd, LANES): K and dK/dlog s (N/m) and q (m) at the
-# accepted point, the same at the trial point, the step's h and e, the tridiagonal system;
-# inputs: diagonal and super-diagonal of G (m/N), q0 (m).
-K_, KP_, Q_, KT_, KPT_, QT_, H_, E_, LO_, DI_, UP_, GD_, GU_, Q0_ = range(14)
+# accepted point, the same at the trial point, the step's h and e, the eliminated
+# tridiagonal system; inputs: diagonal and super-diagonal of G (m/N), q0 (m).
+K_, KP_, Q_, KT_, KPT_, QT_, H_, E_, DI_, UP_, GD_, GU_, Q0_ = range(13)
 # Slots of the real scratch R (n, nd, LANES): log residual at the accepted point, trial
 # x = log s, its residual, the Newton step; the iterate x = log s (in: the guess, out:
 # the last accepted point); inputs: kc (N/m) and c = log(mu0 N0 / kc).
 F_, XT_, FT_, DX_, X_, KC_, CC_ = range(7)
-# Slots of the block scratch B (n, nd, 4, LANES): the 2x2 blocks of the Newton step and
-# its right-hand side (first two columns).
-LB_, DB_, UB_, RB_ = range(4)
+# Slots of the block scratch B (n, nd, 4, LANES): the eliminated 2x2 super-diagonal
+# blocks of the Newton step and its right-hand side (first two columns).
+UB_, RB_ = range(2)
 # Slots of the per-lane reals V (n, LANES): |f|^2 accepted and trial, the step length,
 # out: the Newton steps taken (a float holding an integer); max_j |f_j| accepted and trial.
 PHI_, PHIT_, LAM_, ITS_, FM_, FMT_ = range(6)
@@ -70,16 +70,35 @@ def _eval(C, R, V, M, nd):
                 else:
                     C[KT_, j, l] = 0.0j
                     C[KPT_, j, l] = 0.0j
+    # (I + G K) q = q0 is tridiagonal: Thomas algorithm (no pivoting; a zero or
+    # non-finite pivot flags the lane, whose sample then goes to the pivoting dense
+    # solvers), each row eliminated as it is formed. DI_ keeps the pivots' reciprocals.
+    for l in range(LANES):
+        M[BAD_, l] = False
     for j in range(nd):
         for l in range(LANES):
+            if not M[PEND_, l]:
+                continue
+            d = 1.0 + C[GD_, j, l] * C[KT_, j, l]
+            r = C[Q0_, j, l]
+            if j > 0:
+                m = (C[GU_, j - 1, l] * C[KT_, j - 1, l]) * C[DI_, j - 1, l]
+                d -= m * C[UP_, j - 1, l]
+                r -= m * C[QT_, j - 1, l]
+            a2 = d.real * d.real + d.imag * d.imag
+            if not (a2 > 0.0 and a2 < math.inf):
+                M[BAD_, l] = True
+            C[DI_, j, l] = cinv(d)
+            C[QT_, j, l] = r
+            if j < nd - 1:
+                C[UP_, j, l] = C[GU_, j, l] * C[KT_, j + 1, l]
+    for l in range(LANES):
+        if M[PEND_, l]:
+            C[QT_, nd - 1, l] *= C[DI_, nd - 1, l]
+    for j in range(nd - 2, -1, -1):
+        for l in range(LANES):
             if M[PEND_, l]:
-                C[DI_, j, l] = 1.0 + C[GD_, j, l] * C[KT_, j, l]
-                C[QT_, j, l] = C[Q0_, j, l]
-                if j > 0:
-                    C[LO_, j, l] = C[GU_, j - 1, l] * C[KT_, j - 1, l]
-                if j < nd - 1:
-                    C[UP_, j, l] = C[GU_, j, l] * C[KT_, j + 1, l]
-    tridiag_solve_lanes(C, LO_, DI_, UP_, QT_, M, PEND_, BAD_, nd)
+                C[QT_, j, l] = (C[QT_, j, l] - C[UP_, j, l] * C[QT_, j + 1, l]) * C[DI_, j, l]
     for l in range(LANES):
         V[PHIT_, l] = 0.0
         V[FMT_, l] = 0.0
@@ -114,12 +133,10 @@ def _eval(C, R, V, M, nd):
 
 
 @inline_jit
-def _put_block(B, s, i, l, t, m, e):
-    """Real 2x2 block of ``w -> t w - m Re(e w)`` (complex t, m, e) at ``B[s, i, :, l]``."""
-    B[s, i, 0, l] = t.real - m.real * e.real
-    B[s, i, 1, l] = -t.imag + m.real * e.imag
-    B[s, i, 2, l] = t.imag - m.imag * e.real
-    B[s, i, 3, l] = t.real + m.imag * e.imag
+def _block(t, m, e):
+    """Real 2x2 block (b00, b01, b10, b11) of ``w -> t w - m Re(e w)`` (complex t, m, e)."""
+    return (t.real - m.real * e.real, -t.imag + m.real * e.imag,
+            t.imag - m.imag * e.real, t.real + m.imag * e.imag)
 
 
 @jit
@@ -142,26 +159,64 @@ def _step(C, R, B, M, nd):
                 else:
                     C[H_, j, l] = 0.0j
                     C[E_, j, l] = 0.0j
+    # block Thomas algorithm with real 2x2 blocks (no pivoting; a singular or non-finite
+    # block pivot flags the lane), each block row eliminated as it is formed: UB_ keeps
+    # inv(D') U and RB_ the forward-substituted right-hand side, then the solution
+    for l in range(LANES):
+        M[BAD_, l] = False
     for i in range(nd):
         for l in range(LANES):
             if not M[RUN_, l]:
                 continue
             g = C[GD_, i, l]
-            _put_block(B, DB_, i, l, 1.0 + g * C[K_, i, l], g * C[H_, i, l], C[E_, i, l])
-            rhs = g * C[H_, i, l] * R[F_, i, l]
+            m = g * C[H_, i, l]
+            d00, d01, d10, d11 = _block(1.0 + g * C[K_, i, l], m, C[E_, i, l])
+            rhs = m * R[F_, i, l]
+            l00 = l01 = l10 = l11 = 0.0
+            u00 = u01 = u10 = u11 = 0.0
             if i > 0:
                 g = C[GU_, i - 1, l]
-                _put_block(B, LB_, i, l, g * C[K_, i - 1, l], g * C[H_, i - 1, l],
-                           C[E_, i - 1, l])
-                rhs += g * C[H_, i - 1, l] * R[F_, i - 1, l]
+                m = g * C[H_, i - 1, l]
+                l00, l01, l10, l11 = _block(g * C[K_, i - 1, l], m, C[E_, i - 1, l])
+                rhs += m * R[F_, i - 1, l]
             if i < nd - 1:
                 g = C[GU_, i, l]
-                _put_block(B, UB_, i, l, g * C[K_, i + 1, l], g * C[H_, i + 1, l],
-                           C[E_, i + 1, l])
-                rhs += g * C[H_, i + 1, l] * R[F_, i + 1, l]
-            B[RB_, i, 0, l] = rhs.real
-            B[RB_, i, 1, l] = rhs.imag
-    block2_tridiag_solve_lanes(B, LB_, DB_, UB_, RB_, M, RUN_, BAD_, nd)
+                m = g * C[H_, i + 1, l]
+                u00, u01, u10, u11 = _block(g * C[K_, i + 1, l], m, C[E_, i + 1, l])
+                rhs += m * R[F_, i + 1, l]
+            r0 = rhs.real
+            r1 = rhs.imag
+            if i > 0:
+                # D -= L X[i-1] and r -= L y[i-1], X[i-1] = inv(D'[i-1]) U[i-1] in UB_
+                x00 = B[UB_, i - 1, 0, l]
+                x01 = B[UB_, i - 1, 1, l]
+                x10 = B[UB_, i - 1, 2, l]
+                x11 = B[UB_, i - 1, 3, l]
+                d00 -= l00 * x00 + l01 * x10
+                d01 -= l00 * x01 + l01 * x11
+                d10 -= l10 * x00 + l11 * x10
+                d11 -= l10 * x01 + l11 * x11
+                r0 -= l00 * B[RB_, i - 1, 0, l] + l01 * B[RB_, i - 1, 1, l]
+                r1 -= l10 * B[RB_, i - 1, 0, l] + l11 * B[RB_, i - 1, 1, l]
+            det = d00 * d11 - d01 * d10
+            scale = abs(d00) + abs(d01) + abs(d10) + abs(d11)
+            if not (abs(det) > 1e-300 * scale * scale) or not math.isfinite(det):
+                M[BAD_, l] = True
+            inv = 1.0 / det
+            B[RB_, i, 0, l] = (d11 * r0 - d01 * r1) * inv
+            B[RB_, i, 1, l] = (d00 * r1 - d10 * r0) * inv
+            if i < nd - 1:
+                B[UB_, i, 0, l] = (d11 * u00 - d01 * u10) * inv
+                B[UB_, i, 1, l] = (d11 * u01 - d01 * u11) * inv
+                B[UB_, i, 2, l] = (d00 * u10 - d10 * u00) * inv
+                B[UB_, i, 3, l] = (d00 * u11 - d10 * u01) * inv
+    for i in range(nd - 2, -1, -1):
+        for l in range(LANES):
+            if M[RUN_, l]:
+                y0 = B[RB_, i + 1, 0, l]
+                y1 = B[RB_, i + 1, 1, l]
+                B[RB_, i, 0, l] -= B[UB_, i, 0, l] * y0 + B[UB_, i, 1, l] * y1
+                B[RB_, i, 1, l] -= B[UB_, i, 2, l] * y0 + B[UB_, i, 3, l] * y1
     for l in range(LANES):
         if not M[RUN_, l]:
             continue
@@ -268,6 +323,6 @@ def newton_lanes(tol, max_iter, C, R, B, V, M, nd):
 @jit
 def workspace(nd):
     """Scratch arrays ``(C, R, B, V, M)`` for :func:`newton_lanes` (one set per batch)."""
-    return (np.zeros((14, nd, LANES), np.complex128), np.zeros((7, nd, LANES)),
-            np.zeros((4, nd, 4, LANES)), np.zeros((6, LANES)),
+    return (np.zeros((13, nd, LANES), np.complex128), np.zeros((7, nd, LANES)),
+            np.zeros((2, nd, 4, LANES)), np.zeros((6, LANES)),
             np.zeros((ACT_ + nd, LANES), np.bool_))
