@@ -39,7 +39,7 @@ import numpy as np
 from numba import prange
 
 from ._jit import inline_jit, jit
-from .linalg import contact_solve, lm_step, lu_factor, lu_solve
+from .linalg import contact_solve, lu_factor, lu_solve
 
 _TINY = 1e-300
 
@@ -832,6 +832,8 @@ def _lsq_valley(G, q0, ylin, H, kr, ki, K, w, n_iter=40):
     J = np.empty((nb, nd), dtype=np.complex128)
     A = np.empty((2 * nb, n))
     N = np.empty((n, n))
+    N0 = np.empty((n, n))
+    col = np.empty(nd, dtype=np.complex128)
     g = np.empty(n)
     d = np.empty(n)
     rpiv = np.empty(n, dtype=np.int64)
@@ -841,22 +843,22 @@ def _lsq_valley(G, q0, ylin, H, kr, ki, K, w, n_iter=40):
         scale[2 * j] = kr
         scale[2 * j + 1] = ki
     lam = 1e-3
-    phi = _sumsq(G, q0, ylin, H, K, T, piv, q, y, nd, nb)
+    hr = w[12]
+    phi = _sumsq(G, q0, ylin, H, K, T, piv, q, y, nd, nb, hr)
     if not math.isfinite(phi):
         return math.nan
     for it in range(n_iter):
         # Jacobian dy_b/dK_j = -q_j (H_bj - (H diag(K) (I + G K)^-1 G)_bj); T holds the LU
         for j in range(nd):
             for i in range(nd):
-                X[i, j] = G[i, j]
-            col = X[:, j].copy()
+                col[i] = G[i, j]
             lu_solve(T, piv, col, nd)
             for i in range(nd):
                 X[i, j] = col[i]
         for b in range(nb):
             for j in range(nd):
                 acc = 0.0j
-                for m in range(nd):
+                for m in range(hr[b, 0], hr[b, 1]):
                     acc += H[b, m] * K[m] * X[m, j]
                 J[b, j] = -q[j] * (H[b, j] - acc)
         # real Jacobian in the scaled variables (Re K / kr, Im K / ki)
@@ -872,16 +874,24 @@ def _lsq_valley(G, q0, ylin, H, kr, ki, K, w, n_iter=40):
             for b in range(nb):
                 acc += A[2 * b, i] * y[b].real + A[2 * b + 1, i] * y[b].imag
             g[i] = acc
+        # A^T A once per iteration (symmetric): only the damping changes between tries
+        for i in range(n):
+            for j in range(i + 1):
+                acc = 0.0
+                for k in range(2 * nb):
+                    acc += A[k, i] * A[k, j]
+                N0[i, j] = acc
+                N0[j, i] = acc
         improved = False
         for _ in range(12):
-            if lm_step(A, g, lam, N, rpiv, d, 2 * nb, n) != 0:
+            if _lm_step(N0, g, lam, N, rpiv, d, n) != 0:
                 lam *= 10.0
                 continue
             for j in range(nd):
                 re = min(max(K[j].real + d[2 * j] * kr, 0.0), kr)
                 im = min(max(K[j].imag + d[2 * j + 1] * ki, 0.0), ki)
                 Kt[j] = complex(re, im)
-            phit = _sumsq(G, q0, ylin, H, Kt, T, piv, q, y, nd, nb)
+            phit = _sumsq(G, q0, ylin, H, Kt, T, piv, q, y, nd, nb, hr)
             if phit < phi:
                 improved = True
                 break
@@ -896,19 +906,35 @@ def _lsq_valley(G, q0, ylin, H, kr, ki, K, w, n_iter=40):
         if conv:
             break
     # T, q, y belong to the last trial: restore them at K
-    phi = _sumsq(G, q0, ylin, H, K, T, piv, q, y, nd, nb)
+    phi = _sumsq(G, q0, ylin, H, K, T, piv, q, y, nd, nb, hr)
     return _objective(y, 0, nb) if math.isfinite(phi) else math.nan
 
 
 @inline_jit
-def _sumsq(G, q0, ylin, H, K, T, piv, q, y, nd, nb):
+def _lm_step(N0, g, lam, N, piv, d, n):
+    """Levenberg-Marquardt step ``(N0 + lam (I + diag(N0))) d = -g`` with ``N0 = A^T A``
+    (as :func:`mcfric.core.linalg.lm_step`, the normal matrix formed once by the caller).
+    Returns the info code of :func:`lu_factor`."""
+    for i in range(n):
+        for j in range(n):
+            N[i, j] = N0[i, j]
+        N[i, i] += lam * (1.0 + N0[i, i])
+        d[i] = -g[i]
+    info = lu_factor(N, piv, n)
+    if info == 0:
+        lu_solve(N, piv, d, n)
+    return info
+
+
+@inline_jit
+def _sumsq(G, q0, ylin, H, K, T, piv, q, y, nd, nb, hr):
     """``sum_b |y_b|^2`` at ``K`` (fills q, y; LU of I + G K in T); inf if singular."""
     if contact_solve(G, K, q0, T, piv, q, nd) != 0:
         return math.inf
     tot = 0.0
     for b in range(nb):
         acc = ylin[b]
-        for m in range(nd):
+        for m in range(hr[b, 0], hr[b, 1]):
             acc -= H[b, m] * K[m] * q[m]
         y[b] = acc
         tot += acc.real * acc.real + acc.imag * acc.imag
