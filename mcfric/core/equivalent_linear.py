@@ -174,11 +174,12 @@ def _quad_roots(a, b, c):
 
 @inline_jit
 def _edge_candidates(alpha, beta, d0, d1, z0, z1, want_max, b0, b1, best_val, best_z, pair,
-                     E):
+                     E, first):
     """Best ``M`` on the segment ``z0 -> z1``, exactly (see module docstring).
 
-    Updates and returns (best_val, best_z). ``pair``: also try pairwise crossings
-    (needed for the minimum only). ``E``: scratch, shape (>= 6, nb).
+    Updates and returns (best_val, best_z, b): ``b`` the beam that ruled the edge out
+    (else ``first``), tried ``first`` on the next edge. ``pair``: the minimum (also
+    pairwise crossings). ``E``: scratch, shape (>= 5, nb).
     """
     dz = z1 - z0
     den0 = d0 + d1 * z0
@@ -187,11 +188,14 @@ def _edge_candidates(alpha, beta, d0, d1, z0, z1, want_max, b0, b1, best_val, be
     c1 = 2.0 * (den0.real * den1.real + den0.imag * den1.imag)
     c2 = den1.real * den1.real + den1.imag * den1.imag
     # |y_b|^2 |den|^2 along the edge is a2 t^2 + a1 t + a0 (rows 0-2), its stationary
-    # points are rows 3-4; row 5 flags (1.0) the beams that come below the best value on
-    # this edge: a crossing of two beams can lower M only if both do, and most pairs are
-    # skipped (the 1e-6 margin covers the rounding of the quadratic forms)
+    # points are rows 3-4. For the minimum (``pair``) a beam that stays above the best
+    # value along the whole edge rules the edge out (M >= |y_b|): the edge ends there
+    # (the 1e-6 margin covers the rounding of the quadratic forms), and so every beam
+    # left comes below it: each pair's crossings are candidates
     lim = best_val * best_val * (1.0 + 1e-6)
-    for b in range(b0, b1):
+    n = b1 - b0
+    for i in range(n):
+        b = b0 + (first - b0 + i) % n
         A = alpha[b] + beta[b] * z0
         B = beta[b] * dz
         a0 = A.real * A.real + A.imag * A.imag
@@ -208,7 +212,9 @@ def _edge_candidates(alpha, beta, d0, d1, z0, z1, want_max, b0, b1, best_val, be
             for t in (r1, r2):
                 if t > 0.0 and t < 1.0:
                     emin = min(emin, (a0 + t * (a1 + t * a2)) / (c0 + t * (c1 + t * c2)))
-            E[5, b] = 0.0 if emin >= lim else 1.0
+            if emin >= lim:
+                # M >= |y_b| >= best on the whole edge: nothing here can lower it
+                return best_val, best_z, b
     for b in range(b0, b1):
         a0 = E[0, b]
         a1 = E[1, b]
@@ -230,10 +236,8 @@ def _edge_candidates(alpha, beta, d0, d1, z0, z1, want_max, b0, b1, best_val, be
                 if v < best_val:
                     best_val = v
                     best_z = z
-        if pair and E[5, b] != 0.0:
+        if pair:
             for c in range(b + 1, b1):
-                if E[5, c] == 0.0:
-                    continue
                 s1, s2 = _quad_roots(E[2, c] - a2, E[1, c] - a1, E[0, c] - a0)
                 for t in (s1, s2):
                     if t > 0.0 and t < 1.0:
@@ -244,7 +248,7 @@ def _edge_candidates(alpha, beta, d0, d1, z0, z1, want_max, b0, b1, best_val, be
                         if v < best_val:
                             best_val = v
                             best_z = z
-    return best_val, best_z
+    return best_val, best_z, first
 
 
 @inline_jit
@@ -444,10 +448,11 @@ def _best_on_rectangle(alpha, beta, d0, d1, kr, ki, want_max, z_now, b0, b1, int
         if (v > best_val) if want_max else (v < best_val):
             best_val = v
             best_z = z
+    first = b0
     for c in range(4):
-        best_val, best_z = _edge_candidates(alpha, beta, d0, d1, corners[c],
-                                            corners[(c + 1) % 4], want_max, b0, b1,
-                                            best_val, best_z, not want_max, E)
+        best_val, best_z, first = _edge_candidates(alpha, beta, d0, d1, corners[c],
+                                                   corners[(c + 1) % 4], want_max, b0, b1,
+                                                   best_val, best_z, not want_max, E, first)
     if want_max or not interior:
         return best_val, best_z
     # interior: the weighted 1-centre in w (exact; none inside: the perimeter has it)
@@ -949,7 +954,7 @@ def _workspace(nd, nb, hr, gr):
     return (np.zeros((nd, nd), c16), np.zeros((nd, nd), c16), np.zeros(nd, np.int64),
             np.zeros(nd, c16), np.zeros(nb, c16), np.zeros(nd, c16), np.zeros(nb, c16),
             np.zeros(nb, c16), np.zeros(nd, c16), np.zeros(nd, c16), np.zeros(nb),
-            np.zeros((6, nb)), hr.copy(), gr.copy(), _is_tridiagonal(gr, nd),
+            np.zeros((5, nb)), hr.copy(), gr.copy(), _is_tridiagonal(gr, nd),
             np.zeros(nd, c16), np.zeros(nd, c16))
 
 
