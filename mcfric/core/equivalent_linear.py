@@ -36,7 +36,7 @@ damper) and with ensembles and random searches (seven dampers).
 import math
 
 import numpy as np
-from numba import prange
+from numba import parallel_chunksize, prange
 
 from ._jit import inline_jit, jit
 from .linalg import contact_solve, lu_factor, lu_solve
@@ -1300,8 +1300,11 @@ def box_extreme(G, q0, ylin, H, kr, ki, starts, want_max, cap=None, max_sweeps=2
     prev_best = best.copy()
     ran = np.zeros((2, n_o, n_f), dtype=np.bool_)
     for r in range(rounds):
-        _propagate(G, q0, ylin, H, hr, gr, kr, ki, want_max, objectives, cap, max_sweeps,
-                   EXPLORE_TOL, best, K_best, cand, K_cand, r == 0, prev_best, ran)
+        # the chains' costs differ (beams at their force bound stop early): handed out one
+        # at a time, not in a contiguous block per thread
+        with parallel_chunksize(1):
+            _propagate(G, q0, ylin, H, hr, gr, kr, ki, want_max, objectives, cap, max_sweeps,
+                       EXPLORE_TOL, best, K_best, cand, K_cand, r == 0, prev_best, ran)
         prev_best[...] = best
         any_better = False
         for o in range(n_o):
