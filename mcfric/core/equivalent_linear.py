@@ -395,7 +395,7 @@ def _one_centre(E, b0, b1):
     return math.nan, math.nan
 
 
-@inline_jit
+@jit
 def _interior_min(alpha, beta, d0, d1, kr, ki, b0, b1, E):
     """The minimum of ``M`` over the rectangle's interior, exactly, if it lies inside.
 
