@@ -24,8 +24,8 @@ Structure used (why a coordinate search is exact per coordinate):
   three beams active) is found by an Elzinga-Hearn iteration and kept if it maps back
   inside the rectangle.
 * On a chain of beams G is tridiagonal and each row of H has two dampers: the searches
-  skip the exact zeros (:func:`_sparsity`) and the smoothed gradient solves by an O(nd)
-  elimination.
+  skip the exact zeros (:func:`_sparsity`), and the coordinate search and the smoothed
+  gradient solve by O(nd) eliminations; reported values are recomputed with pivoted LU.
 
 Across dampers the problem is not convex: each search is run from many starts (uniform
 corners, the centre, random corners and interior points) and the extreme value over all
@@ -39,7 +39,7 @@ import numpy as np
 from numba import parallel_chunksize, prange
 
 from ._jit import inline_jit, jit
-from .linalg import contact_solve, lu_factor, lu_solve
+from .linalg import contact_solve, lm_solve, lu_factor, lu_solve
 
 _TINY = 1e-300
 
@@ -66,11 +66,10 @@ def _factor_inverse(G, K, Tinv, T, piv, nd):
 
 @inline_jit
 def _refresh(G, q0, ylin, H, K, Tinv, T, piv, q, y, nd, b0, b1, hr, tri):
-    """``q = (I + G diag(K))^-1 q0`` and ``y = y_lin - H (K q)`` for the beams b0..b1-1
-    (``hr``: the dampers each beam's row of H can be nonzero for, see
-    :func:`_sparsity`). With ``tri`` by the chain elimination (factors left in ``T``),
-    else, or at a tiny pivot, by the inverse ``Tinv``. Returns 1 (chain), 0 (inverse) or
-    -1 (singular)."""
+    """``q = (I + G diag(K))^-1 q0`` and ``y`` (:func:`_outputs`). With ``tri`` by the
+    chain elimination (factors left in ``T``), else, or at a tiny pivot, by the inverse
+    ``Tinv`` (kept for the search's updates). Returns 1 (chain), 0 (inverse) or -1
+    (singular)."""
     mode = 1 if tri and _tri_factor(G, K, T, nd) else 0
     if mode == 1:
         for i in range(nd):
@@ -84,12 +83,32 @@ def _refresh(G, q0, ylin, H, K, Tinv, T, piv, q, y, nd, b0, b1, hr, tri):
             for m in range(nd):
                 acc += Tinv[i, m] * q0[m]
             q[i] = acc
+    _outputs(ylin, H, K, q, y, b0, b1, hr)
+    return mode
+
+
+@inline_jit
+def _contact_q(G, K, q0, T, piv, q, nd, tri):
+    """``q = (I + G diag(K))^-1 q0``: by the chain elimination if ``tri`` (factors left
+    in ``T``), else, or at a tiny pivot, by LU with pivoting. Returns 1 (chain), 0 (LU)
+    or -1 (singular)."""
+    if tri and _tri_factor(G, K, T, nd):
+        for i in range(nd):
+            q[i] = q0[i]
+        _tri_solve(T, q, nd)
+        return 1
+    return 0 if contact_solve(G, K, q0, T, piv, q, nd) == 0 else -1
+
+
+@inline_jit
+def _outputs(ylin, H, K, q, y, b0, b1, hr):
+    """``y_b = y_lin_b - (H diag(K) q)_b`` for the beams b0..b1-1 (``hr``: the dampers
+    each beam's row of H can be nonzero for, see :func:`_sparsity`)."""
     for b in range(b0, b1):
         acc = ylin[b]
         for m in range(hr[b, 0], hr[b, 1]):
             acc -= H[b, m] * K[m] * q[m]
         y[b] = acc
-    return mode
 
 
 @inline_jit
@@ -540,7 +559,7 @@ def _search(G, q0, ylin, H, kr, ki, K, want_max, b0, b1, max_sweeps, tol, w):
             break                   # converged: a refresh would reproduce the same state
         if want_max:
             # (for the minimum measured worse: lower bound 0.06 % higher on average)
-            _pattern_move(G, q0, ylin, H, kr, ki, K, K0, Kt, best, want_max, b0, b1, w)
+            _pattern_move(G, q0, ylin, H, kr, ki, K, K0, Kt, best, b0, b1, w)
         # refresh: Sherman-Morrison updates accumulate rounding
         tri = _refresh(G, q0, ylin, H, K, Tinv, T, piv, q, y, nd, b0, b1, hr, tri == 1)
         if tri < 0:
@@ -553,10 +572,10 @@ def _search(G, q0, ylin, H, kr, ki, K, want_max, b0, b1, max_sweeps, tol, w):
 
 
 @jit
-def _pattern_move(G, q0, ylin, H, kr, ki, K, K0, Kt, best, want_max, b0, b1, w):
-    """Hooke-Jeeves pattern move after a sweep: along the sweep's displacement
-    ``K - K0``, steps 1, 2, 4, ... (projected on the box) while M improves; ``K`` takes
-    the best. On a resonance ridge (many dampers tuned together) a coordinate sweep
+def _pattern_move(G, q0, ylin, H, kr, ki, K, K0, Kt, best, b0, b1, w):
+    """Hooke-Jeeves pattern move of the maximum after a sweep: along the sweep's
+    displacement ``K - K0``, steps 1, 2, 4, ... (projected on the box) while M grows;
+    ``K`` takes the best. On a resonance ridge (many dampers tuned together) a coordinate sweep
     advances little and in the same direction each time: this takes the long step.
     Clobbers the search state (the caller refreshes it)."""
     T, piv, q, y = w[1], w[2], w[3], w[4]
@@ -569,19 +588,11 @@ def _pattern_move(G, q0, ylin, H, kr, ki, K, K0, Kt, best, want_max, b0, b1, w):
         for j in range(nd):
             z = K[j] + t * (K[j] - K0[j])
             Kt[j] = complex(min(max(z.real, 0.0), kr), min(max(z.imag, 0.0), ki))
-        if w[14] and _tri_factor(G, Kt, T, nd):
-            for i in range(nd):
-                q[i] = q0[i]
-            _tri_solve(T, q, nd)
-        elif contact_solve(G, Kt, q0, T, piv, q, nd) != 0:
+        if _contact_q(G, Kt, q0, T, piv, q, nd, w[14]) < 0:
             break
-        for b in range(b0, b1):
-            acc = ylin[b]
-            for m in range(hr[b, 0], hr[b, 1]):
-                acc -= H[b, m] * Kt[m] * q[m]
-            y[b] = acc
+        _outputs(ylin, H, Kt, q, y, b0, b1, hr)
         v = _objective(y, b0, b1)
-        if not ((v > v_best) if want_max else (v < v_best)):
+        if not (v > v_best):
             break
         v_best = v
         t_best = t
@@ -602,12 +613,8 @@ def _smooth_max(G, q0, ylin, H, K, mu, b0, b1, grad, w):
     nd = K.shape[0]
     # a chain: O(nd) elimination; else (or at a tiny pivot) LU with pivoting. Only the
     # search path depends on this: values are taken from the coordinate search's own
-    tri = w[14] and _tri_factor(G, K, T, nd)
-    if tri:
-        for i in range(nd):
-            q[i] = q0[i]
-        _tri_solve(T, q, nd)
-    elif contact_solve(G, K, q0, T, piv, q, nd) != 0:
+    mode = _contact_q(G, K, q0, T, piv, q, nd, w[14])
+    if mode < 0:
         return math.inf, math.inf
     lmax = -math.inf
     for b in range(b0, b1):
@@ -638,7 +645,7 @@ def _smooth_max(G, q0, ylin, H, K, mu, b0, b1, grad, w):
     # solve (I + diag(K) G) s = r o K by the transpose of the LU of I + G diag(K)
     for m in range(nd):
         u[m] = r[m] * K[m]
-    if tri:
+    if mode == 1:
         _tri_solve_transposed(T, u, nd)
     else:
         _lu_solve_transposed(T, piv, u, nd)
@@ -889,7 +896,8 @@ def _lsq_valley(G, q0, ylin, H, kr, ki, K, w, n_iter=40):
                 N0[j, i] = acc
         improved = False
         for _ in range(12):
-            if _lm_step(N0, g, lam, N, rpiv, d, n) != 0:
+            N[:, :] = N0
+            if lm_solve(N, g, lam, rpiv, d, n) != 0:
                 lam *= 10.0
                 continue
             for j in range(nd):
@@ -913,22 +921,6 @@ def _lsq_valley(G, q0, ylin, H, kr, ki, K, w, n_iter=40):
     # T, q, y belong to the last trial: restore them at K
     phi = _sumsq(G, q0, ylin, H, K, T, piv, q, y, nd, nb, hr)
     return _objective(y, 0, nb) if math.isfinite(phi) else math.nan
-
-
-@inline_jit
-def _lm_step(N0, g, lam, N, piv, d, n):
-    """Levenberg-Marquardt step ``(N0 + lam (I + diag(N0))) d = -g`` with ``N0 = A^T A``
-    (as :func:`mcfric.core.linalg.lm_step`, the normal matrix formed once by the caller).
-    Returns the info code of :func:`lu_factor`."""
-    for i in range(n):
-        for j in range(n):
-            N[i, j] = N0[i, j]
-        N[i, i] += lam * (1.0 + N0[i, i])
-        d[i] = -g[i]
-    info = lu_factor(N, piv, n)
-    if info == 0:
-        lu_solve(N, piv, d, n)
-    return info
 
 
 @inline_jit
@@ -1100,7 +1092,7 @@ def _propagate(G, q0, ylin, H, hr, gr, kr, ki, want_max, objectives, cap, max_sw
     ``_SAME``) would repeat the previous round's search, so its ``cand``/``K_cand`` are
     kept.
     """
-    # chains interleaved by direction: numba gives each thread a contiguous block
+    # chains interleaved by direction (the caller hands them out one at a time)
     for t in prange(2 * objectives.shape[0]):
         _chain(t % 2, t // 2, G, q0, ylin, H, hr, gr, kr, ki, want_max, objectives, cap, max_sweeps,
                tol, best, K_best, cand, K_cand, first, prev_best, ran)

@@ -87,6 +87,15 @@ def lm_step(A, g, lam, N, piv, d, m, n):
             for k in range(m):
                 acc += A[k, i] * A[k, j]
             N[i, j] = acc
+    return lm_solve(N, g, lam, piv, d, n)
+
+
+@inline_jit
+def lm_solve(N, g, lam, piv, d, n):
+    """Solve ``(N + lam (I + diag(N))) d = -g`` for the normal matrix ``N = A^T A``,
+    which is damped and factorised in place (a caller trying several ``lam`` forms N
+    once and copies it). Returns the info code of :func:`lu_factor`."""
+    for i in range(n):
         N[i, i] += lam * (1.0 + N[i, i])
         d[i] = -g[i]
     info = lu_factor(N, piv, n)
