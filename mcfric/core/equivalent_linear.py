@@ -1066,41 +1066,29 @@ def _multistart(G, q0, ylin, H, hr, gr, kr, ki, starts, want_max, objectives, ca
                 _keep_if_better(v, K, best, K_best, o, k, want_max)
 
 
-#: Relative change below which a continuation round treats a value or a describing
-#: function (relative to the box) as unchanged and does not repeat the search after it.
-_SAME = 1e-9
-
-
-@inline_jit
-def _same(v, ref):
-    """``v`` equals ``ref`` within ``_SAME`` (relative); both NaN counts as equal."""
-    if math.isnan(v) or math.isnan(ref):
-        return math.isnan(v) and math.isnan(ref)
-    return abs(v - ref) <= _SAME * abs(ref)
-
-
 @jit(parallel=True, nogil=True)
 def _propagate(G, q0, ylin, H, hr, gr, kr, ki, want_max, objectives, cap, max_sweeps, tol, best,
-               K_best, cand, K_cand, first, prev_best, ran):
+               K_best, cand, K_cand, first, ran):
     """Phase 2: continuation along frequency, upward (d = 0) and downward (d = 1), one
     chain per direction and objective, in parallel; each frequency starts from the
     neighbour's best and keeps what improves.
 
-    Later rounds (``first`` False) recompute only where something changed: a frequency
-    whose own best (``prev_best``: the previous round's), whose decision to search
-    (``ran``) and whose neighbour's result are those of the previous round (within
-    ``_SAME``) would repeat the previous round's search, so its ``cand``/``K_cand`` are
-    kept.
+    Later rounds (``first`` False) search only where the start changed: where the
+    decision to search (``ran``) and the neighbour's result (value and describing
+    functions, exactly) are those of the previous round, the search would repeat the
+    previous round's, whose value is no better than the previous candidate, itself no
+    better than ``best`` (the best of the candidates): the candidate is ``best``, without
+    searching.
     """
     # chains interleaved by direction (the caller hands them out one at a time)
     for t in prange(2 * objectives.shape[0]):
         _chain(t % 2, t // 2, G, q0, ylin, H, hr, gr, kr, ki, want_max, objectives, cap, max_sweeps,
-               tol, best, K_best, cand, K_cand, first, prev_best, ran)
+               tol, best, K_best, cand, K_cand, first, ran)
 
 
 @jit
 def _chain(d, o, G, q0, ylin, H, hr, gr, kr, ki, want_max, objectives, cap, max_sweeps, tol, best,
-           K_best, cand, K_cand, first, prev_best, ran):
+           K_best, cand, K_cand, first, ran):
     """One chain of :func:`_propagate`: direction ``d``, objective ``o``."""
     n_f, nd = q0.shape
     nb = ylin.shape[1]
@@ -1115,9 +1103,9 @@ def _chain(d, o, G, q0, ylin, H, hr, gr, kr, ki, want_max, objectives, cap, max_
         if run and want_max and (best[o, k] >= cap[k, o] or
                                  _irrelevant(best, cap, o, k, objectives.shape[0])):
             run = False         # at the force limit, or cannot set the bound
-        start_same = _same(best[o, k], prev_best[o, k])
-        if (not first and start_same and same_up and run and ran[d, o, k]):
-            continue            # same inputs as the previous round: same result
+        # the same start and decision as the previous round: the same search, no better
+        # than ``best``
+        repeat = not first and same_up and run and ran[d, o, k]
         v_old = cand[d, o, k]
         for j in range(nd):
             K_old[j] = K_cand[d, o, k, j]
@@ -1125,7 +1113,7 @@ def _chain(d, o, G, q0, ylin, H, hr, gr, kr, ki, want_max, objectives, cap, max_
         for j in range(nd):
             K_cand[d, o, k, j] = K_best[o, k, j]
         ran[d, o, k] = run
-        if run:
+        if run and not repeat:
             for j in range(nd):
                 K[j] = K_cand[d, o, kp, j]
             v = _improve(G[k], q0[k], ylin[k], H[k], kr, ki, K, want_max,
@@ -1134,11 +1122,10 @@ def _chain(d, o, G, q0, ylin, H, hr, gr, kr, ki, want_max, objectives, cap, max_
                 cand[d, o, k] = v
                 for j in range(nd):
                     K_cand[d, o, k, j] = K[j]
-        same_up = not first and _same(cand[d, o, k], v_old)
+        same_up = not first and cand[d, o, k] == v_old
         if same_up:
             for j in range(nd):
-                dK = K_cand[d, o, k, j] - K_old[j]
-                if abs(dK.real) > _SAME * kr or abs(dK.imag) > _SAME * ki:
+                if K_cand[d, o, k, j] != K_old[j]:
                     same_up = False
                     break
 
@@ -1289,15 +1276,13 @@ def box_extreme(G, q0, ylin, H, kr, ki, starts, want_max, cap=None, max_sweeps=2
     K_cand = np.empty((2, n_o, n_f, nd), complex)
     pick = np.nanargmax if want_max else np.nanargmin
     idx = np.arange(n_f)
-    prev_best = best.copy()
     ran = np.zeros((2, n_o, n_f), dtype=np.bool_)
     for r in range(rounds):
         # the chains' costs differ (beams at their force bound stop early): handed out one
         # at a time, not in a contiguous block per thread
         with parallel_chunksize(1):
             _propagate(G, q0, ylin, H, hr, gr, kr, ki, want_max, objectives, cap, max_sweeps,
-                       EXPLORE_TOL, best, K_best, cand, K_cand, r == 0, prev_best, ran)
-        prev_best[...] = best
+                       EXPLORE_TOL, best, K_best, cand, K_cand, r == 0, ran)
         any_better = False
         for o in range(n_o):
             c = cand[:, o]
