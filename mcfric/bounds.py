@@ -49,6 +49,12 @@ N_STARTS = 3
 #: stays about that of a 1000-point grid).
 MIN_TOTAL_STARTS = 3000
 MAX_SWEEPS = 20
+#: The maximum's exploring searches stop after half as many sweeps: on a resonance ridge
+#: a coordinate search crawls, and the gradient step of the continuation and the tight
+#: final search take over. Measured (eight beams, 1000 frequencies, 0.25 and 1.1 N):
+#: the upper bound within 1e-10 of 20 sweeps at 8, 10 and 12 sweeps (at 5: up to 4 %
+#: lower at 13 frequencies), about 7 % less time.
+MAX_SWEEPS_FRACTION_MAX = 0.5
 
 
 @dataclass
@@ -148,7 +154,8 @@ def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity
         the uniform corners K = 0 and K = k_max); the maximum, sought beam by beam, uses
         half as many per beam, at least the four uniform corners.
     max_sweeps : int
-        Coordinate sweeps per start.
+        Coordinate sweeps per start of the minimum (the maximum's: half as many,
+        ``MAX_SWEEPS_FRACTION_MAX``); the final tight searches take five times as many.
     seed : int
         Seed of the random starts (the bounds are deterministic for a given seed).
     n_threads : int, optional
@@ -187,8 +194,9 @@ def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity
     # Eq. 10 on the output of each beam: every damper at the force limit, worst phases
     force_beam = np.abs(ylin) + F_lim * np.abs(H).sum(axis=2)          # (n_f, nb)
     with threads(n_threads):
-        box_beam, K_beam = box_extreme(G, q0, ylin, H, kr, ki, starts_max, True,
-                                       cap=force_beam, max_sweeps=int(max_sweeps))
+        box_beam, K_beam = box_extreme(
+            G, q0, ylin, H, kr, ki, starts_max, True, cap=force_beam,
+            max_sweeps=max(1, round(MAX_SWEEPS_FRACTION_MAX * int(max_sweeps))))
         lower, K_lower = box_extreme(G, q0, ylin, H, kr, ki, starts_min, False,
                                      max_sweeps=int(max_sweeps))
     lower, K_lower = lower[0], K_lower[0]
