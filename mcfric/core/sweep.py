@@ -244,7 +244,7 @@ def sweep_chain(rec, force, a, b, omega, mu0, N0, kc, tol, max_iter,
 # The prange bodies live in plain jitted functions: numba's parfor passes then see a
 # small loop body, which keeps the compile time down.
 
-@jit
+@jit(fastmath=batch.FASTMATH)
 def _chain_batch(g, rec, force, a, b, W, mu0, N0, kc, tol, max_iter,
                  y, s, status, iterations, residual):
     """Samples ``g * LANES ...`` of :func:`sweep_chain`, all frequencies."""
