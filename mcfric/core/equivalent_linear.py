@@ -732,19 +732,24 @@ _SPG_ITER_CONTINUATION = 12
 #: a step is accepted against the worst of the last ``_GLL`` values, so the spectral
 #: (Barzilai-Borwein) step is rarely cut back.
 _GLL = 8
+#: Smoothing of a last stage of :func:`_spg` in the minimum's final search (``fine``): the
+#: smoothed max of log|y_b| exceeds the max by up to ``mu log(n_beams)``, so where several
+#: beams are equal at the minimum (coordinate searches stall there) the smoothing sets
+#: how close the search comes to it.
+_MU_FINE = 0.0001
 
 
 @jit
-def _spg(G, q0, ylin, H, kr, ki, K, sign, b0, b1, w, max_iter=_SPG_ITER):
+def _spg(G, q0, ylin, H, kr, ki, K, sign, b0, b1, w, max_iter=_SPG_ITER, fine=False):
     """Spectral projected gradient on ``sign`` times a smoothed max of ``log|y_b|``
     (sign = 1: the minimum of M; sign = -1: the maximum).
 
     Coordinate searches move one damper at a time: they stall where beams are equal (a
     ridge of the minimum) and crawl along resonance ridges, where the best direction
     moves several dampers together (the maximum). A joint gradient step does not. The
-    smoothing ``mu`` is reduced in stages of at most ``max_iter`` iterations; the line
-    search is nonmonotone (``_GLL``), so the best point evaluated (by M itself) is the
-    one returned. Returns M at ``K``.
+    smoothing ``mu`` is reduced in stages of at most ``max_iter`` iterations (with
+    ``fine``, a last one at ``_MU_FINE``); the line search is nonmonotone (``_GLL``), so
+    the best point evaluated (by M itself) is the one returned. Returns M at ``K``.
     """
     nd = K.shape[0]
     g = np.zeros(nd, dtype=np.complex128)
@@ -759,7 +764,9 @@ def _spg(G, q0, ylin, H, kr, ki, K, sign, b0, b1, w, max_iter=_SPG_ITER):
         x[j] = complex(K[j].real / kr, K[j].imag / ki)
         x_best[j] = x[j]
     l_best = math.nan                           # sign * log M at x_best
-    for mu in (0.01, 0.002):
+    for mu in (0.01, 0.002, _MU_FINE if fine else 0.0):
+        if mu == 0.0:
+            break
         for j in range(nd):
             K[j] = complex(kr * x[j].real, ki * x[j].imag)
         f, lm = _smooth_max(G, q0, ylin, H, K, mu, b0, b1, g, w)
@@ -850,15 +857,14 @@ def _lsq_valley(G, q0, ylin, H, kr, ki, K, w, n_iter=40):
     d = np.empty(n)
     rpiv = np.empty(n, dtype=np.int64)
     Kt = np.empty(nd, dtype=np.complex128)
-    scale = np.empty(n)
-    for j in range(nd):
-        scale[2 * j] = kr
-        scale[2 * j + 1] = ki
-    lam = 1e-3
     hr = w[12]
     phi = _sumsq(G, q0, ylin, H, K, T, piv, q, y, nd, nb, hr)
     if not math.isfinite(phi):
         return math.nan
+    # the damping in the units of A^T A (m^2, like phi): an absolute lam (responses
+    # ~1e-6 m) made the first ~15 steps plain gradient steps of negligible length
+    lam_unit = phi
+    lam = 1e-3 * lam_unit
     for it in range(n_iter):
         # Jacobian dy_b/dK_j = -q_j (H_bj - (H diag(K) (I + G K)^-1 G)_bj); T holds the LU
         for j in range(nd):
@@ -915,7 +921,7 @@ def _lsq_valley(G, q0, ylin, H, kr, ki, K, w, n_iter=40):
             K[j] = Kt[j]
         conv = phi - phit <= 1e-12 * phi
         phi = phit
-        lam = max(lam / 3.0, 1e-12)
+        lam = max(lam / 3.0, 1e-12 * lam_unit)
         if conv:
             break
     # T, q, y belong to the last trial: restore them at K
@@ -984,7 +990,8 @@ def _improve(G, q0, ylin, H, kr, ki, K, want_max, objective, max_sweeps, tol, w,
     nd = K.shape[0]
     K2 = K.copy()
     v2 = _spg(G, q0, ylin, H, kr, ki, K2, -1.0 if want_max else 1.0, b0, b1, w,
-              _SPG_ITER if want_max or polish_sweeps > 0 else _SPG_ITER_CONTINUATION)
+              _SPG_ITER if want_max or polish_sweeps > 0 else _SPG_ITER_CONTINUATION,
+              not want_max and polish_sweeps > 0)
     if math.isfinite(v2):
         v2 = _search(G, q0, ylin, H, kr, ki, K2, want_max, b0, b1, max_sweeps, tol, w)
         if (v2 > v) if want_max else (v2 < v):
