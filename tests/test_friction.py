@@ -1,9 +1,12 @@
 """Describing function identities (physics.md section 2) against the plain formulas in naive.py."""
 
+import math
+
+import numba
 import numpy as np
 import pytest
 
-from mcfric.core.friction import describing_function, describing_function_derivative
+from mcfric.core.friction import describing_function, describing_function_derivative, log_normal
 
 from . import naive
 
@@ -57,3 +60,39 @@ def test_dissipation_and_stiffness_signs():
     K = describing_function(s, KC)
     assert np.all(K.real >= 0) and np.all(K.imag >= 0)
     assert np.all(K.real <= KC * (1 + 1e-15)) and np.all(K.imag <= KC)
+
+
+@numba.njit
+def _log_normal_all(x, out):
+    for i in range(x.size):
+        out[i] = log_normal(x[i])
+
+
+@numba.njit
+def _libm_log_all(x, out):
+    for i in range(x.size):
+        out[i] = math.log(x[i])
+
+
+def test_log_normal_within_one_ulp_of_libm():
+    """The branch-free log of the two-beam kernel over the whole normal range, its ends,
+    the mantissa's split at sqrt(2), and around 1 (where log cancels)."""
+    rng = np.random.default_rng(0)
+    tiny, huge = np.finfo(float).tiny, np.finfo(float).max
+    x = np.concatenate([
+        np.exp(rng.uniform(np.log(tiny), np.log(huge), 2_000_000)),
+        np.linspace(0.5, 2.0, 2_000_001),                        # one binade and more, densely
+        1.0 + np.linspace(-1e-6, 1e-6, 200_001),
+        np.nextafter(1.0, 0.0) ** np.arange(1, 100), np.nextafter(1.0, 2.0) ** np.arange(1, 100),
+        np.sqrt(2.0) * (1 + np.linspace(-1e-12, 1e-12, 20_001)),
+        np.ldexp(1.0, np.arange(-1022, 1024)), np.ldexp(np.sqrt(2.0), np.arange(-1022, 1023)),
+        [tiny, np.nextafter(tiny, 1.0), huge, np.nextafter(huge, 0.0), 1.0, 2.0, 0.5]])
+    ours = np.empty_like(x)
+    _log_normal_all(x, ours)
+    ref = np.empty_like(x)
+    _libm_log_all(x, ref)
+    assert ours[x == 1.0].max() == 0.0 == ours[x == 1.0].min()
+    nz = ref != 0.0
+    ulp = np.abs(ours[nz] - ref[nz]) / np.spacing(np.abs(ref[nz]))
+    assert ulp.max() <= 1.0
+    assert np.mean(ours != ref) < 0.1

@@ -59,12 +59,16 @@ from .linalg import LANES
 from .newton import (CONVERGED, CONVERGED_LM, CONVERGED_RESTART, NOT_CONVERGED,
                      bracket_scalar, levenberg_marquardt, newton, newton_scalar,
                      workspace)
+from .friction import MIN_NORMAL, log_normal
 from .receptance import D11, D13, D21, D23
 
 #: Points of the frequency sweep the warm start extrapolates from (a cubic: the median
 #: error of log s falls from 3e-4 (linear) to 3e-5 (quadratic) to 4e-6 (cubic) on the
 #: eight-beam rig at 0.14 Hz steps, measured).
 N_PREDICT = 4
+
+#: Samples per batch of the one-damper kernel (two SIMD vectors of four doubles).
+ONE_LANES = 8
 
 # Index rec and y in full, never through views such as rec[r, k]: a view's refcount is
 # shared by all threads, and its atomic updates stopped the prange from scaling.
@@ -454,81 +458,153 @@ def _dense_sample(i, rec, force, a, b, W, mu0, N0, kc, tol, max_iter,
 @jit(parallel=True, nogil=True)
 def sweep_one_damper(rec, force, a, b, omega, mu0, N0, kc, tol, max_iter,
                      y, s, status, iterations, residual):
-    """Harmonic balance of two beams and one damper: scalar Newton (~2x the general path)."""
+    """Harmonic balance of two beams and one damper: scalar Newton (~2x the general path),
+    ``ONE_LANES`` samples per batch (see :func:`_one_damper_batch`)."""
     W = predict_weights(omega)
-    for i in prange(mu0.shape[0]):
-        _one_damper_sample(i, rec, force, a, b, W, mu0, N0, kc, tol, max_iter,
-                           y, s, status, iterations, residual)
+    n_batches = (mu0.shape[0] + ONE_LANES - 1) // ONE_LANES
+    for g in prange(n_batches):
+        _one_damper_batch(g, rec, force, a, b, W, mu0, N0, kc, tol, max_iter,
+                          y, s, status, iterations, residual)
 
 
-@jit
-def _one_damper_sample(i, rec, force, a, b, W, mu0, N0, kc, tol, max_iter,
-                       y, s, status, iterations, residual):
-    """Sample ``i`` of :func:`sweep_one_damper`, all frequencies."""
+# Rows of the lane scratch P (n, ONE_LANES) of _one_damper_batch: per sample kc (N/m),
+# c = log(mu0 N0 / kc), e^c (m); per point the warm start x0 = log s, G and q0 (real and
+# imaginary parts, m/N and m), and the stuck candidate's q (m), log s and s, and whether
+# it is the solution (1.0 or 0.0).
+_KC, _C, _EC, _X0, _GR, _GI, _Q0R, _Q0I, _QR, _QI, _XS, _SS, _STK = range(13)
+
+
+@jit(fastmath={"nsz"})
+def _one_damper_batch(g, rec, force, a, b, W, mu0, N0, kc, tol, max_iter,
+                      y, s, status, iterations, residual):
+    """Samples ``g * ONE_LANES ...`` of :func:`sweep_one_damper`, all frequencies.
+
+    Most points are stuck and predicted stuck (86 % of the two-beam benchmark): then the
+    stuck state ``K = kc`` is the exact solution, found with one complex division and one
+    log. That candidate is formed for all lanes in one branch-free loop, which LLVM turns
+    into SIMD code (:func:`mcfric.core.friction.log_normal` instead of a libm call per
+    point); every other point runs the scalar Newton of :func:`newton_scalar` as before.
+    Lanes never exchange values. Only ``nsz`` fastmath (signed zeros): it lets LLVM
+    vectorise the loop and leaves every other result bitwise as without it.
+    """
+    n_s = mu0.shape[0]
     n_r = rec.shape[0]
     n_f = W.shape[1]
     n_beams = force.shape[0]
     ia = a[0]
     ib = b[0]
-    r = 0
-    if n_r > 1:
-        r = np.int64(i)
-    active, c, s_off = _damper_constants(mu0, N0, kc, i, 0)
-    kci = kc[i, 0]
+    L = ONE_LANES
+    n_l = min(L, n_s - g * L)
+    P = np.zeros((13, L))
+    active = np.zeros(L, dtype=np.bool_)
+    s_off = np.zeros(L)
+    rl = np.zeros(L, dtype=np.int64)
     # log s at the last N_PREDICT converged frequencies, newest first
-    xh = np.zeros(N_PREDICT)
-    have = 0
+    xh = np.zeros((N_PREDICT, L))
+    have = np.zeros(L, dtype=np.int64)
+    for l in range(n_l):
+        i = g * L + l
+        if n_r > 1:
+            rl[l] = i
+        active[l], c, s_off[l] = _damper_constants(mu0, N0, kc, i, 0)
+        P[_KC, l] = kc[i, 0]
+        P[_C, l] = c
+        P[_EC, l] = math.exp(c)     # once per sample, not per stuck point
     for k in range(n_f):
-        g = rec[r, k, D11, ia] + rec[r, k, D11, ib]
-        q0 = _q0(rec, r, k, force, a, b, 0)
-        st = CONVERGED
-        its = 0
-        ok = True
-        K = 0.0j
-        q = q0
-        f = 0.0
-        ss = s_off
-        if active:
+        for l in range(n_l):
+            r = rl[l]
+            gg = rec[r, k, D11, ia] + rec[r, k, D11, ib]
+            q0 = _q0(rec, r, k, force, a, b, 0)
+            P[_GR, l] = gg.real
+            P[_GI, l] = gg.imag
+            P[_Q0R, l] = q0.real
+            P[_Q0I, l] = q0.imag
             # W[have, k, m] is 0 for m >= have, where the history holds 0
+            h = have[l]
             x0 = 0.0
             for m in range(N_PREDICT):
-                x0 += W[have, k, m] * xh[m]
-            if not math.isfinite(x0):
-                x0 = 0.0
-            ok, its, xs, ss, q, K, f = newton_scalar(x0, kci, c, g, q0, tol, max_iter)
-            if not ok:
-                st = CONVERGED_RESTART
-                ok, its2, xs, ss, q, K, f = newton_scalar(0.0, kci, c, g, q0, tol, max_iter)
-                its += its2
-                if not ok:
-                    st = CONVERGED_LM
-                    ok, its2, xs, ss, q, K, f = bracket_scalar(kci, c, g, q0, tol)
-                    its += its2
-            if ok:
-                for m in range(N_PREDICT - 1, 0, -1):
-                    xh[m] = xh[m - 1]
-                xh[0] = xs
-                have = min(have + 1, N_PREDICT)
+                x0 += W[h, k, m] * xh[m, l]
+            P[_X0, l] = x0 if math.isfinite(x0) else 0.0
+        # the stuck candidate of every lane, branch-free: q = q0 / (1 + G kc) and its
+        # log s = c - log|q|, the same operations as _scalar_eval at x >= 0
+        for l in range(L):
+            kcl = P[_KC, l]
+            dr = 1.0 + P[_GR, l] * kcl
+            di = P[_GI, l] * kcl
+            rr = 1.0 / (dr * dr + di * di)
+            vr = dr * rr
+            vi = -di * rr
+            qr = P[_Q0R, l] * vr - P[_Q0I, l] * vi
+            qi = P[_Q0R, l] * vi + P[_Q0I, l] * vr
+            q2 = qr * qr + qi * qi
+            t = P[_C, l] - 0.5 * log_normal(q2)
+            P[_QR, l] = qr
+            P[_QI, l] = qi
+            P[_XS, l] = t
+            P[_SS, l] = P[_EC, l] / math.sqrt(q2)
+            # log_normal needs a normal q2; a lane failing a test takes the scalar path
+            ok = (P[_X0, l] >= 0.0) & (t >= 0.0) & (q2 >= MIN_NORMAL) & (q2 < math.inf)
+            P[_STK, l] = 1.0 if ok else 0.0
+        for l in range(n_l):
+            i = g * L + l
+            r = rl[l]
+            st = CONVERGED
+            its = 0
+            ok = True
+            K = 0.0j
+            f = 0.0
+            ss = s_off[l]
+            xs = 0.0
+            if active[l] and P[_STK, l] != 0.0:
+                # stuck and consistent: the exact root newton_scalar would return at once
+                K = complex(P[_KC, l], 0.0)
+                q = complex(P[_QR, l], P[_QI, l])
+                ss = P[_SS, l]
+                xs = P[_XS, l]
             else:
-                have = 0
-                for m in range(N_PREDICT):
-                    xh[m] = 0.0
-        iterations[i, k] = min(its, 32767)
-        res = _abs_expm1(f)
-        residual[i, k] = res if math.isfinite(res) else math.inf
-        if not ok:
-            status[i, k] = NOT_CONVERGED
+                q = complex(P[_Q0R, l], P[_Q0I, l])
+                if active[l]:
+                    gg = complex(P[_GR, l], P[_GI, l])
+                    q0 = q
+                    kci = P[_KC, l]
+                    c = P[_C, l]
+                    ok, its, xs, ss, q, K, f = newton_scalar(P[_X0, l], kci, c, gg, q0, tol,
+                                                             max_iter)
+                    if not ok:
+                        st = CONVERGED_RESTART
+                        ok, its2, xs, ss, q, K, f = newton_scalar(0.0, kci, c, gg, q0, tol,
+                                                                  max_iter)
+                        its += its2
+                        if not ok:
+                            st = CONVERGED_LM
+                            ok, its2, xs, ss, q, K, f = bracket_scalar(kci, c, gg, q0, tol)
+                            its += its2
+            if active[l]:
+                if ok:
+                    for m in range(N_PREDICT - 1, 0, -1):
+                        xh[m, l] = xh[m - 1, l]
+                    xh[0, l] = xs
+                    have[l] = min(have[l] + 1, N_PREDICT)
+                else:
+                    have[l] = 0
+                    for m in range(N_PREDICT):
+                        xh[m, l] = 0.0
+            iterations[i, k] = min(its, 32767)
+            res = _abs_expm1(f)
+            residual[i, k] = res if math.isfinite(res) else math.inf
+            if not ok:
+                status[i, k] = NOT_CONVERGED
+                for bb in range(n_beams):
+                    y[i, k, bb] = complex(math.nan, math.nan)
+                s[i, k, 0] = math.nan
+                continue
+            status[i, k] = st
+            fj = -K * q
             for bb in range(n_beams):
-                y[i, k, bb] = complex(math.nan, math.nan)
-            s[i, k, 0] = math.nan
-            continue
-        status[i, k] = st
-        fj = -K * q
-        for bb in range(n_beams):
-            fb = 0.0j
-            if bb == ia:
-                fb += fj
-            if bb == ib:
-                fb -= fj
-            y[i, k, bb] = rec[r, k, D23, bb] * force[bb] + rec[r, k, D21, bb] * fb
-        s[i, k, 0] = ss
+                fb = 0.0j
+                if bb == ia:
+                    fb += fj
+                if bb == ib:
+                    fb -= fj
+                y[i, k, bb] = rec[r, k, D23, bb] * force[bb] + rec[r, k, D21, bb] * fb
+            s[i, k, 0] = ss
