@@ -10,7 +10,9 @@ samples.
 
 Three kernels, one per structure:
 
-* :func:`sweep_one_damper`: two beams, scalar Newton with a bracketing fallback;
+* :func:`sweep_one_damper`: two beams, ``ONE_LANES`` samples per batch: the stuck
+  candidate of all lanes in one SIMD loop (the exact solution at most points), scalar
+  Newton with a bracketing fallback for the rest;
 * :func:`sweep_chain`: a linear array, ``LANES`` samples in lockstep with O(nd) algebra
   (:mod:`mcfric.core.batch`);
 * :func:`sweep_dense`: any damper graph (rings), dense LU per sample.
@@ -510,11 +512,18 @@ def _one_damper_batch(g, rec, force, a, b, W, mu0, N0, kc, tol, max_iter,
         P[_KC, l] = kc[i, 0]
         P[_C, l] = c
         P[_EC, l] = math.exp(c)     # once per sample, not per stuck point
+    yf = np.zeros(n_beams, dtype=np.complex128)
     for k in range(n_f):
+        # a shared rig (n_r = 1): G, q0 and the drive's part of y once for all lanes
+        gg = rec[0, k, D11, ia] + rec[0, k, D11, ib]
+        q0 = _q0(rec, 0, k, force, a, b, 0)
+        for bb in range(n_beams):
+            yf[bb] = rec[0, k, D23, bb] * force[bb]
         for l in range(n_l):
-            r = rl[l]
-            gg = rec[r, k, D11, ia] + rec[r, k, D11, ib]
-            q0 = _q0(rec, r, k, force, a, b, 0)
+            if n_r > 1:
+                r = rl[l]
+                gg = rec[r, k, D11, ia] + rec[r, k, D11, ib]
+                q0 = _q0(rec, r, k, force, a, b, 0)
             P[_GR, l] = gg.real
             P[_GI, l] = gg.imag
             P[_Q0R, l] = q0.real
@@ -606,5 +615,7 @@ def _one_damper_batch(g, rec, force, a, b, W, mu0, N0, kc, tol, max_iter,
                     fb += fj
                 if bb == ib:
                     fb -= fj
-                y[i, k, bb] = rec[r, k, D23, bb] * force[bb] + rec[r, k, D21, bb] * fb
+                if n_r > 1:
+                    yf[bb] = rec[r, k, D23, bb] * force[bb]
+                y[i, k, bb] = yf[bb] + rec[r, k, D21, bb] * fb
             s[i, k, 0] = ss
