@@ -1,13 +1,13 @@
 """Kernel throughput against a per-point scipy fsolve loop, and numba compile times.
 
-Run: ``python bench/kernel.py [--samples N] [--threads T] [--skip-compile]``.
+Run: ``python bench/kernel.py [--samples N] [--threads T] [--repeat R] [--skip-compile]``.
 
 Everything is measured in this one run, so the ratios hold even though absolute times
 drift on a shared machine:
 
 * solves per second of ``mcfric.solve`` for the two- and eight-beam presets (paper's
-  distributions, 10-150 Hz, 1000 frequencies), best of 3 after compilation
-  and one untimed full-size call;
+  distributions, 10-150 Hz, 1000 frequencies), best of ``--repeat`` (default 5) after
+  compilation and one untimed full-size call;
 * the same solves done the paper's way, ``scipy.optimize.fsolve`` per point on
   ``s - s_out(s) = 0`` (warm-started along frequency, contact-space reduction so the
   baseline is not handicapped), timed on a subset;
@@ -44,7 +44,7 @@ def draw(model, n, seed):
     return rng.uniform(0, 1, (n, nd)), rng.uniform(0, KC_MAX, (n, nd))
 
 
-def kernel_rate(model, n_samples, threads):
+def kernel_rate(model, n_samples, threads, repeat=5):
     mu0, kc = draw(model, n_samples, 1)
     mcfric.solve(model, F[:8], mu0[:4], kc[:4], N0, n_threads=threads)  # compile / load
     # one untimed full-size call: the first large allocations of a fresh process land on
@@ -52,7 +52,7 @@ def kernel_rate(model, n_samples, threads):
     # over the first calls for two beams; the timed calls then see a process in steady state
     mcfric.solve(model, F, mu0, kc, N0, n_threads=threads)
     best = np.inf
-    for _ in range(3):
+    for _ in range(repeat):
         t = time.perf_counter()
         r = mcfric.solve(model, F, mu0, kc, N0, n_threads=threads)
         best = min(best, time.perf_counter() - t)
@@ -105,6 +105,10 @@ def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--samples", type=int, default=2000, help="ensemble size (default 2000)")
     p.add_argument("--threads", type=int, default=None, help="numba threads (default all)")
+    p.add_argument("--repeat", type=int, default=5,
+                   help="timed calls per preset, the fastest counts (default 5; a two-beam call "
+                        "takes ~0.1 s, so one slice of other load on this shared machine "
+                        "can halve a single measurement)")
     p.add_argument("--skip-compile", action="store_true", help="do not time compilation")
     args = p.parse_args(argv)
     import numba
@@ -114,7 +118,7 @@ def main(argv=None):
           f"{args.samples} samples x {len(F)} frequencies, 10-150 Hz")
     for preset, (n_fs, f_fs) in (("two-beam", (20, 50)), ("eight-beam", (5, 40))):
         model = mcfric.preset(preset)
-        rate, r = kernel_rate(model, args.samples, threads)
+        rate, r = kernel_rate(model, args.samples, threads, args.repeat)
         base, bad = fsolve_rate(model, n_fs, f_fs)
         results[preset] = {"kernel_solves_per_s": rate, "fsolve_solves_per_s": base,
                            "speedup": rate / base, "not_converged": r.n_not_converged,
