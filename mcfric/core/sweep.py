@@ -289,6 +289,7 @@ def _chain_batch(g, rec, force, a, b, W, mu0, N0, kc, tol, max_iter,
     act1 = np.zeros(nd, dtype=np.bool_)
     q01 = np.zeros(nd, dtype=np.complex128)
     fb = np.zeros(n_beams, dtype=np.complex128)
+    yf = np.zeros(n_beams, dtype=np.complex128)   # the drive's part of y, D23 F
     for l in range(LANES):
         i = g * LANES + l
         need[l] = i < n_s
@@ -303,19 +304,28 @@ def _chain_batch(g, rec, force, a, b, W, mu0, N0, kc, tol, max_iter,
         for l in range(LANES):
             if not need[l]:
                 continue
-            r = rl[l]
-            # damper j couples beams a_j = j and b_j = j + 1: read each beam's d11 and
-            # d13 F once (same products as _q0, so the same bits)
-            ua = rec[r, k, D13, 0] * force[0]
-            da = rec[r, k, D11, 0]
-            for j in range(nd):
-                ub = rec[r, k, D13, j + 1] * force[j + 1]
-                db = rec[r, k, D11, j + 1]
-                q0[j, l] = ua - ub
-                Gd[j, l] = da + db
-                Gu[j, l] = -db      # dampers j and j+1 share beam j+1 (last one unused)
-                ua = ub
-                da = db
+            if n_r > 1 or l == 0:   # lane 0 always holds a sample
+                r = rl[l]
+                # damper j couples beams a_j = j and b_j = j + 1: read each beam's d11
+                # and d13 F once (same products as _q0, so the same bits)
+                ua = rec[r, k, D13, 0] * force[0]
+                da = rec[r, k, D11, 0]
+                for j in range(nd):
+                    ub = rec[r, k, D13, j + 1] * force[j + 1]
+                    db = rec[r, k, D11, j + 1]
+                    q0[j, l] = ua - ub
+                    Gd[j, l] = da + db
+                    Gu[j, l] = -db  # dampers j and j+1 share beam j+1 (last one unused)
+                    ua = ub
+                    da = db
+                if n_r == 1:
+                    for bb in range(n_beams):
+                        yf[bb] = rec[0, k, D23, bb] * force[bb]
+            else:                   # a shared rig (n_r = 1): once per frequency, lane 0's
+                for j in range(nd):
+                    q0[j, l] = q0[j, 0]
+                    Gd[j, l] = Gd[j, 0]
+                    Gu[j, l] = Gu[j, 0]
             # _predict, written out (see below)
             h = have[l]
             for j in range(nd):
@@ -369,8 +379,11 @@ def _chain_batch(g, rec, force, a, b, W, mu0, N0, kc, tol, max_iter,
                 fj = -K[j, l] * q[j, l]
                 fb[j] += fj             # a_j = j, b_j = j + 1
                 fb[j + 1] -= fj
+            if n_r > 1:
+                for bb in range(n_beams):
+                    yf[bb] = rec[r, k, D23, bb] * force[bb]
             for bb in range(n_beams):
-                y[i, k, bb] = rec[r, k, D23, bb] * force[bb] + rec[r, k, D21, bb] * fb[bb]
+                y[i, k, bb] = yf[bb] + rec[r, k, D21, bb] * fb[bb]
             for j in range(nd):
                 if not actl[j, l]:
                     s[i, k, j] = s_off[j, l]
