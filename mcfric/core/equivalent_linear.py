@@ -29,8 +29,11 @@ Structure used (why a coordinate search is exact per coordinate):
 
 Across dampers the problem is not convex: each search is run from many starts (uniform
 corners, the centre, random corners and interior points) and the extreme value over all
-starts is kept. That is a search, not a proof; tests compare it with dense grids (one
-damper) and with ensembles and random searches (seven dampers).
+starts is kept. The minimum's last step is the Gauss-Newton minimax search of
+:mod:`.valley`, which moves every damper at once along the ridges where many beams are
+equal (there a coordinate search stalls). That is a search, not a proof; tests compare it
+with dense grids (one damper), with ensembles and random searches (seven dampers), and
+with scipy's SLSQP started from the minimum found.
 """
 
 import math
@@ -39,7 +42,8 @@ import numpy as np
 from numba import parallel_chunksize, prange
 
 from ._jit import inline_jit, jit
-from .linalg import contact_solve, lm_solve, lu_factor, lu_solve
+from .linalg import contact_solve, lu_factor, lu_solve
+from .valley import _lsq_valley, _minimax_barrier
 
 _TINY = 1e-300
 
@@ -734,24 +738,19 @@ _SPG_ITER_CONTINUATION_MAX = 20
 #: a step is accepted against the worst of the last ``_GLL`` values, so the spectral
 #: (Barzilai-Borwein) step is rarely cut back.
 _GLL = 8
-#: Smoothing of a last stage of :func:`_spg` in the minimum's final search (``fine``): the
-#: smoothed max of log|y_b| exceeds the max by up to ``mu log(n_beams)``, so where several
-#: beams are equal at the minimum (coordinate searches stall there) the smoothing sets
-#: how close the search comes to it.
-_MU_FINE = 0.0001
-
-
 @jit
-def _spg(G, q0, ylin, H, kr, ki, K, sign, b0, b1, w, max_iter=_SPG_ITER, fine=False):
+def _spg(G, q0, ylin, H, kr, ki, K, sign, b0, b1, w, max_iter=_SPG_ITER):
     """Spectral projected gradient on ``sign`` times a smoothed max of ``log|y_b|``
     (sign = 1: the minimum of M; sign = -1: the maximum).
 
     Coordinate searches move one damper at a time: they stall where beams are equal (a
     ridge of the minimum) and crawl along resonance ridges, where the best direction
     moves several dampers together (the maximum). A joint gradient step does not. The
-    smoothing ``mu`` is reduced in stages of at most ``max_iter`` iterations (with
-    ``fine``, a last one at ``_MU_FINE``); the line search is nonmonotone (``_GLL``), so
-    the best point evaluated (by M itself) is the one returned. Returns M at ``K``.
+    smoothing ``mu`` is reduced in two stages of at most ``max_iter`` iterations; the line
+    search is nonmonotone (``_GLL``), so the best point evaluated (by M itself) is the
+    one returned. Returns M at ``K``. (The smoothed max exceeds the max by up to
+    ``mu log(n_beams)``: where many beams are equal at the minimum it stops short of it;
+    :func:`.valley._minimax_barrier` finishes the minimum.)
     """
     nd = K.shape[0]
     g = np.zeros(nd, dtype=np.complex128)
@@ -766,9 +765,7 @@ def _spg(G, q0, ylin, H, kr, ki, K, sign, b0, b1, w, max_iter=_SPG_ITER, fine=Fa
         x[j] = complex(K[j].real / kr, K[j].imag / ki)
         x_best[j] = x[j]
     l_best = math.nan                           # sign * log M at x_best
-    for mu in (0.01, 0.002, _MU_FINE if fine else 0.0):
-        if mu == 0.0:
-            break
+    for mu in (0.01, 0.002):
         for j in range(nd):
             K[j] = complex(kr * x[j].real, ki * x[j].imag)
         f, lm = _smooth_max(G, q0, ylin, H, K, mu, b0, b1, g, w)
@@ -837,116 +834,6 @@ def _spg(G, q0, ylin, H, kr, ki, K, sign, b0, b1, w, max_iter=_SPG_ITER, fine=Fa
 
 
 @jit
-def _lsq_valley(G, q0, ylin, H, kr, ki, K, w, n_iter=40):
-    """Projected Levenberg-Marquardt on ``sum_b |y_b|^2`` from ``K`` (in place).
-
-    The box minimum of M can be a deep, narrow valley where all beams are nearly at rest
-    at once; coordinate and max-smoothed searches rarely fall into it, a least-squares
-    fit of every ``y_b`` to zero does (its minimiser starts the minimax search). Returns
-    ``M`` at the final ``K`` (NaN if singular).
-    """
-    T, piv, q, y = w[1], w[2], w[3], w[4]
-    nd = K.shape[0]
-    nb = ylin.shape[0]
-    n = 2 * nd
-    X = np.empty((nd, nd), dtype=np.complex128)
-    J = np.empty((nb, nd), dtype=np.complex128)
-    A = np.empty((2 * nb, n))
-    N = np.empty((n, n))
-    N0 = np.empty((n, n))
-    col = np.empty(nd, dtype=np.complex128)
-    g = np.empty(n)
-    d = np.empty(n)
-    rpiv = np.empty(n, dtype=np.int64)
-    Kt = np.empty(nd, dtype=np.complex128)
-    hr = w[12]
-    phi = _sumsq(G, q0, ylin, H, K, T, piv, q, y, nd, nb, hr)
-    if not math.isfinite(phi):
-        return math.nan
-    # the damping in the units of A^T A (m^2, like phi): an absolute lam (responses
-    # ~1e-6 m) made the first ~15 steps plain gradient steps of negligible length
-    lam_unit = phi
-    lam = 1e-3 * lam_unit
-    for it in range(n_iter):
-        # Jacobian dy_b/dK_j = -q_j (H_bj - (H diag(K) (I + G K)^-1 G)_bj); T holds the LU
-        for j in range(nd):
-            for i in range(nd):
-                col[i] = G[i, j]
-            lu_solve(T, piv, col, nd)
-            for i in range(nd):
-                X[i, j] = col[i]
-        for b in range(nb):
-            for j in range(nd):
-                acc = 0.0j
-                for m in range(hr[b, 0], hr[b, 1]):
-                    acc += H[b, m] * K[m] * X[m, j]
-                J[b, j] = -q[j] * (H[b, j] - acc)
-        # real Jacobian in the scaled variables (Re K / kr, Im K / ki)
-        for b in range(nb):
-            for j in range(nd):
-                c = J[b, j]
-                A[2 * b, 2 * j] = c.real * kr
-                A[2 * b + 1, 2 * j] = c.imag * kr
-                A[2 * b, 2 * j + 1] = -c.imag * ki
-                A[2 * b + 1, 2 * j + 1] = c.real * ki
-        for i in range(n):
-            acc = 0.0
-            for b in range(nb):
-                acc += A[2 * b, i] * y[b].real + A[2 * b + 1, i] * y[b].imag
-            g[i] = acc
-        # A^T A once per iteration (symmetric): only the damping changes between tries
-        for i in range(n):
-            for j in range(i + 1):
-                acc = 0.0
-                for k in range(2 * nb):
-                    acc += A[k, i] * A[k, j]
-                N0[i, j] = acc
-                N0[j, i] = acc
-        improved = False
-        for _ in range(12):
-            N[:, :] = N0
-            if lm_solve(N, g, lam, rpiv, d, n) != 0:
-                lam *= 10.0
-                continue
-            for j in range(nd):
-                re = min(max(K[j].real + d[2 * j] * kr, 0.0), kr)
-                im = min(max(K[j].imag + d[2 * j + 1] * ki, 0.0), ki)
-                Kt[j] = complex(re, im)
-            phit = _sumsq(G, q0, ylin, H, Kt, T, piv, q, y, nd, nb, hr)
-            if phit < phi:
-                improved = True
-                break
-            lam *= 4.0
-        if not improved:
-            break
-        for j in range(nd):
-            K[j] = Kt[j]
-        conv = phi - phit <= 1e-12 * phi
-        phi = phit
-        lam = max(lam / 3.0, 1e-12 * lam_unit)
-        if conv:
-            break
-    # T, q, y belong to the last trial: restore them at K
-    phi = _sumsq(G, q0, ylin, H, K, T, piv, q, y, nd, nb, hr)
-    return _objective(y, 0, nb) if math.isfinite(phi) else math.nan
-
-
-@inline_jit
-def _sumsq(G, q0, ylin, H, K, T, piv, q, y, nd, nb, hr):
-    """``sum_b |y_b|^2`` at ``K`` (fills q, y; LU of I + G K in T); inf if singular."""
-    if contact_solve(G, K, q0, T, piv, q, nd) != 0:
-        return math.inf
-    tot = 0.0
-    for b in range(nb):
-        acc = ylin[b]
-        for m in range(hr[b, 0], hr[b, 1]):
-            acc -= H[b, m] * K[m] * q[m]
-        y[b] = acc
-        tot += acc.real * acc.real + acc.imag * acc.imag
-    return tot if math.isfinite(tot) else math.inf
-
-
-@jit
 def _workspace(nd, nb, hr, gr):
     """Scratch of one thread's searches; ends with its own copies of the sparsity ranges
     (an array shared by the threads would have its reference count contended)."""
@@ -993,8 +880,7 @@ def _improve(G, q0, ylin, H, kr, ki, K, want_max, objective, max_sweeps, tol, w,
     K2 = K.copy()
     v2 = _spg(G, q0, ylin, H, kr, ki, K2, -1.0 if want_max else 1.0, b0, b1, w,
               _SPG_ITER if polish_sweeps > 0 else
-              (_SPG_ITER_CONTINUATION_MAX if want_max else _SPG_ITER_CONTINUATION),
-              not want_max and polish_sweeps > 0)
+              (_SPG_ITER_CONTINUATION_MAX if want_max else _SPG_ITER_CONTINUATION))
     if math.isfinite(v2):
         v2 = _search(G, q0, ylin, H, kr, ki, K2, want_max, b0, b1, max_sweeps, tol, w)
         if (v2 > v) if want_max else (v2 < v):
@@ -1144,7 +1030,8 @@ def _chain(d, o, G, q0, ylin, H, hr, gr, kr, ki, want_max, objectives, cap, max_
 def _polish(G, q0, ylin, H, hr, gr, kr, ki, want_max, objectives, cap, max_sweeps, tol, best,
             K_best, freq_order, polish_sweeps, polish_tol):
     """Phase 3: a local search from the best point of every objective and frequency,
-    ended by a tight one (``polish_sweeps``, ``polish_tol``)."""
+    ended by a tight one (``polish_sweeps``, ``polish_tol``); for the minimum then the
+    minimax search of :func:`.valley._minimax_barrier`."""
     n_f, nd = q0.shape
     nb = ylin.shape[1]
     for i in prange(n_f):
@@ -1160,6 +1047,14 @@ def _polish(G, q0, ylin, H, hr, gr, kr, ki, want_max, objectives, cap, max_sweep
                 K[j] = K_best[o, k, j]
             v = _improve(G[k], q0[k], ylin[k], H[k], kr, ki, K, want_max, objectives[o],
                          max_sweeps, tol, w, polish_sweeps, polish_tol)
+            if not want_max and math.isfinite(v):
+                # the minimum's ridges: every beam and damper at once (see .valley)
+                K2 = K.copy()
+                v2 = _minimax_barrier(G[k], q0[k], ylin[k], H[k], kr, ki, K2, w)
+                if v2 < v:
+                    v = v2
+                    for j in range(nd):
+                        K[j] = K2[j]
             if math.isfinite(v) and ((v >= best[o, k]) if want_max else (v <= best[o, k])):
                 best[o, k] = v
                 for j in range(nd):
