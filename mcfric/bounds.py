@@ -24,7 +24,8 @@ converged ensemble member lies between the bounds.
 
 The box search is the jitted coordinate search of :mod:`mcfric.core.equivalent_linear`
 (exact per damper: the response is a Moebius function of each ``K_j``), run from many
-starts per frequency and in parallel over frequencies. It replaces the paper's
+starts per frequency and in parallel over frequencies; the minimum ends with the
+Gauss-Newton minimax search of :mod:`mcfric.core.valley` (all beams are equal there). It replaces the paper's
 ``fmincon``/SQP: a generic local optimiser, measured here, stopped up to 30 % short of the
 true maximum on the eight-beam rig.
 """
