@@ -738,6 +738,8 @@ _SPG_ITER_CONTINUATION_MAX = 20
 #: a step is accepted against the worst of the last ``_GLL`` values, so the spectral
 #: (Barzilai-Borwein) step is rarely cut back.
 _GLL = 8
+
+
 @jit
 def _spg(G, q0, ylin, H, kr, ki, K, sign, b0, b1, w, max_iter=_SPG_ITER):
     """Spectral projected gradient on ``sign`` times a smoothed max of ``log|y_b|``
