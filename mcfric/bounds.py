@@ -25,9 +25,9 @@ converged ensemble member lies between the bounds.
 The box search is the jitted coordinate search of :mod:`mcfric.core.equivalent_linear`
 (exact per damper: the response is a Moebius function of each ``K_j``), run from many
 starts per frequency and in parallel over frequencies; the minimum ends with the
-Gauss-Newton minimax search of :mod:`mcfric.core.valley` (all beams are equal there). It replaces the paper's
-``fmincon``/SQP: a generic local optimiser, measured here, stopped up to 30 % short of the
-true maximum on the eight-beam rig.
+Gauss-Newton minimax search of :mod:`mcfric.core.valley` (all beams are equal there).
+It replaces the paper's ``fmincon``/SQP: a generic local optimiser, measured here, stopped
+up to 30 % short of the true maximum on the eight-beam rig.
 """
 
 from __future__ import annotations
@@ -156,7 +156,8 @@ def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity
         half as many per beam, at least the four uniform corners.
     max_sweeps : int
         Coordinate sweeps per start of the minimum (the maximum's: half as many,
-        ``MAX_SWEEPS_FRACTION_MAX``); the final tight searches take five times as many.
+        ``MAX_SWEEPS_FRACTION_MAX``); the maximum's final tight search takes five times
+        as many, the minimum's one tight sweep before its minimax search.
     seed : int
         Seed of the random starts (the bounds are deterministic for a given seed).
     n_threads : int, optional
