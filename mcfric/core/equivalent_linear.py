@@ -727,10 +727,13 @@ def _lu_solve_transposed(A, piv, b, n):
             b[p] = t
 
 
-#: Iterations per smoothing stage of :func:`_spg`; the continuation takes shorter ones
-#: (the polish the full length): measured, for the minimum 12 % less time for a lower
-#: bound higher by 0.005 % (geometric mean over 1000 frequencies); for the maximum (20)
-#: 15 % less continuation time, the upper bound within 1e-10 at 0.25 and 1.1 N.
+#: Iterations per smoothing stage of :func:`_spg`, chosen in :func:`box_extreme` (a
+#: constant passed inside the jitted code would compile another specialisation, see
+#: :func:`_improve`). The continuation takes shorter ones, and so does the maximum's
+#: polish (the minimum's polish the full length): measured, for the minimum 12 % less
+#: time for a lower bound higher by 0.005 % (geometric mean over 1000 frequencies); for
+#: the maximum (20) 15 % less continuation time, the upper bound within 1e-10 at 0.25
+#: and 1.1 N.
 _SPG_ITER = 40
 _SPG_ITER_CONTINUATION = 12
 _SPG_ITER_CONTINUATION_MAX = 20
@@ -741,7 +744,7 @@ _GLL = 8
 
 
 @jit
-def _spg(G, q0, ylin, H, kr, ki, K, sign, b0, b1, w, max_iter=_SPG_ITER):
+def _spg(G, q0, ylin, H, kr, ki, K, sign, b0, b1, w, max_iter):
     """Spectral projected gradient on ``sign`` times a smoothed max of ``log|y_b|``
     (sign = 1: the minimum of M; sign = -1: the maximum).
 
@@ -868,29 +871,26 @@ def _beam_range(objective, nb):
 
 
 @jit
-def _improve(G, q0, ylin, H, kr, ki, K, want_max, objective, max_sweeps, tol, w,
-             polish_sweeps=0, polish_tol=0.0):
-    """One local search: coordinate search, the smoothed-gradient search from where it
-    ends, and a second coordinate search from there; keeps the better end point. With
-    ``polish_sweeps > 0``, a tight coordinate search (``polish_tol``, at most
-    ``polish_sweeps`` sweeps) from that point ends it."""
+def _improve(G, q0, ylin, H, kr, ki, K, want_max, objective, max_sweeps, tol, w, spg_iter):
+    """One local search: coordinate search, the smoothed-gradient search (``spg_iter``
+    iterations per stage) from where it ends, and a second coordinate search from there;
+    keeps the better end point.
+
+    Every caller passes run-time values: numba compiles a separate specialisation for a
+    literal argument (``False``, ``0``), and the search takes ~10 s to compile."""
     b0, b1 = _beam_range(objective, ylin.shape[0])
     v = _search(G, q0, ylin, H, kr, ki, K, want_max, b0, b1, max_sweeps, tol, w)
     if not math.isfinite(v):
         return v
     nd = K.shape[0]
     K2 = K.copy()
-    v2 = _spg(G, q0, ylin, H, kr, ki, K2, -1.0 if want_max else 1.0, b0, b1, w,
-              _SPG_ITER if polish_sweeps > 0 else
-              (_SPG_ITER_CONTINUATION_MAX if want_max else _SPG_ITER_CONTINUATION))
+    v2 = _spg(G, q0, ylin, H, kr, ki, K2, -1.0 if want_max else 1.0, b0, b1, w, spg_iter)
     if math.isfinite(v2):
         v2 = _search(G, q0, ylin, H, kr, ki, K2, want_max, b0, b1, max_sweeps, tol, w)
         if (v2 > v) if want_max else (v2 < v):
             for j in range(nd):
                 K[j] = K2[j]
             v = v2
-    if polish_sweeps > 0:
-        v = _search(G, q0, ylin, H, kr, ki, K, want_max, b0, b1, polish_sweeps, polish_tol, w)
     return v
 
 
@@ -959,14 +959,14 @@ def _multistart(G, q0, ylin, H, hr, gr, kr, ki, starts, want_max, objectives, ca
                     K[j] = complex(0.5 * kr, 0.5 * ki)
                 v = _lsq_valley(G[k], q0[k], ylin[k], H[k], kr, ki, K, w)
                 if math.isfinite(v):
-                    v = _search(G[k], q0[k], ylin[k], H[k], kr, ki, K, False, b0, b1,
+                    v = _search(G[k], q0[k], ylin[k], H[k], kr, ki, K, want_max, b0, b1,
                                 max_sweeps, tol, w)
                 _keep_if_better(v, K, best, K_best, o, k, want_max)
 
 
 @jit(parallel=True, nogil=True)
-def _propagate(G, q0, ylin, H, hr, gr, kr, ki, want_max, objectives, cap, max_sweeps, tol, best,
-               K_best, cand, K_cand, first, ran):
+def _propagate(G, q0, ylin, H, hr, gr, kr, ki, want_max, objectives, cap, max_sweeps, tol,
+               spg_iter, best, K_best, cand, K_cand, first, ran):
     """Phase 2: continuation along frequency, upward (d = 0) and downward (d = 1), one
     chain per direction and objective, in parallel; each frequency starts from the
     neighbour's best and keeps what improves.
@@ -981,12 +981,12 @@ def _propagate(G, q0, ylin, H, hr, gr, kr, ki, want_max, objectives, cap, max_sw
     # chains interleaved by direction (the caller hands them out one at a time)
     for t in prange(2 * objectives.shape[0]):
         _chain(t % 2, t // 2, G, q0, ylin, H, hr, gr, kr, ki, want_max, objectives, cap, max_sweeps,
-               tol, best, K_best, cand, K_cand, first, ran)
+               tol, spg_iter, best, K_best, cand, K_cand, first, ran)
 
 
 @jit
-def _chain(d, o, G, q0, ylin, H, hr, gr, kr, ki, want_max, objectives, cap, max_sweeps, tol, best,
-           K_best, cand, K_cand, first, ran):
+def _chain(d, o, G, q0, ylin, H, hr, gr, kr, ki, want_max, objectives, cap, max_sweeps, tol,
+           spg_iter, best, K_best, cand, K_cand, first, ran):
     """One chain of :func:`_propagate`: direction ``d``, objective ``o``."""
     n_f, nd = q0.shape
     nb = ylin.shape[1]
@@ -1015,7 +1015,7 @@ def _chain(d, o, G, q0, ylin, H, hr, gr, kr, ki, want_max, objectives, cap, max_
             for j in range(nd):
                 K[j] = K_cand[d, o, kp, j]
             v = _improve(G[k], q0[k], ylin[k], H[k], kr, ki, K, want_max,
-                         objectives[o], max_sweeps, tol, w)
+                         objectives[o], max_sweeps, tol, w, spg_iter)
             if _better(v, cand[d, o, k], want_max):
                 cand[d, o, k] = v
                 for j in range(nd):
@@ -1029,8 +1029,8 @@ def _chain(d, o, G, q0, ylin, H, hr, gr, kr, ki, want_max, objectives, cap, max_
 
 
 @jit(parallel=True, nogil=True)
-def _polish(G, q0, ylin, H, hr, gr, kr, ki, want_max, objectives, cap, max_sweeps, tol, best,
-            K_best, freq_order, polish_sweeps, polish_tol):
+def _polish(G, q0, ylin, H, hr, gr, kr, ki, want_max, objectives, cap, max_sweeps, tol, spg_iter,
+            best, K_best, freq_order, polish_sweeps, polish_tol):
     """Phase 3: a local search from the best point of every objective and frequency,
     ended by a tight one (``polish_sweeps``, ``polish_tol``); for the minimum then the
     minimax search of :func:`.valley._minimax_barrier`."""
@@ -1048,7 +1048,11 @@ def _polish(G, q0, ylin, H, hr, gr, kr, ki, want_max, objectives, cap, max_sweep
             for j in range(nd):
                 K[j] = K_best[o, k, j]
             v = _improve(G[k], q0[k], ylin[k], H[k], kr, ki, K, want_max, objectives[o],
-                         max_sweeps, tol, w, polish_sweeps, polish_tol)
+                         max_sweeps, tol, w, spg_iter)
+            if polish_sweeps > 0 and math.isfinite(v):
+                b0, b1 = _beam_range(objectives[o], nb)
+                v = _search(G[k], q0[k], ylin[k], H[k], kr, ki, K, want_max, b0, b1,
+                            polish_sweeps, polish_tol, w)
             if not want_max and math.isfinite(v):
                 # the minimum's ridges: every beam and damper at once (see .valley)
                 K2 = K.copy()
@@ -1184,12 +1188,13 @@ def box_extreme(G, q0, ylin, H, kr, ki, starts, want_max, cap=None, max_sweeps=2
     pick = np.nanargmax if want_max else np.nanargmin
     idx = np.arange(n_f)
     ran = np.zeros((2, n_o, n_f), dtype=np.bool_)
+    spg_continuation = _SPG_ITER_CONTINUATION_MAX if want_max else _SPG_ITER_CONTINUATION
     for r in range(rounds):
         # the chains' costs differ (beams at their force bound stop early): handed out one
         # at a time, not in a contiguous block per thread
         with parallel_chunksize(1):
             _propagate(G, q0, ylin, H, hr, gr, kr, ki, want_max, objectives, cap, max_sweeps,
-                       EXPLORE_TOL, best, K_best, cand, K_cand, r == 0, ran)
+                       EXPLORE_TOL, spg_continuation, best, K_best, cand, K_cand, r == 0, ran)
         any_better = False
         for o in range(n_o):
             c = cand[:, o]
@@ -1206,8 +1211,10 @@ def box_extreme(G, q0, ylin, H, kr, ki, starts, want_max, cap=None, max_sweeps=2
             break
     if want_max:
         # tight searches of the maximum are cheap (no interior search), and the maximum
-        # is sensitive to the path: tight from the start
+        # is sensitive to the path: tight from the start (its gradient stages as short as
+        # in the continuation)
         sweeps, tol, end_sweeps, end_tol = 5 * max_sweeps, POLISH_TOL, 0, 0.0
+        spg_iter = _SPG_ITER_CONTINUATION_MAX
     else:
         # the minimum's tight sweeps are costly (interior searches) and stall on its ridge:
         # explore, then one tight sweep, then the minimax search. Measured (1000
@@ -1215,7 +1222,8 @@ def box_extreme(G, q0, ylin, H, kr, ki, starts, want_max, cap=None, max_sweeps=2
         # (without the tight sweep up to 1 % higher at 2-4 frequencies), 0.1 s less at
         # one thread
         sweeps, tol, end_sweeps, end_tol = max_sweeps, EXPLORE_TOL, 1, POLISH_TOL
-    _polish(G, q0, ylin, H, hr, gr, kr, ki, want_max, objectives, cap, sweeps, tol, best, K_best,
-            order, end_sweeps, end_tol)
+        spg_iter = _SPG_ITER
+    _polish(G, q0, ylin, H, hr, gr, kr, ki, want_max, objectives, cap, sweeps, tol, spg_iter,
+            best, K_best, order, end_sweeps, end_tol)
     _evaluate(G, q0, ylin, H, objectives, best, K_best)
     return best, K_best
