@@ -7,6 +7,7 @@ random + scipy multistart search of the box for seven dampers.
 
 import dataclasses
 
+import numba
 import numpy as np
 import pytest
 from scipy import optimize
@@ -258,6 +259,17 @@ def test_chain_elimination_of_the_smoothed_maximum_equals_dense_lu():
     Gr, _, _, Hr = contact_space(ring.receptances(2 * np.pi * f)[0], ring.force,
                                  *ring.dampers)
     assert not el._workspace(Gr.shape[1], nb, *el._sparsity(Gr, Hr))[14]
+
+
+@pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2, reason="needs 2 threads")
+def test_bounds_do_not_depend_on_the_thread_count():
+    # the searches run as tasks on Python threads that write disjoint parts of the output
+    model = mcfric.eight_beam(0.25)
+    f = np.linspace(30, 140, 40)
+    one, two = (compute_bounds(model, f, K_MAX, F_lim=F_LIM, n_threads=n) for n in (1, 2))
+    for name in ("upper", "lower", "limited_by", "K_upper", "K_lower"):
+        assert np.array_equal(getattr(one, name), getattr(two, name)), name
+    assert np.all(np.isfinite(one.upper)) and np.all(one.lower < one.upper)
 
 
 def test_bounds_scale_with_the_metric_quantity():

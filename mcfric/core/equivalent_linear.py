@@ -37,9 +37,10 @@ with scipy's SLSQP started from the minimum found.
 """
 
 import math
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
-from numba import parallel_chunksize, prange
+import numba
 
 from ._jit import inline_jit, jit
 from .linalg import contact_solve, lu_factor, lu_solve
@@ -925,18 +926,17 @@ def _irrelevant(best, cap, o, k, n_o):
     return cap[k, o] <= top
 
 
-@jit(parallel=True, nogil=True)
+@jit(nogil=True)
 def _multistart(G, q0, ylin, H, hr, gr, kr, ki, starts, want_max, objectives, cap, max_sweeps, tol,
-                best, K_best, freq_order):
-    """Phase 1: coordinate search from every start, for every objective, at every
-    frequency (in parallel over frequencies)."""
-    n_f, nd = q0.shape
+                best, K_best, freqs):
+    """Phase 1: coordinate search from every start, for every objective, at the
+    frequencies ``freqs`` (one task of :func:`_in_threads`)."""
+    nd = q0.shape[1]
     nb = ylin.shape[1]
     n_o = objectives.shape[0]
-    for i in prange(n_f):
-        k = freq_order[i]
-        w = _workspace(nd, nb, hr, gr)
-        K = np.zeros(nd, dtype=np.complex128)
+    w = _workspace(nd, nb, hr, gr)
+    K = np.zeros(nd, dtype=np.complex128)
+    for k in freqs:
         for o in range(n_o):
             best[o, k] = math.nan
         # beams with the largest force bound first: the others may then be skipped
@@ -964,12 +964,13 @@ def _multistart(G, q0, ylin, H, hr, gr, kr, ki, starts, want_max, objectives, ca
                 _keep_if_better(v, K, best, K_best, o, k, want_max)
 
 
-@jit(parallel=True, nogil=True)
-def _propagate(G, q0, ylin, H, hr, gr, kr, ki, want_max, objectives, cap, max_sweeps, tol,
-               spg_iter, best, K_best, cand, K_cand, first, ran):
-    """Phase 2: continuation along frequency, upward (d = 0) and downward (d = 1), one
-    chain per direction and objective, in parallel; each frequency starts from the
-    neighbour's best and keeps what improves.
+@jit(nogil=True)
+def _chain(d, o, G, q0, ylin, H, hr, gr, kr, ki, want_max, objectives, cap, max_sweeps, tol,
+           spg_iter, best, K_best, cand, K_cand, first, ran):
+    """Phase 2: continuation along frequency, upward (``d = 0``) or downward (``d = 1``),
+    for objective ``o`` (one chain per direction and objective, each a task of
+    :func:`_in_threads`); each frequency starts from the neighbour's best and keeps what
+    improves, in ``cand[d, o]``.
 
     Later rounds (``first`` False) search only where the start changed: where the
     decision to search (``ran``) and the neighbour's result (value and describing
@@ -978,16 +979,6 @@ def _propagate(G, q0, ylin, H, hr, gr, kr, ki, want_max, objectives, cap, max_sw
     better than ``best`` (the best of the candidates): the candidate is ``best``, without
     searching.
     """
-    # chains interleaved by direction (the caller hands them out one at a time)
-    for t in prange(2 * objectives.shape[0]):
-        _chain(t % 2, t // 2, G, q0, ylin, H, hr, gr, kr, ki, want_max, objectives, cap, max_sweeps,
-               tol, spg_iter, best, K_best, cand, K_cand, first, ran)
-
-
-@jit
-def _chain(d, o, G, q0, ylin, H, hr, gr, kr, ki, want_max, objectives, cap, max_sweeps, tol,
-           spg_iter, best, K_best, cand, K_cand, first, ran):
-    """One chain of :func:`_propagate`: direction ``d``, objective ``o``."""
     n_f, nd = q0.shape
     nb = ylin.shape[1]
     w = _workspace(nd, nb, hr, gr)
@@ -1028,18 +1019,18 @@ def _chain(d, o, G, q0, ylin, H, hr, gr, kr, ki, want_max, objectives, cap, max_
                     break
 
 
-@jit(parallel=True, nogil=True)
+@jit(nogil=True)
 def _polish(G, q0, ylin, H, hr, gr, kr, ki, want_max, objectives, cap, max_sweeps, tol, spg_iter,
-            best, K_best, freq_order, polish_sweeps, polish_tol):
-    """Phase 3: a local search from the best point of every objective and frequency,
-    ended by a tight one (``polish_sweeps``, ``polish_tol``); for the minimum then the
-    minimax search of :func:`.valley._minimax_barrier`."""
-    n_f, nd = q0.shape
+            best, K_best, freqs, polish_sweeps, polish_tol):
+    """Phase 3: a local search from the best point of every objective at the frequencies
+    ``freqs`` (one task of :func:`_in_threads`), ended by a tight one (``polish_sweeps``,
+    ``polish_tol``); for the minimum then the minimax search of
+    :func:`.valley._minimax_barrier`."""
+    nd = q0.shape[1]
     nb = ylin.shape[1]
-    for i in prange(n_f):
-        k = freq_order[i]
-        w = _workspace(nd, nb, hr, gr)
-        K = np.empty(nd, dtype=np.complex128)
+    w = _workspace(nd, nb, hr, gr)
+    K = np.empty(nd, dtype=np.complex128)
+    for k in freqs:
         for o in range(objectives.shape[0]):
             if math.isnan(best[o, k]) or (want_max and (
                     best[o, k] >= cap[k, o] or
@@ -1067,7 +1058,7 @@ def _polish(G, q0, ylin, H, hr, gr, kr, ki, want_max, objectives, cap, max_sweep
                     K_best[o, k, j] = K[j]
 
 
-@jit(parallel=True, nogil=True)
+@jit(nogil=True)
 def _evaluate(G, q0, ylin, H, objectives, best, K_best):
     """``best[o, k]``: the objective at ``K_best[o, k]`` by LU with partial pivoting.
 
@@ -1075,11 +1066,11 @@ def _evaluate(G, q0, ylin, H, objectives, best, K_best):
     computed afresh by the pivoted solve."""
     n_f, nd = q0.shape
     nb = ylin.shape[1]
-    for k in prange(n_f):
-        T = np.empty((nd, nd), dtype=np.complex128)
-        piv = np.empty(nd, dtype=np.int64)
-        q = np.empty(nd, dtype=np.complex128)
-        y = np.empty(nb, dtype=np.complex128)
+    T = np.empty((nd, nd), dtype=np.complex128)
+    piv = np.empty(nd, dtype=np.int64)
+    q = np.empty(nd, dtype=np.complex128)
+    y = np.empty(nb, dtype=np.complex128)
+    for k in range(n_f):
         for o in range(objectives.shape[0]):
             if math.isnan(best[o, k]):
                 continue
@@ -1114,11 +1105,37 @@ def _sparsity(G, H):
     return ranges((H != 0).any(axis=0)), ranges((G != 0).any(axis=0).T)
 
 
-def _spread(n_f):
-    """A permutation of the frequency indices that spreads any contiguous block over the
-    band: numba splits a prange into contiguous blocks per thread, and the search costs
-    vary ~2x across the band (measured), so in band order one thread waits."""
-    return np.argsort((np.arange(n_f) * 0.6180339887498949) % 1.0, kind="stable")
+def _chunks(n_f):
+    """The frequency indices in tasks of :func:`_in_threads`: ``_CHUNKS`` blocks of a
+    permutation that spreads each block over the band (the search costs vary ~2x across
+    it, measured), so the tasks cost about the same."""
+    order = np.argsort((np.arange(n_f) * 0.6180339887498949) % 1.0, kind="stable")
+    return np.array_split(order, min(n_f, _CHUNKS))
+
+
+#: Tasks per phase over the frequencies: several per thread, so that a thread that
+#: finishes early takes another.
+_CHUNKS = 32
+
+
+def _in_threads(task, items):
+    """``task(item)`` for every item, on ``numba.get_num_threads()`` threads, each taking
+    the next item when it is free; the first exception is raised here.
+
+    The tasks are ``nogil`` kernels that write disjoint parts of the output, so the result
+    does not depend on the number of threads or the order. Python threads rather than
+    ``prange``: each ``prange`` kernel compiled the whole search again (~15-25 s of
+    compilation each, measured with numba's compile events).
+    """
+    items = list(items)
+    n = min(numba.get_num_threads(), len(items))
+    if n <= 1:
+        for item in items:
+            task(item)
+        return
+    with ThreadPoolExecutor(n) as pool:
+        for future in [pool.submit(task, item) for item in items]:
+            future.result()
 
 
 #: Exploration (multistart, continuation) stops sweeps at this relative change; the final
@@ -1179,10 +1196,11 @@ def box_extreme(G, q0, ylin, H, kr, ki, starts, want_max, cap=None, max_sweeps=2
     cap = np.ascontiguousarray(cap, dtype=float)
     best = np.full((n_o, n_f), np.nan)
     K_best = np.zeros((n_o, n_f, nd), complex)
-    order = _spread(n_f)
+    chunks = _chunks(n_f)
     hr, gr = _sparsity(G, H)
-    _multistart(G, q0, ylin, H, hr, gr, kr, ki, starts, want_max, objectives, cap, max_sweeps,
-                EXPLORE_TOL, best, K_best, order)
+    _in_threads(lambda freqs: _multistart(G, q0, ylin, H, hr, gr, kr, ki, starts, want_max,
+                                          objectives, cap, max_sweeps, EXPLORE_TOL, best,
+                                          K_best, freqs), chunks)
     cand = np.empty((2, n_o, n_f))
     K_cand = np.empty((2, n_o, n_f, nd), complex)
     pick = np.nanargmax if want_max else np.nanargmin
@@ -1190,11 +1208,11 @@ def box_extreme(G, q0, ylin, H, kr, ki, starts, want_max, cap=None, max_sweeps=2
     ran = np.zeros((2, n_o, n_f), dtype=np.bool_)
     spg_continuation = _SPG_ITER_CONTINUATION_MAX if want_max else _SPG_ITER_CONTINUATION
     for r in range(rounds):
-        # the chains' costs differ (beams at their force bound stop early): handed out one
-        # at a time, not in a contiguous block per thread
-        with parallel_chunksize(1):
-            _propagate(G, q0, ylin, H, hr, gr, kr, ki, want_max, objectives, cap, max_sweeps,
-                       EXPLORE_TOL, spg_continuation, best, K_best, cand, K_cand, r == 0, ran)
+        # one chain per direction and objective, interleaved by direction
+        _in_threads(lambda t: _chain(t % 2, t // 2, G, q0, ylin, H, hr, gr, kr, ki, want_max,
+                                     objectives, cap, max_sweeps, EXPLORE_TOL, spg_continuation,
+                                     best, K_best, cand, K_cand, r == 0, ran),
+                    range(2 * n_o))
         any_better = False
         for o in range(n_o):
             c = cand[:, o]
@@ -1223,7 +1241,8 @@ def box_extreme(G, q0, ylin, H, kr, ki, starts, want_max, cap=None, max_sweeps=2
         # one thread
         sweeps, tol, end_sweeps, end_tol = max_sweeps, EXPLORE_TOL, 1, POLISH_TOL
         spg_iter = _SPG_ITER
-    _polish(G, q0, ylin, H, hr, gr, kr, ki, want_max, objectives, cap, sweeps, tol, spg_iter,
-            best, K_best, order, end_sweeps, end_tol)
+    _in_threads(lambda freqs: _polish(G, q0, ylin, H, hr, gr, kr, ki, want_max, objectives, cap,
+                                      sweeps, tol, spg_iter, best, K_best, freqs, end_sweeps,
+                                      end_tol), chunks)
     _evaluate(G, q0, ylin, H, objectives, best, K_best)
     return best, K_best
