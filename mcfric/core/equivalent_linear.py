@@ -39,8 +39,8 @@ with scipy's SLSQP started from the minimum found.
 import math
 from concurrent.futures import ThreadPoolExecutor
 
-import numpy as np
 import numba
+import numpy as np
 
 from ._jit import inline_jit, jit
 from .linalg import contact_solve, lu_factor, lu_solve
