@@ -1133,9 +1133,13 @@ def _in_threads(task, items):
         for item in items:
             task(item)
         return
-    with ThreadPoolExecutor(n) as pool:
+    pool = ThreadPoolExecutor(n)
+    try:
         for future in [pool.submit(task, item) for item in items]:
             future.result()
+    finally:
+        # on an error or Ctrl-C the queued tasks are dropped, not run to the end
+        pool.shutdown(wait=True, cancel_futures=True)
 
 
 #: Exploration (multistart, continuation) stops sweeps at this relative change; the final
