@@ -728,16 +728,18 @@ def _lu_solve_transposed(A, piv, b, n):
             b[p] = t
 
 
-#: Iterations per smoothing stage of :func:`_spg`, chosen in :func:`box_extreme` (a
-#: constant passed inside the jitted code would compile another specialisation, see
-#: :func:`_improve`). The continuation takes shorter ones, and so does the maximum's
-#: polish (the minimum's polish the full length): measured, for the minimum 12 % less
-#: time for a lower bound higher by 0.005 % (geometric mean over 1000 frequencies); for
-#: the maximum (20) 15 % less continuation time, the upper bound within 1e-10 at 0.25
-#: and 1.1 N.
+#: Iterations per smoothing stage of :func:`_spg` in the minimum's searches, chosen in
+#: :func:`box_extreme` (a constant passed inside the jitted code would compile another
+#: specialisation, see :func:`_improve`). The continuation takes shorter ones than the
+#: polish: measured, 12 % less time for a lower bound higher by 0.005 % (geometric mean
+#: over 1000 frequencies). The maximum's searches take none (0): measured on eight grids
+#: (137-2000 frequencies, 0.25-1.1 N) with three seeds each, the upper bound without the
+#: gradient stage (it had 20 iterations) was lower by more than 1e-9 at one frequency of
+#: a run at most (2.9e-8; once 7.3e-6, at 15.15 Hz), higher by 1.1e-5 at two, the same
+#: elsewhere; the bounds took 10 % less time at 0.25 and at 1.1 N. The coordinate
+#: search's pattern move already takes the long steps along resonance ridges.
 _SPG_ITER = 40
 _SPG_ITER_CONTINUATION = 12
-_SPG_ITER_CONTINUATION_MAX = 20
 #: Memory of the nonmonotone line search of :func:`_spg` (Grippo-Lampariello-Lucidi):
 #: a step is accepted against the worst of the last ``_GLL`` values, so the spectral
 #: (Barzilai-Borwein) step is rarely cut back.
@@ -750,8 +752,9 @@ def _spg(G, q0, ylin, H, kr, ki, K, sign, b0, b1, w, max_iter):
     (sign = 1: the minimum of M; sign = -1: the maximum).
 
     Coordinate searches move one damper at a time: they stall where beams are equal (a
-    ridge of the minimum) and crawl along resonance ridges, where the best direction
-    moves several dampers together (the maximum). A joint gradient step does not. The
+    ridge of the minimum); a joint gradient step does not. (The bounds use it for the
+    minimum only; for the maximum the pattern move of :func:`_search` does as well, see
+    ``_SPG_ITER``.) The
     smoothing ``mu`` is reduced in two stages of at most ``max_iter`` iterations; the line
     search is nonmonotone (``_GLL``), so the best point evaluated (by M itself) is the
     one returned. Returns M at ``K``. (The smoothed max exceeds the max by up to
@@ -875,13 +878,13 @@ def _beam_range(objective, nb):
 def _improve(G, q0, ylin, H, kr, ki, K, want_max, objective, max_sweeps, tol, w, spg_iter):
     """One local search: coordinate search, the smoothed-gradient search (``spg_iter``
     iterations per stage) from where it ends, and a second coordinate search from there;
-    keeps the better end point.
+    keeps the better end point. With ``spg_iter = 0`` the coordinate search alone.
 
     Every caller passes run-time values: numba compiles a separate specialisation for a
     literal argument (``False``, ``0``), and the search takes ~10 s to compile."""
     b0, b1 = _beam_range(objective, ylin.shape[0])
     v = _search(G, q0, ylin, H, kr, ki, K, want_max, b0, b1, max_sweeps, tol, w)
-    if not math.isfinite(v):
+    if not math.isfinite(v) or spg_iter <= 0:
         return v
     nd = K.shape[0]
     K2 = K.copy()
@@ -1210,7 +1213,8 @@ def box_extreme(G, q0, ylin, H, kr, ki, starts, want_max, cap=None, max_sweeps=2
     pick = np.nanargmax if want_max else np.nanargmin
     idx = np.arange(n_f)
     ran = np.zeros((2, n_o, n_f), dtype=np.bool_)
-    spg_continuation = _SPG_ITER_CONTINUATION_MAX if want_max else _SPG_ITER_CONTINUATION
+    # the maximum's local searches are coordinate searches alone (see _SPG_ITER)
+    spg_continuation = 0 if want_max else _SPG_ITER_CONTINUATION
     for r in range(rounds):
         # one chain per direction and objective, interleaved by direction
         _in_threads(lambda t: _chain(t % 2, t // 2, G, q0, ylin, H, hr, gr, kr, ki, want_max,
@@ -1233,10 +1237,9 @@ def box_extreme(G, q0, ylin, H, kr, ki, starts, want_max, cap=None, max_sweeps=2
             break
     if want_max:
         # tight searches of the maximum are cheap (no interior search), and the maximum
-        # is sensitive to the path: tight from the start (its gradient stages as short as
-        # in the continuation)
+        # is sensitive to the path: tight from the start
         sweeps, tol, end_sweeps, end_tol = 5 * max_sweeps, POLISH_TOL, 0, 0.0
-        spg_iter = _SPG_ITER_CONTINUATION_MAX
+        spg_iter = 0
     else:
         # the minimum's tight sweeps are costly (interior searches) and stall on its ridge:
         # explore, then one tight sweep, then the minimax search. Measured (1000
