@@ -51,10 +51,10 @@ N_STARTS = 3
 MIN_TOTAL_STARTS = 3000
 MAX_SWEEPS = 20
 #: The maximum's exploring searches stop after half as many sweeps: on a resonance ridge
-#: a coordinate search crawls, and the gradient step of the continuation and the tight
+#: a coordinate search crawls, and the continuation's repeated searches and the tight
 #: final search take over. Measured (eight beams, 1000 frequencies, 0.25 and 1.1 N):
-#: the upper bound within 1e-10 of 20 sweeps at 8, 10 and 12 sweeps (at 5: up to 4 %
-#: lower at 13 frequencies), about 7 % less time.
+#: the upper bound within 3e-8 of 20 sweeps at 8 and 10 sweeps (and, when a gradient
+#: stage still followed each search, at 5: up to 4 % lower at 13 frequencies).
 MAX_SWEEPS_FRACTION_MAX = 0.5
 
 
