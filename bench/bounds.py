@@ -49,6 +49,8 @@ def main(argv=None):
     p.add_argument("--threads", type=int, default=None)
     p.add_argument("--repeat", type=int, default=5)
     args = p.parse_args(argv)
+    if args.repeat < 1:
+        p.error(f"--repeat: expected an integer >= 1, got {args.repeat}")
     f = np.linspace(10, 150, args.n_freq)
     F_lim = force_limit(1.0, N0)
     out = pathlib.Path(__file__).parent / "out"
