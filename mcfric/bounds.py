@@ -354,3 +354,18 @@ def group_from_config(cfg, verbose=True):
     if verbose:
         print(f"{B.summary()} ({time.perf_counter() - t:.1f} s)", flush=True)
     return {"bounds": to_group(B)}
+
+
+def from_spec(spec, n_threads=None):
+    """Bounds of a :class:`~mcfric.spec.RunSpec` (its nominal model, frequency grid,
+    metric and bounds settings); ``n_threads`` defaults to the spec's execution threads.
+
+    The model is the nominal one: mistuned members come from other linear rigs and need
+    not lie inside (the paper's bounds cover friction only).
+    """
+    b = spec.bounds
+    return compute_bounds(spec.model, spec.freq_hz, b.k_max_re, k_max_im=b.k_max_im,
+                          F_lim=None if np.isinf(b.F_lim) else b.F_lim,
+                          quantity=spec.metric.quantity, beams=spec.metric.beams,
+                          n_starts=b.n_starts,
+                          n_threads=spec.execution.threads if n_threads is None else n_threads)

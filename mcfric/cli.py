@@ -99,7 +99,7 @@ def _parser():
     h.add_argument("--no-figure", action="store_true", help="do not draw the figure")
 
     b = sub.add_parser("bounds", help="response bounds alone (no ensemble)",
-                       description="Equivalent-linear response bounds (physics.md 7) of a "
+                       description="Equivalent-linear response bounds (paper Section 3) of a "
                        "preset or configuration: an HDF5 file with frequency and bounds/, "
                        "and a figure next to it.")
     b.add_argument("source", nargs="?", help=_source_help() + " (default: eight-beam)")
@@ -164,11 +164,15 @@ def _overrides(args):
     return o
 
 
-def _load(args):
+def _load(args, fixed=None):
+    """The validated configuration of ``args``; ``fixed``: ``{dotted key: value}`` that
+    the command itself sets."""
     from . import config
 
+    overrides = _overrides(args)
+    overrides.update({k: (v, k) for k, v in (fixed or {}).items()})
     try:
-        return config.load(args.source, _overrides(args))
+        return config.load(args.source, overrides)
     except config.ConfigError as e:
         raise UsageError(str(e)) from None
 
@@ -221,13 +225,14 @@ def cmd_run(args):
     from . import ensemble, plot
 
     cfg = _load(args)
+    spec = cfg.spec
     out = _output_path(args, ".h5")
     # every refusal (bad config, existing files) happens before anything is written
     try:
-        model = cfg.model()
-        print(f"mcfric run: {model.name}, {cfg.samples} samples x {cfg['frequency']['n']} "
+        model = spec.model
+        print(f"mcfric run: {model.name}, {spec.samples} samples x {len(spec.freq_hz)} "
               f"frequencies, {model.n_beams} beams, F0 = {model.excitation.F0:g} N, "
-              f"seed {cfg.seed}", flush=True)
+              f"seed {spec.seed}", flush=True)
         summary = ensemble.run(cfg, out, resume=args.resume, force=args.force,
                                progress=not args.no_progress)
     except ensemble.RunError as e:
@@ -260,16 +265,15 @@ def cmd_bounds(args):
 
     from . import bounds, plot
 
-    cfg = _load(args)
+    cfg = _load(args, {"bounds.enabled": True})
+    spec = cfg.spec
     out = _output_path(args, ".h5", prefix="bounds-")
-    model = cfg.model()
-    f = cfg.frequencies()
-    k_re, k_im, F_lim = cfg.bounds_limits()
+    model, f, lim = spec.model, spec.freq_hz, spec.bounds
     print(f"mcfric bounds: {model.name}, {len(f)} frequencies {f[0]:g}-{f[-1]:g} Hz, "
-          f"F0 = {model.excitation.F0:g} N; box 0 <= Re K <= {k_re:g} N/m, "
-          f"0 <= Im K <= {k_im:g} N/m, F_lim = {F_lim:g} N", flush=True)
+          f"F0 = {model.excitation.F0:g} N; box 0 <= Re K <= {lim.k_max_re:g} N/m, "
+          f"0 <= Im K <= {lim.k_max_im:g} N/m, F_lim = {lim.F_lim:g} N", flush=True)
     t = time.perf_counter()
-    B = bounds.from_config(cfg, n_threads=cfg["run"]["threads"] or None)
+    B = bounds.from_spec(spec)
     print(f"{B.summary()} ({time.perf_counter() - t:.1f} s)")
     bounds.write_bounds_file(out, cfg, B)
     print(f"bounds: {out}")
@@ -384,7 +388,7 @@ def cmd_config(args):
 
 
 def cmd_info(args):
-    from . import hbm
+    from .metric import METRIC_UNITS
     from .store import StoreError, describe, iter_records, partial_path
 
     path = Path(args.file)
@@ -430,7 +434,7 @@ def cmd_info(args):
         + (f", mistuning {sa['mistuning']:g} per {sa['mistuning_per']}"
            if sa["mistuning"] else ""),
         f"converged:   {pts - bad:,} of {pts:,} points ({bad:,} not converged)",
-        (f"metric:      {q} {hbm.METRIC_UNITS[q]}, {lo:.4g} to {hi:.4g}" if pts - bad
+        (f"metric:      {q} {METRIC_UNITS[q]}, {lo:.4g} to {hi:.4g}" if pts - bad
          else f"metric:      {q}, no converged points"),
     ]
     if a.get("complete") == 1:
@@ -451,24 +455,24 @@ def cmd_info(args):
 def cmd_hbm(args):
     import numpy as np
 
-    from . import config, hbm, plot
+    from . import hbm, plot
+    from .metric import METRIC_UNITS
+    from .validators import InputError, number
 
-    cfg = _load(args)
+    spec = _load(args).spec
     for flag, v in (("--mu0", args.mu0), ("--kc", args.kc), ("--N0", args.N0)):
         try:
-            config.number(lo=0)(v, flag)
-        except config.ConfigError as e:
+            number(lo=0)(v, flag)
+        except InputError as e:
             raise UsageError(str(e)) from None
     out = _output_path(args, ".csv", prefix="hbm-")
-    model = cfg.model()
-    f = cfg.frequencies()
-    res = hbm.solve(model, f, args.mu0, args.kc, args.N0, tol=cfg["solver"]["tol"],
-                    max_iter=cfg["solver"]["max_iter"],
-                    n_threads=cfg["run"]["threads"] or None)
-    q = cfg["metric"]["quantity"]
-    unit = hbm.METRIC_UNITS[q]
+    model, f = spec.model, spec.freq_hz
+    res = hbm.solve(model, f, args.mu0, args.kc, args.N0, tol=spec.solver.tol,
+                    max_iter=spec.solver.max_iter, n_threads=spec.execution.threads)
+    q = spec.metric.quantity
+    unit = METRIC_UNITS[q]
     amp = np.abs(res.response[0])                       # (n_f, n_beams), m
-    metric = res.metric(q, cfg.metric_beams())[0]
+    metric = res.metric(q, spec.metric.beams)[0]
     conv = res.converged[0]
     s = res.s[0]
     header = (["frequency_hz"] + [f"abs_y{b + 1}_m" for b in range(model.n_beams)]

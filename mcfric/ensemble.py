@@ -27,8 +27,8 @@ from pathlib import Path
 
 import numpy as np
 
-from . import config as _config
 from . import hbm
+from .config import NOT_IDENTITY, first_difference
 from .store import Store, StoreError, iter_records, partial_path, read_attrs
 
 RECORD = "sample"
@@ -116,18 +116,18 @@ def fingerprint():
     return h.hexdigest()[:16]
 
 
-def auto_chunk(cfg, model):
+def auto_chunk(spec):
     """Samples per chunk for ``run.chunk = 0``: a power of two giving ~32 MB of output."""
-    n_f = cfg["frequency"]["n"]
-    nb, nd = model.n_beams, model.n_dampers
+    n_f = len(spec.freq_hz)
+    nb, nd = spec.model.n_beams, spec.model.n_dampers
     per_sample = n_f * (16 * nb + 8 * nd + 1 + 2 + 8 + 8 + 1)   # kernel outputs + metric
-    if cfg["sampling"]["mistuning"] > 0:
+    if spec.mistuned:
         per_sample += n_f * 4 * nb * 16                           # per-sample receptances
     k = max(1, CHUNK_TARGET_BYTES // per_sample)
-    return int(min(1 << (k.bit_length() - 1), cfg.samples))
+    return int(min(1 << (k.bit_length() - 1), spec.samples))
 
 
-def layout(cfg, model, freq):
+def layout(spec):
     """The store layout of a run: coords, variables, root attrs, summary placeholders."""
     import h5py
     import numba
@@ -135,11 +135,12 @@ def layout(cfg, model, freq):
 
     from . import __version__
 
+    model = spec.model
     nb, nd = model.n_beams, model.n_dampers
     a, b = model.dampers
-    q = cfg["metric"]["quantity"]
+    q = spec.metric.quantity
     coords = {
-        "frequency": (freq, {"units": "Hz", "long_name": "excitation frequency"}),
+        "frequency": (spec.freq_hz, {"units": "Hz", "long_name": "excitation frequency"}),
         "beam": (np.arange(1, nb + 1), {"long_name": "beam number (1-based)"}),
         "damper": (np.arange(1, nd + 1),
                    {"long_name": "damper number (1-based); couples beam_a and beam_b",
@@ -150,21 +151,21 @@ def layout(cfg, model, freq):
         "metric": ((RECORD, "frequency"), np.float64,
                    {"units": hbm.METRIC_UNITS[q],
                     "long_name": f"max over beams of the {q} amplitude at the output "
-                                 f"position (physics.md 5); NaN where not converged",
-                    "quantity": q, "beams": json.dumps(cfg["metric"]["beams"])}),
+                                 f"position; NaN where not converged",
+                    "quantity": q, "beams": json.dumps(spec.metric.beams_label)}),
         "converged": ((RECORD, "frequency"), np.bool_,
                       {"long_name": "true where the harmonic balance converged"}),
         "mu0": (P, np.float64, {"units": "1", "long_name": "friction coefficient"}),
         "kc": (P, np.float64, {"units": "N/m", "long_name": "tangential contact stiffness"}),
         "N0": (P, np.float64, {"units": "N", "long_name": "normal preload"}),
     }
-    if cfg["output"]["keep_response"]:
+    if spec.keep_response:
         variables = {"response": ((RECORD, "frequency", "beam"), np.complex128,
                                   {"units": "m", "long_name":
                                    "complex displacement amplitude at the output position, "
                                    "x(t) = Re{X exp(i omega t)}; NaN where not converged"}),
                      **variables}
-    if cfg["sampling"]["mistuning"] > 0:
+    if spec.mistuned:
         n_modes = model.modal_arrays()[0].shape[1]
         coords["mode"] = (np.arange(1, n_modes + 1), {"long_name": "mode number (1-based)"})
         variables["modal_freq_hz"] = ((RECORD, "beam", "mode"), np.float64,
@@ -172,10 +173,10 @@ def layout(cfg, model, freq):
     attrs = {
         "title": f"mcfric Monte Carlo ensemble: {model.name}",
         "model_name": model.name,
-        "config": cfg.toml(comments=False),
-        "config_json": cfg.json(),
-        "seed": np.int64(cfg.seed),
-        "samples": np.int64(cfg.samples),
+        "config": spec.config_toml,
+        "config_json": spec.config_json,
+        "seed": np.int64(spec.seed),
+        "samples": np.int64(spec.samples),
         "sampling_contract": "sample i draws from Generator(PCG64(SeedSequence(seed, "
                              "spawn_key=(i,)))); see mcfric.sampling",
         "solver_fingerprint": fingerprint(),
@@ -201,11 +202,11 @@ def _stored_config(attrs, path):
         raise RunError(f"{path}: not an mcfric results file (no readable config)") from None
 
 
-def _same_run(cfg, attrs, path):
-    """None if ``attrs`` describe the same run as ``cfg``, else the first differing key."""
+def _same_run(spec, attrs, path):
+    """None if ``attrs`` describe the same run as ``spec``, else the first differing key."""
     stored = _stored_config(attrs, path)
-    stored = {k: v for k, v in stored.items() if k not in _config.NOT_IDENTITY}
-    return _config.first_difference(cfg.identity(), json.loads(json.dumps(stored)))
+    stored = {k: v for k, v in stored.items() if k not in NOT_IDENTITY}
+    return first_difference(spec.identity, json.loads(json.dumps(stored)))
 
 
 def _count_not_converged(path):
@@ -230,8 +231,8 @@ def _pending_chunks(done, chunk):
     return out
 
 
-def prepare(cfg, path, *, resume=False, force=False):
-    """Decide what a run must do with ``path``.
+def prepare(spec, path, *, resume=False, force=False):
+    """Decide what a run of ``spec`` (a :class:`~mcfric.spec.RunSpec`) must do with ``path``.
 
     Returns ``("complete", attrs)``, ``("resume", (store, not_converged_so_far))`` or
     ``("new", None)``. Raises :class:`RunError` when it must not proceed (nothing is
@@ -246,7 +247,7 @@ def prepare(cfg, path, *, resume=False, force=False):
             attrs = read_attrs(final)
         except StoreError as e:
             raise RunError(f"{e}; use --force to replace it") from None
-        diff = _same_run(cfg, attrs, final)
+        diff = _same_run(spec, attrs, final)
         if diff is None and attrs.get("complete") == 1:
             return "complete", attrs
         raise RunError(f"{final} exists and holds a different run (first difference: "
@@ -263,7 +264,7 @@ def prepare(cfg, path, *, resume=False, force=False):
             raise RunError(f"{part} exists (an interrupted run, {done} of "
                            f"{attrs.get('samples')} samples done): add --resume to "
                            f"continue it, or --force to start again")
-        diff = _same_run(cfg, attrs, part)
+        diff = _same_run(spec, attrs, part)
         if diff is not None:
             raise RunError(f"cannot resume {part}: it was started with a different "
                            f"configuration (first difference: {diff}); use --force to "
@@ -301,13 +302,13 @@ def _put(q, item, writer, err):
                 raise err[0] if err else RuntimeError("the writer thread stopped")
 
 
-def run(cfg, path, *, resume=False, force=False, progress=True, groups="auto"):
-    """Run (or continue) the Monte Carlo ensemble of ``cfg`` into the results file ``path``.
+def run(spec, path, *, resume=False, force=False, progress=True, groups="auto"):
+    """Run (or continue) the Monte Carlo ensemble of ``spec`` into the results file ``path``.
 
     Parameters
     ----------
-    cfg : mcfric.config.Config
-        Validated configuration (model, frequencies, sampling, solver, output, run).
+    spec : mcfric.spec.RunSpec or mcfric.config.Config
+        The run (a validated configuration stands for its ``spec``).
     path : str or Path
         Results file. The run writes ``path + ".partial"`` and renames it when complete.
     resume : bool
@@ -320,8 +321,8 @@ def run(cfg, path, *, resume=False, force=False, progress=True, groups="auto"):
     groups : callable, "auto" or None
         Called only when a new results file is created; returns ``{group: (variables,
         attrs)}`` written with it, so that the file never changes but for its chunks
-        afterwards. ``"auto"`` (default): the ``bounds/`` group when
-        ``[bounds] enabled`` (computed before the ensemble); None: no groups.
+        afterwards. ``"auto"`` (default): the ``bounds/`` group when the spec has
+        bounds (``[bounds] enabled``; computed before the ensemble); None: no groups.
 
     Returns
     -------
@@ -335,54 +336,62 @@ def run(cfg, path, *, resume=False, force=False, progress=True, groups="auto"):
         Ctrl-C: the samples finished so far are committed in ``path + ".partial"``.
     """
     t_start = time.perf_counter()
-    model = cfg.model()
-    freq = cfg.frequencies()
-    n_f = len(freq)
+    spec = getattr(spec, "spec", spec)
+    n_f = len(spec.freq_hz)
     final = Path(path)
-    what, found = prepare(cfg, final, resume=resume, force=force)
+    what, found = prepare(spec, final, resume=resume, force=force)
     if what == "complete":
-        return Summary(final, cfg.samples, n_f, cfg.samples, 0,
+        return Summary(final, spec.samples, n_f, spec.samples, 0,
                        int(found.get("n_not_converged", -1)), time.perf_counter() - t_start,
                        0.0, True, already_complete=True)
     if what == "new":
         if groups == "auto":
-            groups = _bounds_groups(cfg, progress) if cfg["bounds"]["enabled"] else None
-        coords, variables, attrs, placeholders = layout(cfg, model, freq)
-        store = Store.create(final, record_dim=RECORD, n_records=cfg.samples, coords=coords,
+            groups = _bounds_groups(spec, progress) if spec.bounds else None
+        coords, variables, attrs, placeholders = layout(spec)
+        store = Store.create(final, record_dim=RECORD, n_records=spec.samples, coords=coords,
                              variables=variables, attrs=attrs, placeholders=placeholders,
                              groups=groups() if groups else None)
-        done = np.zeros(cfg.samples, bool)
+        done = np.zeros(spec.samples, bool)
         not_conv_before = 0
     else:
         store, not_conv_before = found
         done = store.done()
     try:
-        return _drive(cfg, model, freq, store, done, not_conv_before, progress, t_start)
+        return _drive(spec, store, done, not_conv_before, progress, t_start)
     finally:
         store.close()
 
 
-def _bounds_groups(cfg, verbose):
-    from .bounds import group_from_config
+def _bounds_groups(spec, verbose):
+    """A callable giving ``{"bounds": (variables, attrs)}``: the bounds of the nominal
+    model, computed when called (before the ensemble)."""
+    def group():
+        from .bounds import from_spec, to_group
 
-    return lambda: group_from_config(cfg, verbose)
+        if verbose and spec.mistuned:
+            print("note: the bounds are for the nominal rig; mistuned members need not lie "
+                  "inside them", flush=True)
+        t = time.perf_counter()
+        B = from_spec(spec)
+        if verbose:
+            print(f"{B.summary()} ({time.perf_counter() - t:.1f} s)", flush=True)
+        return {"bounds": to_group(B)}
+    return group
 
 
-def _drive(cfg, model, freq, store, done, not_conv_before, progress, t_start):
+def _drive(spec, store, done, not_conv_before, progress, t_start):
     from tqdm import tqdm
 
+    model, freq, sampler = spec.model, spec.freq_hz, spec.sampler
     n_f = len(freq)
-    sampler = cfg.sampler(model)
-    chunk = cfg["run"]["chunk"] or auto_chunk(cfg, model)
-    threads = cfg["run"]["threads"] or None
-    tol, max_iter = cfg["solver"]["tol"], cfg["solver"]["max_iter"]
-    keep_response = cfg["output"]["keep_response"]
-    quantity, beams = cfg["metric"]["quantity"], cfg.metric_beams()
-    checkpoint_s = cfg["run"]["checkpoint_s"]
+    ex = spec.execution
+    chunk = ex.chunk or auto_chunk(spec)
+    tol, max_iter = spec.solver.tol, spec.solver.max_iter
+    quantity, beams = spec.metric.quantity, spec.metric.beams
     chunks = _pending_chunks(done, chunk)
     n_before = int(np.count_nonzero(done))
 
-    bar = tqdm(total=cfg.samples, initial=n_before, unit="sample", disable=not progress,
+    bar = tqdm(total=spec.samples, initial=n_before, unit="sample", disable=not progress,
                dynamic_ncols=True, smoothing=0.1, file=sys.stderr)
     q = queue.Queue(maxsize=1)      # one chunk in flight: memory stays flat
     err = []
@@ -401,7 +410,7 @@ def _drive(cfg, model, freq, store, done, not_conv_before, progress, t_start):
                 conv = res.converged
                 arrays = {"metric": hbm.response_metric(res.response, freq, quantity, beams),
                           "converged": conv, "mu0": d.mu0, "kc": d.kc, "N0": d.N0}
-                if keep_response:
+                if spec.keep_response:
                     arrays["response"] = res.response
                 if d.modal_freq_hz is not None:
                     arrays["modal_freq_hz"] = d.modal_freq_hz
@@ -409,7 +418,7 @@ def _drive(cfg, model, freq, store, done, not_conv_before, progress, t_start):
                 del item, res, arrays
                 pending.append((start, start + n))
                 stats["not_converged"] += int(np.count_nonzero(~conv))
-                if time.monotonic() - last >= checkpoint_s:
+                if time.monotonic() - last >= ex.checkpoint_s:
                     store.commit(pending)
                     stats["written"] += sum(b - a for a, b in pending)
                     pending = []
@@ -434,7 +443,7 @@ def _drive(cfg, model, freq, store, done, not_conv_before, progress, t_start):
                    if n + 1 < len(chunks) else None)
             t0 = time.perf_counter()
             res = hbm.solve(model, freq, d.mu0, d.kc, d.N0, modal_freq_hz=d.modal_freq_hz,
-                            tol=tol, max_iter=max_iter, n_threads=threads)
+                            tol=tol, max_iter=max_iter, n_threads=ex.threads)
             kernel_s += time.perf_counter() - t0
             _put(q, (a, d, res), w, err)
             del res, d
@@ -454,8 +463,8 @@ def _drive(cfg, model, freq, store, done, not_conv_before, progress, t_start):
     n_done = n_before + stats["written"]
     not_conv = not_conv_before + stats["not_converged"]
     wall = time.perf_counter() - t_start
-    if interrupted or n_done < cfg.samples:
-        s = Summary(store.path, cfg.samples, n_f, n_done, stats["written"], not_conv, wall,
+    if interrupted or n_done < spec.samples:
+        s = Summary(store.path, spec.samples, n_f, n_done, stats["written"], not_conv, wall,
                     kernel_s, False)
         if interrupted:
             raise Interrupted(s)
@@ -464,7 +473,7 @@ def _drive(cfg, model, freq, store, done, not_conv_before, progress, t_start):
                           "wall_time_s": np.float64(wall),
                           "kernel_time_s": np.float64(kernel_s),
                           "finished_unix": np.float64(time.time())})
-    return Summary(final, cfg.samples, n_f, n_done, stats["written"], not_conv,
+    return Summary(final, spec.samples, n_f, n_done, stats["written"], not_conv,
                    time.perf_counter() - t_start, kernel_s, True)
 
 

@@ -16,15 +16,15 @@ import numpy as np
 
 from .core import sweep as _sweep
 from .core.newton import NOT_CONVERGED
+from .metric import METRIC_UNITS, QUANTITIES, response_metric  # noqa: F401 (public here too)
 from .model import Model
+from .validators import frequencies as check_frequencies
+from .validators import per_damper as check_parameters
 
 #: Default accepted relative residual ``|s kc A - mu0 N0| <= tol mu0 N0``; Newton aims
 #: 100x lower and accepts a stall (rounding floor) only within ``tol``.
 TOL = 1e-10
 MAX_ITER = 50
-QUANTITIES = ("displacement", "velocity", "acceleration")
-#: SI units of the metric for each quantity.
-METRIC_UNITS = {"displacement": "m", "velocity": "m/s", "acceleration": "m/s^2"}
 
 
 @dataclass
@@ -71,7 +71,7 @@ class HBMResult:
         return int(np.count_nonzero(~self.converged))
 
     def metric(self, quantity="displacement", beams=None):
-        """Response metric ``M`` (physics.md section 5), shape (n_s, n_f).
+        """Response metric ``M`` (docs: theory, "Response metric"), shape (n_s, n_f).
 
         Parameters
         ----------
@@ -87,83 +87,6 @@ class HBMResult:
         bad = self.n_not_converged
         return (f"{self.status.shape[0]} samples x {self.status.shape[1]} frequencies = {n} "
                 f"points; not converged: {bad} ({100.0 * bad / max(n, 1):.4g} %)")
-
-
-def response_metric(response, freq_hz, quantity="displacement", beams=None):
-    """``max_b |y_b| omega^k`` over the chosen beams (NaN propagates), shape response[..., 0].
-
-    The maximum over beams is taken slice by slice: numpy reduces a short last axis
-    slowly (~2.4x, measured on ensemble chunks), and ``np.maximum`` propagates NaN like
-    ``ndarray.max``.
-    """
-    if quantity not in QUANTITIES:
-        raise ValueError(f"quantity: expected one of {QUANTITIES}, got {quantity!r}")
-    amp = np.abs(response if beams is None else response[..., list(beams)])
-    m = amp[..., 0].copy()
-    for b in range(1, amp.shape[-1]):
-        np.maximum(m, amp[..., b], out=m)
-    power = QUANTITIES.index(quantity)
-    if power:
-        m *= (2 * np.pi * np.asarray(freq_hz)) ** power
-    return m
-
-
-def check_frequencies(freq_hz):
-    """Validated frequencies (1-d, finite, > 0), Hz."""
-    try:
-        f = np.ascontiguousarray(freq_hz, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f"freq_hz: expected numbers, got {freq_hz!r}") from None
-    if f.ndim == 0:
-        f = f[None]
-    if f.ndim != 1 or f.size == 0:
-        raise ValueError(f"freq_hz: expected a non-empty 1-d array, got shape {f.shape}")
-    if not np.all(np.isfinite(f)):
-        raise ValueError("freq_hz: frequencies must be finite (no NaN or inf)")
-    if not np.all(f > 0):
-        raise ValueError("freq_hz: frequencies must be > 0 Hz")
-    return f
-
-
-def check_parameters(nd, **params):
-    """Broadcast per-damper parameters to a common (n_s, nd) float array each.
-
-    Each parameter may be a scalar (all samples and dampers), shape (nd,) (one sample),
-    shape (n_s, 1) (same for every damper of a sample) or (n_s, nd). Values must be
-    finite and >= 0.
-    """
-    out = {}
-    n_s = 1
-    for name, value in params.items():
-        try:
-            arr = np.array(value, dtype=float)
-        except (TypeError, ValueError):
-            raise ValueError(f"{name}: expected numbers, got {value!r}") from None
-        if arr.ndim == 0:
-            arr = np.full((1, nd), float(arr))
-        elif arr.ndim == 1:
-            if arr.shape[0] != nd:
-                raise ValueError(f"{name}: a 1-d array must have one value per damper "
-                                 f"({nd}), got {arr.shape[0]}")
-            arr = arr[None, :]
-        elif arr.ndim == 2:
-            if arr.shape[1] not in (1, nd):
-                raise ValueError(f"{name}: expected shape (n_samples, {nd}), "
-                                 f"got {arr.shape}")
-            arr = np.broadcast_to(arr, (arr.shape[0], nd))
-        else:
-            raise ValueError(f"{name}: expected at most 2 dimensions, got shape {arr.shape}")
-        if not np.all(np.isfinite(arr)):
-            raise ValueError(f"{name}: values must be finite (no NaN or inf)")
-        if np.any(arr < 0):
-            raise ValueError(f"{name}: values must be >= 0")
-        if arr.shape[0] != 1:
-            if n_s not in (1, arr.shape[0]):
-                raise ValueError(f"{name}: {arr.shape[0]} samples do not match the "
-                                 f"{n_s} samples of the other parameters")
-            n_s = arr.shape[0]
-        out[name] = arr
-    return {k: np.ascontiguousarray(np.broadcast_to(v, (n_s, nd))) for k, v in out.items()}
 
 
 @contextlib.contextmanager

@@ -1,4 +1,7 @@
-"""The friction-coupled beam array: modal tables, dampers and excitation (physics.md 1, 2, 4).
+"""The friction-coupled beam array: modal tables, dampers and excitation.
+
+The conventions (positions, signs, excitation patterns) are those of the theory page of
+the docs, sections "The rig", "Conventions" and "Excitation".
 
 Everything here is validated once, at construction, so that the kernels downstream never
 see a bad value. Units are SI: Hz for modal frequencies, kg^-1/2 for mass-normalised mode
@@ -13,26 +16,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .core.receptance import beam_receptances
+from .validators import choice, finite_array, integer, number
 
 TOPOLOGIES = ("linear", "circular")
 PATTERNS = ("single", "mode", "travelling")
-
-
-def _finite_array(name, value, ndim, positive=False, nonnegative=False):
-    try:
-        arr = np.array(value, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name}: expected numbers, got {value!r}") from None
-    if arr.ndim != ndim:
-        raise ValueError(f"{name}: expected a {ndim}-d array, got shape {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name}: values must be finite (no NaN or inf)")
-    if positive and not np.all(arr > 0):
-        raise ValueError(f"{name}: values must be > 0")
-    if nonnegative and not np.all(arr >= 0):
-        raise ValueError(f"{name}: values must be >= 0")
-    arr.setflags(write=False)
-    return arr
 
 
 @dataclass(frozen=True)
@@ -58,9 +45,9 @@ class ModalTable:
     positions: tuple = (1, 2, 3)
 
     def __post_init__(self):
-        f = _finite_array("freq_hz", self.freq_hz, 1, positive=True)
-        z = _finite_array("zeta", self.zeta, 1, nonnegative=True)
-        u = _finite_array("shapes", self.shapes, 2)
+        f = finite_array("freq_hz", self.freq_hz, 1, positive=True)
+        z = finite_array("zeta", self.zeta, 1, nonnegative=True)
+        u = finite_array("shapes", self.shapes, 2)
         if len(f) == 0:
             raise ValueError("freq_hz: a modal table needs at least one mode")
         if z.shape != f.shape:
@@ -105,7 +92,7 @@ TABLE_1 = ModalTable(freq_hz=[16.20, 105.8], zeta=[0.0017, 0.0071],
 
 @dataclass(frozen=True)
 class Excitation:
-    """Harmonic force at the drive position of each beam (physics.md section 4).
+    """Harmonic force at the drive position of each beam (docs: theory, "Excitation").
 
     Parameters
     ----------
@@ -130,14 +117,9 @@ class Excitation:
     engine_order: int = 2
 
     def __post_init__(self):
-        if self.pattern not in PATTERNS:
-            raise ValueError(f"pattern: expected one of {PATTERNS}, got {self.pattern!r}")
-        F0 = float(self.F0)
-        if not (np.isfinite(F0) and F0 > 0):
-            raise ValueError(f"F0: expected a positive force in N, got {self.F0!r}")
-        object.__setattr__(self, "F0", F0)
-        if self.mode < 0:
-            raise ValueError(f"mode: expected an integer >= 0, got {self.mode!r}")
+        choice(*PATTERNS)(self.pattern, "pattern")
+        object.__setattr__(self, "F0", number(lo=0, lo_open=True)(self.F0, "F0"))
+        integer(0)(self.mode, "mode")
 
     def force(self, n_beams):
         """Complex force amplitudes (n_beams,), N."""

@@ -1,4 +1,4 @@
-"""The paper's rigs (physics.md sections 1 and 4).
+"""The paper's rigs (docs: theory, "The rig" and "Excitation").
 
 * ``two-beam``: beams 5 and 6 of the rig as an isolated pair, one damper, the first beam
   driven (``F = [F0, 0]``), F0 = 0.22 N (Fig. 7a).

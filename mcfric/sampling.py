@@ -1,4 +1,6 @@
-"""Random friction parameters (and mistuning) for Monte Carlo ensembles (physics.md section 6).
+"""Random friction parameters (and mistuning) for Monte Carlo ensembles.
+
+The theory page of the docs explains the choices (section "Monte Carlo ensembles").
 
 Reproducibility contract
 ------------------------
@@ -30,6 +32,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import special
 
+from .validators import real
+
 #: Half the spacing of ``Generator.random``: maps its [0, 1) grid onto (0, 1).
 _HALF_ULP = 2.0 ** -54
 #: Largest relative standard deviation of mistuning: with |z| <= 8.3 (the extreme normal
@@ -40,19 +44,6 @@ MISTUNING_PER = ("beam", "mode")
 NORMAL_MIN_MEAN_OVER_STD = 3.0
 
 
-def _number(name, value, *, lo=None, lo_open=False, allow_inf=False):
-    """A float parameter with a one-line error naming it."""
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise ValueError(f"{name}: expected a number, got {value!r}")
-    v = float(value)
-    if math.isnan(v) or (math.isinf(v) and not allow_inf):
-        raise ValueError(f"{name}: expected a finite number, got {value!r}")
-    if lo is not None and (v <= lo if lo_open else v < lo):
-        raise ValueError(f"{name}: expected a number {'>' if lo_open else '>='} {lo:g}, "
-                         f"got {value!r}")
-    return v
-
-
 @dataclass(frozen=True)
 class Fixed:
     """Always ``value`` (>= 0)."""
@@ -61,7 +52,7 @@ class Fixed:
     dist = "fixed"
 
     def __post_init__(self):
-        object.__setattr__(self, "value", _number("value", self.value, lo=0))
+        object.__setattr__(self, "value", real("value", self.value, lo=0))
 
     def ppf(self, u):
         return np.full(np.shape(u), self.value)
@@ -76,8 +67,8 @@ class Uniform:
     dist = "uniform"
 
     def __post_init__(self):
-        low = _number("low", self.low, lo=0)
-        high = _number("high", self.high, lo=0)
+        low = real("low", self.low, lo=0)
+        high = real("high", self.high, lo=0)
         if high < low:
             raise ValueError(f"high: expected a number >= low ({low:g}), got {self.high!r}")
         object.__setattr__(self, "low", low)
@@ -100,8 +91,8 @@ class Normal:
     dist = "normal"
 
     def __post_init__(self):
-        mean = _number("mean", self.mean, lo=0)
-        std = _number("std", self.std, lo=0)
+        mean = real("mean", self.mean, lo=0)
+        std = real("std", self.std, lo=0)
         if mean < NORMAL_MIN_MEAN_OVER_STD * std * (1 - 1e-12):   # 0.3 vs 3 * 0.1 is equal
             raise ValueError(f"std: expected <= mean/3 ({mean / 3:g}) so that negative values "
                              f"are negligible, got {self.std!r}; for a wider spread use "
@@ -126,10 +117,10 @@ class TruncNormal:
     dist = "truncnormal"
 
     def __post_init__(self):
-        mean = _number("mean", self.mean)
-        std = _number("std", self.std, lo=0, lo_open=True)
-        low = _number("low", self.low, lo=0)
-        high = _number("high", self.high, lo=0, allow_inf=True)
+        mean = real("mean", self.mean)
+        std = real("std", self.std, lo=0, lo_open=True)
+        low = real("low", self.low, lo=0)
+        high = real("high", self.high, lo=0, allow_inf=True)
         if not high > low:
             raise ValueError(f"high: expected a number > low ({low:g}), got {self.high!r}")
         # the inverse CDF loses all precision once both limits are > ~37 std on one side
@@ -152,8 +143,8 @@ class LogNormal:
     dist = "lognormal"
 
     def __post_init__(self):
-        object.__setattr__(self, "median", _number("median", self.median, lo=0, lo_open=True))
-        object.__setattr__(self, "sigma", _number("sigma", self.sigma, lo=0))
+        object.__setattr__(self, "median", real("median", self.median, lo=0, lo_open=True))
+        object.__setattr__(self, "sigma", real("sigma", self.sigma, lo=0))
 
     def ppf(self, u):
         return self.median * np.exp(self.sigma * special.ndtri(np.asarray(u)))
@@ -199,7 +190,7 @@ def as_dict(d):
     return {"dist": d.dist, **{k: getattr(d, k) for k in DISTRIBUTIONS[d.dist][1]}}
 
 
-#: The paper's ensemble (physics.md section 6).
+#: The paper's ensemble: mu0 ~ U(0, 1), kc ~ U(0, 15 kN/m), N0 = 0.5 N.
 PAPER = {"mu0": Uniform(0.0, 1.0), "kc": Uniform(0.0, 15000.0), "N0": Fixed(0.5)}
 
 
@@ -266,7 +257,7 @@ class Sampler:
             d = getattr(self, name)
             if getattr(d, "dist", None) not in DISTRIBUTIONS:
                 raise ValueError(f"{name}: expected a distribution, got {d!r}")
-        m = _number("mistuning", self.mistuning, lo=0)
+        m = real("mistuning", self.mistuning, lo=0)
         if m > MISTUNING_MAX:
             raise ValueError(f"mistuning: expected 0..{MISTUNING_MAX:g}, got {self.mistuning!r}")
         if self.mistuning_per not in MISTUNING_PER:

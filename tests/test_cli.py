@@ -1,5 +1,5 @@
-"""The command line: every bad-configuration row of the README table, the commands'
-outputs, and the wiring of `mcfric` with no arguments."""
+"""The command line: every bad-configuration row of the table in docs/configuration.md,
+the commands' outputs, and the wiring of `mcfric` with no arguments."""
 
 import csv
 import os
@@ -22,13 +22,13 @@ MARK = "<!-- bad-config-table -->"
 
 
 def bad_config_rows():
-    """Rows (input, message) of the README's bad-configuration table."""
-    for doc in (ROOT / "README.md", ROOT / "docs" / "README-run.md"):
+    """Rows (input, message) of the bad-configuration table of the configuration docs."""
+    for doc in (ROOT / "docs" / "configuration.md",):
         if doc.exists() and MARK in doc.read_text():
             text = doc.read_text()
             break
     else:
-        raise AssertionError("no bad-configuration table in README.md or docs/README-run.md")
+        raise AssertionError("no bad-configuration table in docs/configuration.md")
     table = text.split(MARK, 1)[1].split("<!-- /bad-config-table -->", 1)[0]
     rows = []
     for line in table.splitlines():

@@ -1,5 +1,6 @@
 """Configuration: defaults = the paper, round trip of the printed TOML, merging, overrides,
-and that errors name the key. (Every bad-config row of the README runs in test_cli.py.)"""
+and that errors name the key. (Every bad-config row of docs/configuration.md runs in
+test_cli.py.)"""
 
 import json
 import tomllib
@@ -148,13 +149,13 @@ def test_validate_without_defaults_reports_missing_keys():
     assert e.value.key == "solver.tol"
 
 
-def test_every_toml_example_in_the_readme_is_valid():
-    """Every plain ```toml block of the README is a run configuration and must validate;
+def test_every_toml_example_in_the_docs_is_valid():
+    """Every plain ```toml block of the README and docs/ is a run configuration and must validate;
     TOML that is not one (e.g. a modal-table file) uses an info string: ```toml table-file."""
     from pathlib import Path
 
     root = Path(__file__).resolve().parents[1]
-    docs = [p for p in (root / "README.md", root / "docs" / "README-run.md") if p.exists()]
+    docs = [root / "README.md", *sorted((root / "docs").glob("*.md"))]
     blocks = [b.split("```", 1)[0] for p in docs for b in p.read_text().split("```toml\n")[1:]]
     assert blocks
     for b in blocks:

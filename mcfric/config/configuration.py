@@ -1,0 +1,139 @@
+"""The validated configuration, and its resolution into a plain run specification.
+
+A :class:`Config` is what :func:`~mcfric.config.load` and
+:func:`~mcfric.config.validate` return: a complete nested dict of canonical values. Its
+:attr:`Config.spec` resolves it, once, into a :class:`~mcfric.spec.RunSpec` (the model,
+the sampler, the frequency grid, the solver and bounds settings, the output layout) that
+the ensemble, the bounds and the command line use without coming back here.
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+
+from .. import sampling
+from ..model import Excitation, ModalTable, Model
+from ..spec import BoundsSpec, ExecutionSpec, MetricSpec, RunSpec, SolverSpec
+from . import loading, rendering, validation   # used at call time (they import Config)
+from .schema import NOT_IDENTITY
+
+
+@dataclass(frozen=True)
+class Config:
+    """A validated, complete configuration (``data``: nested dict of canonical values)."""
+
+    data: dict
+
+    def __getitem__(self, section):
+        return self.data[section]
+
+    @cached_property
+    def spec(self):
+        """The :class:`~mcfric.spec.RunSpec` of this configuration (resolved once)."""
+        d = self.data
+        model = _model(d)
+        s = d["sampling"]
+        dists = {k: sampling.distribution(s[k]["dist"],
+                                          **{p: v for p, v in s[k].items() if p != "dist"})
+                 for k in ("mu0", "kc", "N0")}
+        sampler = sampling.Sampler(seed=s["seed"], n_dampers=model.n_dampers,
+                                   modal_freq_hz=model.modal_arrays()[0],
+                                   mistuning=s["mistuning"], mistuning_per=s["mistuning_per"],
+                                   **dists)
+        f = d["frequency"]
+        space = np.linspace if f["spacing"] == "linear" else np.geomspace
+        freq = space(f["f_min"], f["f_max"], f["n"])
+        freq.setflags(write=False)
+        beams = d["metric"]["beams"]
+        b = d["bounds"]
+        bounds = (BoundsSpec(*validation.bounds_limits(d), n_starts=b["n_starts"])
+                  if b["enabled"] else None)
+        r = d["run"]
+        return RunSpec(
+            model=model, freq_hz=freq, sampler=sampler, samples=s["samples"],
+            metric=MetricSpec(d["metric"]["quantity"],
+                              None if beams == "all" else tuple(x - 1 for x in beams)),
+            solver=SolverSpec(d["solver"]["tol"], d["solver"]["max_iter"]),
+            bounds=bounds, keep_response=d["output"]["keep_response"],
+            execution=ExecutionSpec(r["threads"] or None, r["chunk"], r["checkpoint_s"]),
+            config_toml=self.toml(comments=False), config_json=self.json(),
+            identity=self.identity())
+
+    def model(self):
+        """The :class:`~mcfric.model.Model` described by ``[model]`` and ``[excitation]``."""
+        return self.spec.model
+
+    def frequencies(self):
+        """The frequency grid, Hz, shape (n,), increasing (read-only)."""
+        return self.spec.freq_hz
+
+    def sampler(self):
+        """The :class:`~mcfric.sampling.Sampler` of ``[sampling]``."""
+        return self.spec.sampler
+
+    def bounds_limits(self):
+        """(k_max_re, k_max_im, F_lim): the admissible region of the bounds, N/m, N/m, N
+        (``F_lim`` inf: no force constraint)."""
+        return validation.bounds_limits(self.data)
+
+    def metric_beams(self):
+        """0-based beams of the metric, or None for all."""
+        b = self.spec.metric.beams
+        return None if b is None else list(b)
+
+    @property
+    def samples(self):
+        return self.data["sampling"]["samples"]
+
+    @property
+    def seed(self):
+        return self.data["sampling"]["seed"]
+
+    def identity(self):
+        """The part of the configuration that determines the results (no [run], [bounds])."""
+        return {k: v for k, v in self.data.items() if k not in NOT_IDENTITY}
+
+    def json(self, identity=False):
+        """Canonical JSON (sorted keys; floats round-trip exactly)."""
+        return json.dumps(self.identity() if identity else self.data, sort_keys=True)
+
+    def toml(self, comments=True):
+        """The complete configuration as TOML (parses back to the same configuration)."""
+        return rendering.render(self.data, comments)
+
+    def replace(self, dotted, value):
+        """A validated copy with one key changed (e.g. ``"sampling.samples"``)."""
+        raw = copy.deepcopy(self.data)
+        loading.set_key(raw, dotted, value)
+        return validation.validate(raw)
+
+
+def _model(d):
+    """The :class:`~mcfric.model.Model` of ``[model]`` and ``[excitation]``."""
+    m, t = d["model"], d["model"]["table"]
+    table = ModalTable(t["freq_hz"], t["zeta"], t["shapes"], tuple(t["positions"]))
+    beams = [table] * m["n_beams"]
+    for b in m["beam"]:
+        beams[b["beam"] - 1] = ModalTable(b.get("freq_hz", t["freq_hz"]),
+                                          b.get("zeta", t["zeta"]),
+                                          b.get("shapes", t["shapes"]),
+                                          tuple(t["positions"]))
+    return Model(beams=tuple(beams), excitation=Excitation(**d["excitation"]),
+                 topology=m["topology"], contact=m["contact"], output=m["output"],
+                 drive=m["drive"], name=m["name"])
+
+
+def first_difference(a, b, path=""):
+    """Dotted key of the first difference between two nested dicts, or None."""
+    if isinstance(a, dict) and isinstance(b, dict):
+        for k in list(a) + [k for k in b if k not in a]:
+            d = first_difference(a.get(k), b.get(k), f"{path}.{k}" if path else k)
+            if d:
+                return d
+        return None
+    return None if a == b else path

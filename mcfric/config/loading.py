@@ -1,0 +1,152 @@
+"""Loading a configuration: preset defaults, then a TOML file, then command-line overrides.
+
+Later layers win key by key; a ``[sampling.<param>]`` distribution table and the
+``[[model.beam]]`` list are replaced whole, not merged. Modal tables given as files
+(``[model.table] file = ...``) are read here, once, so that the validated configuration
+holds the numbers.
+"""
+
+from __future__ import annotations
+
+import copy
+import tomllib
+from pathlib import Path
+
+from ..presets import PRESETS
+from ..validators import InputError, choices, is_int, show
+from .schema import DEFAULT_PRESET, defaults
+from .validation import validate
+
+
+def _merge(base, top, path=""):
+    """``top`` over ``base``; distribution tables and [[model.beam]] replace whole."""
+    out = dict(base)
+    for k, v in top.items():
+        key = f"{path}.{k}" if path else k
+        whole = key in ("sampling.mu0", "sampling.kc", "sampling.N0", "model.beam")
+        if isinstance(v, dict) and isinstance(out.get(k), dict) and not whole:
+            out[k] = _merge(out[k], v, key)
+        else:
+            out[k] = copy.deepcopy(v)
+    return out
+
+
+def set_key(tree, dotted, value):
+    """Set ``tree[a][b][c] = value`` for ``dotted = "a.b.c"``, creating tables."""
+    *head, last = dotted.split(".")
+    for h in head:
+        tree = tree.setdefault(h, {})
+    tree[last] = value
+
+
+def read_toml(path):
+    """Parse a TOML file; problems become a one-line :class:`ConfigError` naming the file."""
+    p = Path(path)
+    try:
+        text = p.read_bytes().decode("utf-8")
+    except FileNotFoundError:
+        raise InputError(str(path), "no such file (and not a preset: "
+                         f"{choices(PRESETS)})") from None
+    except (OSError, UnicodeDecodeError) as e:
+        raise InputError(str(path), f"cannot read: {e}") from None
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
+        raise InputError(str(path), f"invalid TOML: {e}") from None
+
+
+def load(source=None, overrides=None):
+    """Resolve and validate a configuration.
+
+    Parameters
+    ----------
+    source : str, Path, dict or None
+        A preset name, a TOML file path, an already-parsed dict (as from a TOML file), or
+        None (the default preset, eight-beam).
+    overrides : dict, optional
+        ``{dotted key: (value, label)}``, e.g. ``{"sampling.samples": (500, "--samples")}``;
+        errors in an override name its label. A None value is ignored.
+
+    Returns
+    -------
+    Config
+    """
+    if source is None:
+        user = {}
+    elif isinstance(source, dict):
+        user = copy.deepcopy(source)
+    elif isinstance(source, str) and source in PRESETS:
+        user = {"model": {"preset": source}}
+    else:
+        user = read_toml(source)
+        _expand_modal_files(user, Path(source).parent)
+    model = user.get("model", {})
+    base_name = model.get("preset", DEFAULT_PRESET) if isinstance(model, dict) else DEFAULT_PRESET
+    if not isinstance(base_name, str) or base_name not in PRESETS:
+        raise InputError("model.preset", f"expected one of {choices(PRESETS)}, "
+                         f"got {show(base_name)}")
+    raw = _merge(defaults(base_name), user)
+    labels = {}
+    for key, (value, label) in (overrides or {}).items():
+        if value is None:
+            continue
+        set_key(raw, key, value)
+        labels[key] = label
+    return validate(raw, labels)
+
+
+MODAL_FILE_KEYS = ("file", "nodes", "direction", "modes", "max_imag")
+
+
+def _expand_modal_files(user, base):
+    """Replace ``[model.table] file = ...`` (and per-beam ``file``) by the table read.
+
+    The file (UFF 55, CSV or TOML; :func:`mcfric.modal_io.read_modal_table`) is read
+    once, here: the validated configuration holds the numbers, so a results file records
+    the modal data it was computed with. ``nodes = {contact, output, drive}`` maps the
+    file's node numbers (CSV/TOML: position labels) to positions 1, 2, 3.
+    """
+    m = user.get("model")
+    if not isinstance(m, dict):
+        return
+    beams = m.get("beam") if isinstance(m.get("beam"), list) else []
+    items = [("model.table", m.get("table"))] + [(f"model.beam[{n}]", b)
+                                                  for n, b in enumerate(beams, 1)]
+    for key, t in items:
+        if not isinstance(t, dict) or "file" not in t:
+            continue
+        extra = set(t) - set(MODAL_FILE_KEYS) - ({"beam"} if key != "model.table" else set())
+        if extra:
+            raise InputError(f"{key}.{sorted(extra)[0]}", "cannot be given together with "
+                             "file (the file holds the whole table)")
+        nodes = t.get("nodes")
+        if (not isinstance(nodes, dict) or set(nodes) != {"contact", "output", "drive"}
+                or not all(is_int(v) for v in nodes.values())):
+            raise InputError(f"{key}.nodes", "expected {contact = N, output = N, drive = N} "
+                             f"(node numbers in the file), got {show(nodes)}")
+        if not isinstance(t["file"], str):
+            raise InputError(f"{key}.file", f"expected a file name, got {show(t['file'])}")
+        path = Path(t["file"])
+        if not path.is_absolute():
+            path = base / path
+        from ..modal_io import read_modal_table
+        try:
+            table = read_modal_table(
+                path, positions={1: nodes["contact"], 2: nodes["output"], 3: nodes["drive"]},
+                direction=t.get("direction"), modes=t.get("modes"),
+                max_imag=t.get("max_imag", 0.05))
+        except (ValueError, ImportError, OSError) as e:
+            raise InputError(f"{key}.file", str(e).splitlines()[0]) from None
+        new = {"freq_hz": table.freq_hz.tolist(), "zeta": table.zeta.tolist(),
+               "shapes": table.shapes.tolist()}
+        if key == "model.table":
+            new["positions"] = list(table.positions)
+        else:
+            new["beam"] = t.get("beam")
+        t.clear()
+        t.update(new)
+        if key == "model.table":
+            for role, label in (("contact", 1), ("output", 2), ("drive", 3)):
+                if m.get(role, label) != label:
+                    raise InputError(f"model.{role}", "is set by model.table.nodes when the "
+                                     "table comes from a file; remove it")

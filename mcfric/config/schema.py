@@ -1,0 +1,163 @@
+"""The configuration schema: every key, its check, its default and its comment.
+
+One entry per key: ``(check, comment)``. A check takes ``(value, key)`` and returns the
+canonical value or raises :class:`~mcfric.validators.InputError`
+(:mod:`mcfric.validators`); the comment is what ``mcfric config`` prints beside the key.
+Defaults come from a preset (:func:`defaults`); units are SI: Hz, N, N/m, m.
+"""
+
+from __future__ import annotations
+
+from .. import sampling
+from ..metric import QUANTITIES
+from ..model import PATTERNS, TOPOLOGIES
+from ..presets import PRESETS
+from ..presets import preset as make_preset
+from ..validators import (InputError, auto_or_number, beams_or_all, boolean, choice, choices,
+                          integer, integers, matrix, number, numbers, show, string)
+
+DEFAULT_PRESET = "eight-beam"
+SPACINGS = ("linear", "log")
+#: Sections that do not change the results (ignored when comparing runs for --resume).
+NOT_IDENTITY = ("run", "bounds")
+MAX_SAMPLES = 10 ** 10
+MAX_FREQ = 10 ** 7
+
+
+def defaults(preset=DEFAULT_PRESET):
+    """The complete default configuration of a preset, as a nested dict."""
+    if preset not in PRESETS:
+        raise InputError("model.preset", f"expected one of {choices(PRESETS)}, "
+                         f"got {show(preset)}")
+    m = make_preset(preset)
+    t = m.beams[0]
+    ex = m.excitation
+    return {
+        "model": {
+            "preset": preset, "name": m.name, "n_beams": m.n_beams,
+            "topology": m.topology, "contact": m.contact, "output": m.output,
+            "drive": m.drive,
+            "table": {"freq_hz": t.freq_hz.tolist(), "zeta": t.zeta.tolist(),
+                      "shapes": t.shapes.tolist(), "positions": list(t.positions)},
+            "beam": [],
+        },
+        "excitation": {"pattern": ex.pattern, "F0": ex.F0, "beam": ex.beam,
+                       "mode": ex.mode, "engine_order": ex.engine_order},
+        "frequency": {"f_min": 10.0, "f_max": 150.0, "n": 1000, "spacing": "linear"},
+        "sampling": {"samples": 2000, "seed": 0, "mistuning": 0.0, "mistuning_per": "beam",
+                     **{k: sampling.as_dict(d) for k, d in sampling.PAPER.items()}},
+        "metric": {"quantity": "displacement", "beams": "all"},
+        "solver": {"tol": 1e-10, "max_iter": 50},
+        "output": {"keep_response": True},
+        "run": {"threads": 0, "chunk": 0, "checkpoint_s": 0.0},
+        "bounds": {"enabled": True, "k_max": "auto", "k_max_im": "auto", "F_lim": "auto",
+                   "n_starts": 3},
+    }
+
+
+TABLE = {
+    "freq_hz": (numbers(lo=0, lo_open=True), "natural frequencies, Hz, one per mode"),
+    "zeta": (numbers(lo=0), "modal damping ratios (-), one per mode"),
+    "shapes": (matrix(), "mass-normalised mode shapes, kg^-1/2: one row per mode, "
+                         "one column per position"),
+    "positions": (integers(), "position label of each column of shapes"),
+}
+BEAM = {
+    "beam": (integer(1), "which beam (1-based) this entry overrides"),
+    "freq_hz": TABLE["freq_hz"],
+    "zeta": TABLE["zeta"],
+    "shapes": TABLE["shapes"],
+}
+DIST_DOC = {
+    "mu0": "friction coefficient (-), per damper",
+    "kc": "tangential contact stiffness, N/m, per damper",
+    "N0": "normal preload, N, per damper",
+}
+
+SPEC = {
+    "model": {
+        "preset": (choice(*PRESETS), "base rig; every other key overrides it"),
+        "name": (string(), "free text, shown in plots and in `mcfric info`"),
+        "n_beams": (integer(2, 100000), "number of beams (>= 2)"),
+        "topology": (choice(*TOPOLOGIES), '"linear": n_beams - 1 dampers between '
+                                          'neighbours; "circular": also last-first'),
+        "contact": (integer(), "position label of the friction contacts"),
+        "output": (integer(), "position label of the response output"),
+        "drive": (integer(), "position label of the drive force"),
+        "table": TABLE,
+        "beam": BEAM,
+    },
+    "excitation": {
+        "pattern": (choice(*PATTERNS), '"single": one beam; "mode": F0 cos(m pi (b - 1/2) / n); '
+                                       '"travelling": F0 exp(-2 pi i E (b - 1) / n)'),
+        "F0": (number(lo=0, lo_open=True), "force amplitude, N"),
+        "beam": (integer(1), 'driven beam for "single" (1-based)'),
+        "mode": (integer(0), 'chain mode m for "mode"'),
+        "engine_order": (integer(), 'engine order E for "travelling"'),
+    },
+    "frequency": {
+        "f_min": (number(lo=0, lo_open=True), "lowest frequency, Hz"),
+        "f_max": (number(lo=0, lo_open=True), "highest frequency, Hz (> f_min)"),
+        "n": (integer(2, MAX_FREQ), "number of frequencies (each sample sweeps them upward)"),
+        "spacing": (choice(*SPACINGS), '"linear" or "log" spacing'),
+    },
+    "sampling": {
+        "samples": (integer(1, MAX_SAMPLES), "ensemble size"),
+        "seed": (integer(0, 2 ** 63 - 1), "root seed; sample i uses SeedSequence(seed, "
+                                          "spawn_key=(i,))"),
+        "mistuning": (number(lo=0, hi=sampling.MISTUNING_MAX),
+                      "relative std of the modal frequencies (0 = none, max 0.1)"),
+        "mistuning_per": (choice(*sampling.MISTUNING_PER),
+                          '"beam": one factor per beam for all its modes; "mode": '
+                          'one per beam and mode'),
+        "mu0": "dist",
+        "kc": "dist",
+        "N0": "dist",
+    },
+    "metric": {
+        "quantity": (choice(*QUANTITIES), "M = max over beams of omega^k |y| at the output "
+                                          "position (k = 0, 1, 2)"),
+        "beams": (beams_or_all(), '"all" or a list of beam numbers (1-based) to take the '
+                                  'maximum over'),
+    },
+    "solver": {
+        "tol": (number(lo=0, hi=0.1, lo_open=True),
+                "accepted relative friction-force residual"),
+        "max_iter": (integer(1, 10000), "Newton iterations per attempt"),
+    },
+    "output": {
+        "keep_response": (boolean(), "store the complex response per beam; false keeps only "
+                                     "the metric (for very large runs)"),
+    },
+    "run": {
+        "threads": (integer(0), "numba threads (0 = all); never changes the results"),
+        "chunk": (integer(0, 10 ** 7), "samples per chunk (0 = auto, ~32 MB of kernel output); "
+                                       "never changes the results"),
+        "checkpoint_s": (number(lo=0), "min seconds between crash-safe checkpoints "
+                                       "(0 = after every chunk)"),
+    },
+    "bounds": {
+        "enabled": (boolean(), "compute the equivalent-linear response bounds "
+                               "before the ensemble, stored in bounds/"),
+        "k_max": (auto_or_number(), 'largest stiffness Re K of a damper, N/m; "auto": the '
+                                    'upper limit of the kc distribution'),
+        "k_max_im": (auto_or_number(), 'largest dissipation Im K, N/m; "auto": k_max'),
+        "F_lim": (auto_or_number(words=("auto", "none")),
+                  'friction force limit (first harmonic), N; "auto": 4/pi mu0_max N0_max '
+                  'from the sampling; "none": no force constraint'),
+        "n_starts": (integer(1, 10000), "starts of the box search per frequency"),
+    },
+}
+SECTION_DOC = {
+    "model": "the beam array (docs: theory, The rig)",
+    "model.table": "modal table of every beam (paper Table 1)",
+    "model.beam": "per-beam overrides of the table (mistuned or measured beams)",
+    "excitation": "harmonic drive at the drive position (docs: theory, Excitation)",
+    "frequency": "the frequency grid",
+    "sampling": "the Monte Carlo ensemble (docs: theory, Monte Carlo ensembles)",
+    "metric": "response metric M per sample and frequency (docs: theory, Response metric)",
+    "solver": "harmonic-balance solver",
+    "output": "what the results file keeps",
+    "run": "how to compute: never changes the results, not compared on --resume",
+    "bounds": "equivalent-linear response bounds (docs: bounds); do not change the ensemble",
+}

@@ -1,0 +1,244 @@
+"""Validation of a whole configuration: the schema's checks plus the cross-key rules.
+
+:func:`validate` checks every key against :mod:`.schema`, then the rules that involve
+several keys (table sizes, positions, the band, the bounds' limits), then builds the
+model once to catch what only the model knows. The first problem raises a one-line
+:class:`~mcfric.validators.InputError` naming the key (or the command-line flag that set
+it).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+from .. import sampling
+from ..validators import InputError, choices, is_num, show
+from . import configuration   # at call time: configuration imports this module
+from .schema import BEAM, SPEC, TABLE
+
+
+def _unknown(table, allowed, where):
+    for k in table:
+        if k not in allowed:
+            names = ", ".join(allowed)
+            raise InputError(f"{where}.{k}" if where else k,
+                             f"unknown key; allowed in [{where}]: {names}" if where else
+                             f"unknown section; allowed: {names}")
+
+
+def _table(v, key):
+    if not isinstance(v, dict):
+        raise InputError(key, f"expected a table, got {show(v)}")
+    return v
+
+
+def _check_table(raw, spec, where):
+    _table(raw, where)
+    _unknown(raw, spec, where)
+    return {k: spec[k][0](raw[k], f"{where}.{k}") for k in spec if k in raw}
+
+
+def _missing(key, doc):
+    raise InputError(key, f"missing ({doc})")
+
+
+def _check_dist(raw, key):
+    _table(raw, key)
+    if "dist" not in raw:
+        raise InputError(f"{key}.dist", "missing; expected one of "
+                         + choices(sampling.DISTRIBUTIONS))
+    dist = raw["dist"]
+    if not isinstance(dist, str) or dist not in sampling.DISTRIBUTIONS:
+        raise InputError(f"{key}.dist", f"expected one of {choices(sampling.DISTRIBUTIONS)}, "
+                         f"got {show(dist)}")
+    params = {k: v for k, v in raw.items() if k != "dist"}
+    names = sampling.DISTRIBUTIONS[dist][1]
+    for k, v in params.items():
+        if k not in names:
+            raise InputError(f"{key}.{k}", f"not a parameter of dist {json.dumps(dist)} "
+                             f"(allowed: {', '.join(names)})")
+        if isinstance(v, bool) or not is_num(v):
+            raise InputError(f"{key}.{k}", f"expected a number, got {show(v)}")
+    try:
+        d = sampling.distribution(dist, **params)
+    except ValueError as e:
+        name, _, msg = str(e).partition(": ")
+        raise InputError(f"{key}.{name}", msg) from None
+    return sampling.as_dict(d)
+
+
+def validate(raw, labels=None):
+    """Validate a complete raw configuration (defaults + file + overrides).
+
+    Parameters
+    ----------
+    raw : dict
+        Nested dict as from ``tomllib`` merged over :func:`defaults`.
+    labels : dict, optional
+        Dotted key -> label used in messages instead (the CLI flag that set the key).
+
+    Returns
+    -------
+    Config
+
+    Raises
+    ------
+    InputError
+        The first problem found, naming the key (or its label) and what is allowed.
+    """
+    labels = labels or {}
+    try:
+        return _validate(raw)
+    except InputError as e:
+        if e.alt and e.key not in labels and e.alt[0] in labels:
+            e = InputError(*e.alt)    # blame the key the user changed on the command line
+        if e.key in labels:
+            raise InputError(labels[e.key], e.message) from None
+        raise e from None
+
+
+def _validate(raw):
+    _table(raw, "config")
+    _unknown(raw, SPEC, "")
+    out = {}
+    for sec, spec in SPEC.items():
+        src = _table(raw.get(sec, {}), sec)
+        _unknown(src, spec, sec)
+        res = {}
+        for k, entry in spec.items():
+            key = f"{sec}.{k}"
+            if k not in src:
+                if sec == "model" and k == "beam":
+                    res[k] = []
+                    continue
+                _missing(key, "every key must be given when validating without defaults")
+            v = src[k]
+            if entry == "dist":
+                res[k] = _check_dist(v, key)
+            elif k == "table" and sec == "model":
+                res[k] = _check_table(v, TABLE, key)
+                for t in TABLE:
+                    if t not in res[k]:
+                        _missing(f"{key}.{t}", TABLE[t][1])
+            elif k == "beam" and sec == "model":
+                if not isinstance(v, list):
+                    raise InputError(key, f"expected an array of tables [[model.beam]], "
+                                     f"got {show(v)}")
+                res[k] = []
+                for n, item in enumerate(v, 1):
+                    b = _check_table(item, BEAM, f"{key}[{n}]")
+                    if "beam" not in b:
+                        _missing(f"{key}[{n}].beam", BEAM["beam"][1])
+                    res[k].append(b)
+            else:
+                res[k] = entry[0](v, key)
+        out[sec] = res
+    _cross_checks(out)
+    cfg = configuration.Config(out)
+    try:
+        cfg.spec            # resolved once, here: the model, sampler and grid are built
+    except ValueError as e:   # a rule of the Model itself that the checks above missed
+        raise InputError("model", str(e)) from None
+    return cfg
+
+
+def _cross_checks(c):
+    m, t = c["model"], c["model"]["table"]
+    nb = m["n_beams"]
+    n_modes = len(t["freq_hz"])
+    if len(t["zeta"]) != n_modes:
+        raise InputError("model.table.zeta", f"expected {n_modes} values (one per mode in "
+                         f"freq_hz), got {len(t['zeta'])}")
+    if len(t["shapes"]) != n_modes:
+        raise InputError("model.table.shapes", f"expected {n_modes} rows (one per mode in "
+                         f"freq_hz), got {len(t['shapes'])}")
+    if len(t["shapes"][0]) != len(t["positions"]):
+        raise InputError("model.table.positions", f"expected {len(t['shapes'][0])} labels "
+                         f"(one per column of shapes), got {len(t['positions'])}")
+    for k in ("contact", "output", "drive"):
+        if m[k] not in t["positions"]:
+            raise InputError(f"model.{k}", f"expected one of the table positions "
+                             f"{t['positions']}, got {m[k]}")
+    if m["topology"] == "circular" and nb < 3:
+        raise InputError("model.topology", f'"circular" needs n_beams >= 3, got n_beams = {nb}')
+    seen = set()
+    for n, b in enumerate(m["beam"], 1):
+        key = f"model.beam[{n}]"
+        if not 1 <= b["beam"] <= nb:
+            raise InputError(f"{key}.beam", f"expected an integer in 1..{nb} (n_beams), "
+                             f"got {b['beam']}")
+        if b["beam"] in seen:
+            raise InputError(f"{key}.beam", f"beam {b['beam']} is overridden twice")
+        seen.add(b["beam"])
+        nm = len(b.get("freq_hz", t["freq_hz"]))
+        for k in ("freq_hz", "zeta", "shapes"):
+            got = len(b.get(k, t[k]))
+            if got != nm:
+                raise InputError(f"{key}.{k}", f"expected {nm} entries (one per mode), "
+                                 f"got {got}; give freq_hz, zeta and shapes together to "
+                                 f"change the number of modes")
+        if "shapes" in b and len(b["shapes"][0]) != len(t["positions"]):
+            raise InputError(f"{key}.shapes", f"expected {len(t['positions'])} columns "
+                             f"(model.table.positions), got {len(b['shapes'][0])}")
+    ex = c["excitation"]
+    if not 1 <= ex["beam"] <= nb:
+        raise InputError("excitation.beam", f"expected an integer in 1..{nb} (n_beams), "
+                         f"got {ex['beam']}")
+    fr = c["frequency"]
+    if not fr["f_max"] > fr["f_min"]:
+        raise InputError("frequency.f_max", f"expected a number > f_min ({fr['f_min']:g}), "
+                         f"got {fr['f_max']:g}",
+                         alt=("frequency.f_min", f"expected a number < f_max "
+                                                  f"({fr['f_max']:g}), got {fr['f_min']:g}"))
+    beams = c["metric"]["beams"]
+    if beams != "all":
+        for b in beams:
+            if not 1 <= b <= nb:
+                raise InputError("metric.beams", f"expected beam numbers in 1..{nb} "
+                                 f"(n_beams), got {show(beams)}")
+    if c["bounds"]["enabled"]:
+        bounds_limits(c)      # unbounded distributions need explicit limits
+    import numba
+    nt = numba.config.NUMBA_NUM_THREADS
+    if c["run"]["threads"] > nt:
+        raise InputError("run.threads", f"expected an integer in 0..{nt} (0 = all {nt}), "
+                         f"got {c['run']['threads']}")
+
+
+def _dist_max(t):
+    """Upper limit of a distribution table (inf where it has none)."""
+    d = t["dist"]
+    if d == "fixed":
+        return float(t["value"])
+    if d in ("uniform", "truncnormal"):
+        return float(t["high"])
+    return math.inf
+
+
+def bounds_limits(c):
+    """(k_max_re, k_max_im, F_lim) in N/m, N/m, N from ``[bounds]`` and ``[sampling]``."""
+    b, s = c["bounds"], c["sampling"]
+    k_max = b["k_max"]
+    if k_max == "auto":
+        k_max = _dist_max(s["kc"])
+        if not math.isfinite(k_max):
+            raise InputError("bounds.k_max", f'"auto" needs a kc distribution with an upper '
+                             f'limit ({s["kc"]["dist"]} has none): give k_max in N/m')
+        if not k_max > 0:
+            raise InputError("bounds.k_max", '"auto" needs kc > 0 somewhere: give k_max '
+                             "in N/m or set bounds.enabled = false")
+    k_im = k_max if b["k_max_im"] == "auto" else b["k_max_im"]
+    F_lim = b["F_lim"]
+    if F_lim == "none":
+        F_lim = math.inf
+    elif F_lim == "auto":
+        mu, n0 = _dist_max(s["mu0"]), _dist_max(s["N0"])
+        if not (math.isfinite(mu) and math.isfinite(n0)):
+            which = "mu0" if not math.isfinite(mu) else "N0"
+            raise InputError("bounds.F_lim", f'"auto" needs {which} with an upper limit '
+                             f'({s[which]["dist"]} has none): give F_lim in N or "none"')
+        F_lim = 4.0 / math.pi * mu * n0
+        if not F_lim > 0:
+            F_lim = math.inf      # no friction anywhere: the force constraint is void
+    return float(k_max), float(k_im), float(F_lim)

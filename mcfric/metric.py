@@ -1,0 +1,69 @@
+"""The response metric ``M``: the quantities it can be in, their units, how it is formed.
+
+``M = max_b omega^k |y_b|`` over the chosen beams at the output position, with ``k = 0,
+1, 2`` for displacement (m), velocity (m/s) and acceleration (m/s^2); see the theory
+page of the docs, section "Response metric".
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .validators import choice
+
+#: The quantities a metric can be in; the index is the power k of omega.
+QUANTITIES = ("displacement", "velocity", "acceleration")
+#: SI units of the metric for each quantity.
+METRIC_UNITS = {"displacement": "m", "velocity": "m/s", "acceleration": "m/s^2"}
+
+check_quantity = choice(*QUANTITIES)
+
+
+def omega_power(freq_hz, to_quantity, from_quantity="displacement"):
+    """``omega^k`` that turns an amplitude in ``from_quantity`` into ``to_quantity``.
+
+    Parameters
+    ----------
+    freq_hz : array_like
+        Frequencies, Hz.
+    to_quantity, from_quantity : {"displacement", "velocity", "acceleration"}
+
+    Returns
+    -------
+    ndarray
+        ``(2 pi f)^k``, ``k = index(to) - index(from)`` (s^-k).
+    """
+    k = QUANTITIES.index(check_quantity(to_quantity, "quantity")) \
+        - QUANTITIES.index(check_quantity(from_quantity, "quantity"))
+    return (2 * np.pi * np.asarray(freq_hz, dtype=float)) ** k
+
+
+def response_metric(response, freq_hz, quantity="displacement", beams=None):
+    """``max_b |y_b| omega^k`` over the chosen beams (NaN propagates).
+
+    Parameters
+    ----------
+    response : ndarray of complex, shape (..., n_f, n_beams)
+        Displacement amplitudes, m.
+    freq_hz : ndarray, shape (n_f,)
+        Frequencies, Hz.
+    quantity : {"displacement", "velocity", "acceleration"}
+    beams : sequence of int, optional
+        0-based beams to take the maximum over; default all.
+
+    Returns
+    -------
+    ndarray, shape (..., n_f)
+        ``M`` in m, m/s or m/s^2.
+    """
+    check_quantity(quantity, "quantity")
+    amp = np.abs(response if beams is None else response[..., list(beams)])
+    # the maximum over beams slice by slice: numpy reduces a short last axis slowly, and
+    # np.maximum propagates NaN like ndarray.max
+    m = amp[..., 0].copy()
+    for b in range(1, amp.shape[-1]):
+        np.maximum(m, amp[..., b], out=m)
+    power = QUANTITIES.index(quantity)
+    if power:
+        m *= (2 * np.pi * np.asarray(freq_hz)) ** power
+    return m

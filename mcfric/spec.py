@@ -1,0 +1,141 @@
+"""The run specification: a validated configuration resolved once into plain objects.
+
+A :class:`RunSpec` holds everything a run needs and nothing it must look up again: the
+model, the frequency grid, the sampler, the metric, the solver and bounds settings, the
+output layout and how to execute. :meth:`mcfric.config.Config.spec` builds it; the
+ensemble, the bounds and the command line take it as it is. It knows nothing of TOML
+or of the command line.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .model import Model
+from .sampling import Sampler
+
+
+@dataclass(frozen=True)
+class MetricSpec:
+    """What ``M`` is: ``max_b omega^k |y_b|`` over ``beams``.
+
+    Attributes
+    ----------
+    quantity : {"displacement", "velocity", "acceleration"}
+    beams : tuple of int or None
+        0-based beams the maximum runs over; None: all.
+    """
+
+    quantity: str = "displacement"
+    beams: tuple | None = None
+
+    @property
+    def beams_label(self):
+        """``"all"`` or the 1-based beam numbers, as a configuration writes them."""
+        return "all" if self.beams is None else [b + 1 for b in self.beams]
+
+
+@dataclass(frozen=True)
+class SolverSpec:
+    """Harmonic-balance solver settings.
+
+    Attributes
+    ----------
+    tol : float
+        Accepted relative friction-force residual (-).
+    max_iter : int
+        Newton iterations per attempt.
+    """
+
+    tol: float
+    max_iter: int
+
+
+@dataclass(frozen=True)
+class BoundsSpec:
+    """The admissible region and search effort of the response bounds.
+
+    Attributes
+    ----------
+    k_max_re, k_max_im : float
+        Largest ``Re K`` and ``Im K`` of a damper, N/m.
+    F_lim : float
+        Friction force limit of the first harmonic, N (``inf``: no force constraint).
+    n_starts : int
+        Starts of the box search per frequency.
+    """
+
+    k_max_re: float
+    k_max_im: float
+    F_lim: float
+    n_starts: int
+
+
+@dataclass(frozen=True)
+class ExecutionSpec:
+    """How to compute; never changes a result.
+
+    Attributes
+    ----------
+    threads : int or None
+        numba threads (None: all).
+    chunk : int
+        Samples per chunk (0: automatic).
+    checkpoint_s : float
+        Minimum seconds between crash-safe checkpoints (0: after every chunk).
+    """
+
+    threads: int | None = None
+    chunk: int = 0
+    checkpoint_s: float = 0.0
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """Everything a run needs, resolved.
+
+    Attributes
+    ----------
+    model : Model
+        The nominal rig.
+    freq_hz : ndarray, shape (n_f,)
+        Frequency grid, Hz, increasing (read-only).
+    sampler : Sampler
+        Draws sample i's friction parameters (and mistuning) from its own seed.
+    samples : int
+        Ensemble size.
+    metric : MetricSpec
+    solver : SolverSpec
+    bounds : BoundsSpec or None
+        None when the bounds are not computed with the run.
+    keep_response : bool
+        Store the complex response per beam (False: the metric only).
+    execution : ExecutionSpec
+    config_toml, config_json : str
+        The complete configuration, as recorded in a results file.
+    identity : dict
+        The part of the configuration that determines the results (compared on resume).
+    """
+
+    model: Model
+    freq_hz: np.ndarray
+    sampler: Sampler
+    samples: int
+    metric: MetricSpec
+    solver: SolverSpec
+    bounds: BoundsSpec | None
+    keep_response: bool
+    execution: ExecutionSpec
+    config_toml: str
+    config_json: str
+    identity: dict
+
+    @property
+    def seed(self):
+        return self.sampler.seed
+
+    @property
+    def mistuned(self):
+        return self.sampler.mistuning > 0

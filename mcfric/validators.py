@@ -1,0 +1,302 @@
+"""The package's one library of input checks: each failure is one line naming the input.
+
+Every check raises :class:`InputError` (a ``ValueError``) whose message starts with the
+name of the offending input: a dotted configuration key (``sampling.kc.high``), a
+command-line flag (``--samples``) or a Python argument (``freq_hz``). The command line
+prints that line and exits with code 2.
+
+Two kinds of check live here:
+
+* **value checks** for configuration keys, flags and scalar arguments. ``integer``,
+  ``number``, ``choice``, ... build a check; the check is called as ``check(value, key)``
+  and returns the canonical value (``number`` returns a float) or raises. Each check
+  carries a ``what`` text where one exists (``"an integer in 1..10"``), used in messages;
+* **array checks** for the Python API (:func:`finite_array`, :func:`frequencies`,
+  :func:`per_damper`), which return contiguous float arrays.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+
+
+class InputError(ValueError):
+    """Bad input: ``key`` (what was wrong) and ``message`` (what is allowed).
+
+    ``alt`` is ``(key, message)``: the same problem blamed on another key, for a pair of
+    keys that contradict each other (the command line blames the one the user set).
+    """
+
+    def __init__(self, key, message, alt=None):
+        super().__init__(f"{key}: {message}")
+        self.key = key
+        self.message = message
+        self.alt = alt
+
+
+# ------------------------------------------------------------------ formatting
+
+def show(v):
+    """A value as the user wrote it (TOML spelling: ``true``, ``"text"``, ``inf``)."""
+    if isinstance(v, np.generic):
+        v = v.item()
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, str):
+        return json.dumps(v)
+    if isinstance(v, dict):
+        return "a table"
+    if isinstance(v, float) and math.isinf(v):
+        return "inf" if v > 0 else "-inf"
+    if isinstance(v, list):
+        s = "[" + ", ".join(show(x) for x in v) + "]"
+        return s if len(s) <= 60 else s[:57] + "...]"
+    return repr(v)
+
+
+def choices(options):
+    """``"a", "b", "c"``: the allowed words of a choice."""
+    return ", ".join(json.dumps(o) for o in options)
+
+
+def is_int(v):
+    """True for an integer that is not a boolean."""
+    return isinstance(v, (int, np.integer)) and not isinstance(v, (bool, np.bool_))
+
+
+def is_num(v):
+    """True for a real number that is not a boolean."""
+    return (isinstance(v, (int, float, np.integer, np.floating))
+            and not isinstance(v, (bool, np.bool_)))
+
+
+# ------------------------------------------------------------------ value checks
+
+def integer(lo=None, hi=None):
+    """An integer in ``lo..hi`` (either end optional)."""
+    if lo is not None and hi is not None:
+        what = f"an integer in {lo}..{hi}"
+    elif lo is not None:
+        what = f"an integer >= {lo}"
+    else:
+        what = "an integer"
+
+    def check(v, key):
+        if not is_int(v) or (lo is not None and v < lo) or (hi is not None and v > hi):
+            raise InputError(key, f"expected {what}, got {show(v)}")
+        return int(v)
+    check.what = what
+    return check
+
+
+def number(lo=None, hi=None, lo_open=False, hi_open=False, allow_inf=False):
+    """A real number (finite unless ``allow_inf``) within optional limits; returns a float."""
+    parts = []
+    if lo is not None:
+        parts.append(f"{'>' if lo_open else '>='} {lo:g}")
+    if hi is not None:
+        parts.append(f"{'<' if hi_open else '<='} {hi:g}")
+    what = "a number" + (" " + " and ".join(parts) if parts else "")
+    if not allow_inf:
+        what = "a finite number" + what[len("a number"):]
+
+    def check(v, key):
+        ok = is_num(v) and not math.isnan(v) and (allow_inf or not math.isinf(v))
+        if ok and lo is not None:
+            ok = v > lo if lo_open else v >= lo
+        if ok and hi is not None:
+            ok = v < hi if hi_open else v <= hi
+        if not ok:
+            raise InputError(key, f"expected {what}, got {show(v)}")
+        return float(v)
+    check.what = what
+    return check
+
+
+def real(name, value, *, lo=None, lo_open=False, allow_inf=False):
+    """A float argument, checked step by step; the message names the step that failed.
+
+    Unlike :func:`number` (which states the whole requirement, as the configuration
+    reference does), this says what is wrong: not a number, not finite, or below ``lo``.
+    """
+    if not is_num(value):
+        raise InputError(name, f"expected a number, got {value!r}")
+    v = float(value)
+    if math.isnan(v) or (math.isinf(v) and not allow_inf):
+        raise InputError(name, f"expected a finite number, got {value!r}")
+    if lo is not None and (v <= lo if lo_open else v < lo):
+        raise InputError(name, f"expected a number {'>' if lo_open else '>='} {lo:g}, "
+                         f"got {value!r}")
+    return v
+
+
+def choice(*options):
+    """One of the words ``options``."""
+    def check(v, key):
+        if not isinstance(v, str) or v not in options:
+            raise InputError(key, f"expected one of {choices(options)}, got {show(v)}")
+        return v
+    return check
+
+
+def string():
+    """Any text."""
+    def check(v, key):
+        if not isinstance(v, str):
+            raise InputError(key, f"expected a string, got {show(v)}")
+        return v
+    return check
+
+
+def boolean():
+    """``true`` or ``false``."""
+    def check(v, key):
+        if not isinstance(v, bool):
+            raise InputError(key, f"expected true or false, got {show(v)}")
+        return v
+    return check
+
+
+def numbers(lo=None, lo_open=False, nonempty=True):
+    """A list of finite numbers, each within the limit; returns a list of floats."""
+    item = number(lo=lo, lo_open=lo_open)
+    what = "a list of " + item.what.replace("a finite number", "finite numbers")
+
+    def check(v, key):
+        if not isinstance(v, list) or (nonempty and not v):
+            raise InputError(key, f"expected {what}, got {show(v)}")
+        try:
+            return [item(x, key) for x in v]
+        except InputError:
+            raise InputError(key, f"expected {what}, got {show(v)}") from None
+    return check
+
+
+def matrix():
+    """A non-empty list of rows of finite numbers, all rows of one length."""
+    def check(v, key):
+        what = "a list of rows (lists of finite numbers) of equal length"
+        if (not isinstance(v, list) or not v or not all(isinstance(r, list) and r for r in v)
+                or len({len(r) for r in v}) != 1
+                or not all(is_num(x) and math.isfinite(x) for r in v for x in r)):
+            raise InputError(key, f"expected {what}, got {show(v)}")
+        return [[float(x) for x in r] for r in v]
+    return check
+
+
+def integers():
+    """A non-empty list of distinct integers."""
+    def check(v, key):
+        if not isinstance(v, list) or not v or not all(is_int(x) for x in v):
+            raise InputError(key, f"expected a non-empty list of integers, got {show(v)}")
+        if len(set(v)) != len(v):
+            raise InputError(key, f"expected distinct integers, got {show(v)}")
+        return list(v)
+    return check
+
+
+def auto_or_number(lo=0, words=("auto",)):
+    """``"auto"`` (or another of ``words``) or a number > ``lo``."""
+    num = number(lo=lo, lo_open=True)
+
+    def check(v, key):
+        if isinstance(v, str):
+            if v in words:
+                return v
+            raise InputError(key, f"expected {choices(words)} or a number > {lo:g}, "
+                             f"got {show(v)}")
+        return num(v, key)
+    return check
+
+
+def beams_or_all():
+    """``"all"`` or a list of beam numbers."""
+    ints = integers()
+
+    def check(v, key):
+        if v == "all":
+            return v
+        if isinstance(v, list):
+            return ints(v, key)
+        raise InputError(key, f'expected "all" or a list of beam numbers, got {show(v)}')
+    return check
+
+
+# ------------------------------------------------------------------ array checks
+
+def finite_array(name, value, ndim, positive=False, nonnegative=False):
+    """A read-only float array of ``ndim`` dimensions, finite, optionally > 0 or >= 0."""
+    try:
+        arr = np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(name, f"expected numbers, got {value!r}") from None
+    if arr.ndim != ndim:
+        raise InputError(name, f"expected a {ndim}-d array, got shape {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise InputError(name, "values must be finite (no NaN or inf)")
+    if positive and not np.all(arr > 0):
+        raise InputError(name, "values must be > 0")
+    if nonnegative and not np.all(arr >= 0):
+        raise InputError(name, "values must be >= 0")
+    arr.setflags(write=False)
+    return arr
+
+
+def frequencies(freq_hz, name="freq_hz"):
+    """Frequencies as a contiguous 1-d float array, Hz: non-empty, finite, > 0."""
+    try:
+        f = np.ascontiguousarray(freq_hz, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(name, f"expected numbers, got {freq_hz!r}") from None
+    if f.ndim == 0:
+        f = f[None]
+    if f.ndim != 1 or f.size == 0:
+        raise InputError(name, f"expected a non-empty 1-d array, got shape {f.shape}")
+    if not np.all(np.isfinite(f)):
+        raise InputError(name, "frequencies must be finite (no NaN or inf)")
+    if not np.all(f > 0):
+        raise InputError(name, "frequencies must be > 0 Hz")
+    return f
+
+
+def per_damper(nd, **params):
+    """Broadcast per-damper parameters to a common (n_s, nd) float array each.
+
+    Each parameter may be a scalar (all samples and dampers), shape (nd,) (one sample),
+    shape (n_s, 1) (same for every damper of a sample) or (n_s, nd). Values must be
+    finite and >= 0.
+    """
+    out = {}
+    n_s = 1
+    for name, value in params.items():
+        try:
+            arr = np.array(value, dtype=float)
+        except (TypeError, ValueError):
+            raise InputError(name, f"expected numbers, got {value!r}") from None
+        if arr.ndim == 0:
+            arr = np.full((1, nd), float(arr))
+        elif arr.ndim == 1:
+            if arr.shape[0] != nd:
+                raise InputError(name, f"a 1-d array must have one value per damper "
+                                 f"({nd}), got {arr.shape[0]}")
+            arr = arr[None, :]
+        elif arr.ndim == 2:
+            if arr.shape[1] not in (1, nd):
+                raise InputError(name, f"expected shape (n_samples, {nd}), got {arr.shape}")
+            arr = np.broadcast_to(arr, (arr.shape[0], nd))
+        else:
+            raise InputError(name, f"expected at most 2 dimensions, got shape {arr.shape}")
+        if not np.all(np.isfinite(arr)):
+            raise InputError(name, "values must be finite (no NaN or inf)")
+        if np.any(arr < 0):
+            raise InputError(name, "values must be >= 0")
+        if arr.shape[0] != 1:
+            if n_s not in (1, arr.shape[0]):
+                raise InputError(name, f"{arr.shape[0]} samples do not match the "
+                                 f"{n_s} samples of the other parameters")
+            n_s = arr.shape[0]
+        out[name] = arr
+    return {k: np.ascontiguousarray(np.broadcast_to(v, (n_s, nd))) for k, v in out.items()}
