@@ -33,7 +33,6 @@ up to 30 % short of the true maximum on the eight-beam rig.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
@@ -292,53 +291,37 @@ def to_group(B):
 
 def read_bounds(path):
     """The bounds stored in a results (or bounds) file, as :class:`Bounds`; None if absent."""
-    import h5py
+    from .store import read, read_group
 
-    with h5py.File(path, "r", locking=False) as h5:
-        if "bounds" not in h5:
-            return None
-        g = h5["bounds"]
-        a = dict(g.attrs)
-        return Bounds(h5["frequency"][()], g["upper"][()], g["lower"][()], g["upper_box"][()],
-                      g["upper_force"][()], g["limited_by"][()], g["K_upper"][()],
-                      g["K_lower"][()], float(a["k_max_re"]), float(a["k_max_im"]),
-                      float(a["F_lim"]), str(a["quantity"]),
-                      tuple(int(b) - 1 for b in np.atleast_1d(a["beams"])))
+    found = read_group(path, "bounds")
+    if found is None:
+        return None
+    g, a = found
+    return Bounds(read(path, "frequency"), g["upper"], g["lower"], g["upper_box"],
+                  g["upper_force"], g["limited_by"], g["K_upper"], g["K_lower"],
+                  float(a["k_max_re"]), float(a["k_max_im"]), float(a["F_lim"]),
+                  str(a["quantity"]), tuple(int(b) - 1 for b in np.atleast_1d(a["beams"])))
 
 
 def write_bounds_file(path, cfg, B):
     """A bounds-only results file: ``frequency``, ``damper`` and ``bounds/``, root
-    attributes as a run's (configuration, versions), written to ``path.partial`` and
-    renamed when complete so that a killed write never leaves a complete-looking file."""
-    import h5py
-
+    attributes as a run's (configuration, versions), written atomically by the store."""
     from . import __version__
-    from .store import LAYOUT_VERSION, _fsync_path, _write_group, partial_path
+    from .store import write_file
 
-    path = Path(path)
-    part = partial_path(path)
-    model = cfg.model()
+    spec = getattr(cfg, "spec", cfg)
+    model = spec.model
     a, b = model.dampers
-    with h5py.File(part, "w") as h5:
-        fr = h5.create_dataset("frequency", data=B.freq_hz, track_times=False)
-        fr.make_scale("frequency")
-        fr.attrs.update({"units": "Hz", "long_name": "excitation frequency"})
-        d = h5.create_dataset("damper", data=np.arange(1, model.n_dampers + 1),
-                              track_times=False)
-        d.make_scale("damper")
-        d.attrs.update({"long_name": "damper number (1-based); couples beam_a and beam_b",
-                        "beam_a": a + 1, "beam_b": b + 1})
-        variables, attrs = to_group(B)
-        _write_group(h5, "bounds", variables, attrs)
-        h5.attrs.update({"title": f"mcfric response bounds: {model.name}",
-                         "model_name": model.name, "config": cfg.toml(comments=False),
-                         "config_json": cfg.json(), "samples": np.int64(0),
-                         "mcfric_version": __version__,
-                         "layout_version": np.int64(LAYOUT_VERSION),
-                         "complete": np.int8(1)})
-    _fsync_path(part)
-    part.replace(path)
-    return path
+    coords = {
+        "frequency": (B.freq_hz, {"units": "Hz", "long_name": "excitation frequency"}),
+        "damper": (np.arange(1, model.n_dampers + 1),
+                   {"long_name": "damper number (1-based); couples beam_a and beam_b",
+                    "beam_a": a + 1, "beam_b": b + 1}),
+    }
+    attrs = {"title": f"mcfric response bounds: {model.name}", "model_name": model.name,
+             "config": spec.config_toml, "config_json": spec.config_json,
+             "samples": np.int64(0), "mcfric_version": __version__}
+    return write_file(path, coords, {"bounds": to_group(B)}, attrs)
 
 
 def group_from_config(cfg, verbose=True):

@@ -361,15 +361,13 @@ def _read_measured(args, attrs):
 def _print_inside(path, measured, quantity):
     """Fraction of measured points inside the bounds: the upper bound per beam, both
     bounds for the measured metric (the lower bound of M bounds the largest beam only)."""
-    import numpy as np
-
     from . import measured as ms
     from .bounds import read_bounds
+    from .metric import omega_power
 
     B = read_bounds(path)
     q = quantity or B.quantity
-    k = ("displacement", "velocity", "acceleration")
-    scale = (2 * np.pi * B.freq_hz) ** (k.index(q) - k.index(B.quantity))
+    scale = omega_power(B.freq_hz, q, B.quantity)
     lo, up = B.lower * scale, B.upper * scale
     per_beam = ms.fraction_inside(measured, B.freq_hz, lo, up, quantity=q, check_lower=False)
     metric = [m.to_quantity(q).metric() for m in measured]

@@ -11,10 +11,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .hbm import QUANTITIES
-from .store import iter_records, read, read_attrs
+from .metric import METRIC_UNITS, omega_power
+from .store import dataset_names, iter_records, read, read_attrs
 
-UNITS = {"displacement": "m", "velocity": "m/s", "acceleration": "m/s$^2$"}
 
 
 def _figure(size=(8, 4.5)):
@@ -72,9 +71,7 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
     f = read(path, "frequency")
     stored = _stored_quantity(attrs)
     quantity = quantity or stored
-    if quantity not in QUANTITIES:
-        raise ValueError(f"quantity: expected one of {QUANTITIES}, got {quantity!r}")
-    scale = (2 * np.pi * f) ** (QUANTITIES.index(quantity) - QUANTITIES.index(stored))
+    scale = omega_power(f, quantity, stored)
     lo_f, hi_f = (f.min(), f.max()) if f_window is None else map(float, f_window)
     if not hi_f > lo_f:
         raise ValueError(f"f_window: expected f_min < f_max, got {lo_f:g}, {hi_f:g}")
@@ -87,7 +84,7 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
     ax = fig.add_subplot()
     n = int(attrs.get("samples", 0))
     drawn = 0
-    if "sample" in _datasets(path):
+    if "sample" in dataset_names(path):
         step = max(1, n // max_lines)
         segs, highlight = [], None
         for _, arr in iter_records(path, ["metric", "sample"]):
@@ -126,7 +123,8 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
     ax.set_xlim(lo_f, hi_f)
     ax.autoscale(axis="y")
     ax.set_xlabel("frequency [Hz]")
-    ax.set_ylabel(f"{quantity} amplitude M [{UNITS[quantity]}]")
+    unit = METRIC_UNITS[quantity].replace("^2", "$^2$")   # mathtext superscript
+    ax.set_ylabel(f"{quantity} amplitude M [{unit}]")
     if title is None:
         name = attrs.get("model_name", "")
         cfg = _config(attrs)
@@ -145,12 +143,6 @@ def _config(attrs):
         return json.loads(attrs["config_json"])
     except (KeyError, ValueError, TypeError):
         return {}
-
-
-def _datasets(path):
-    import h5py
-    with h5py.File(path, "r", locking=False) as h5:
-        return set(h5.keys())
 
 
 def hbm_figure(freq_hz, amplitude, metric, converged, png_path, title="",

@@ -1,8 +1,4 @@
-"""The results file: a chunked HDF5 store that survives being killed at any moment.
-
-The store knows records (rows along one "record" dimension, here the samples), named
-dimensions and arrays; it knows nothing of physics. The layout that :mod:`mcfric.ensemble`
-writes into it is documented in the README (section "Results file"), a public interface.
+"""The crash-safe writer of a results file: records written into pre-allocated chunks.
 
 Crash safety
 ------------
@@ -21,14 +17,10 @@ Crash safety
 * :meth:`Store.finish` overwrites pre-created fixed-size attributes in place (no new
   metadata), fsyncs, closes and renames.
 
-Compression
------------
-None, measured (``bench/ensemble.py``, real 8-beam output): the response is float64 noise to
-a compressor (lzf 1.00x, lzf+shuffle 1.13x, gzip-1+shuffle 1.19x) while the filters write
-35-115 MB/s on one core against ~730 MB/s unfiltered (fsync included); the kernel produces
-~150-250 MB/s of response on two cores. Filtered chunks would also be allocated as they
-are written, so every checkpoint would rewrite the chunk index: the crash-safety argument
-above needs unfiltered, pre-allocated chunks.
+Chunks are not compressed: filtered chunks would be allocated as they are written, so
+every checkpoint would rewrite the chunk index, and the crash-safety argument above needs
+unfiltered, pre-allocated chunks (the measured cost of compression is in the docs'
+performance page).
 """
 
 from __future__ import annotations
@@ -39,39 +31,13 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-SUFFIX = ".partial"
-LAYOUT_VERSION = 1
-DONE = "done"
+from .files import DONE, LAYOUT_VERSION, StoreError, fsync_dir, fsync_path, partial_path
+from .groups import write_group
+
 #: Target size of one HDF5 chunk (HDF5 guidance: ~1 MiB).
 CHUNK_BYTES = 1 << 20
 #: Raw-data chunk cache per dataset, so partial-chunk writes do not thrash.
 CACHE_BYTES = 8 << 20
-
-
-class StoreError(Exception):
-    """A results file that cannot be used as asked (incomplete, damaged, wrong layout)."""
-
-
-def partial_path(path):
-    """``FILE.partial``: where a run writes until it is complete."""
-    p = Path(path)
-    return p.with_name(p.name + SUFFIX)
-
-
-def _fsync_path(path):
-    fd = os.open(path, os.O_RDONLY)
-    try:
-        os.fsync(fd)   # flushes every dirty page of the file, whoever wrote it
-    finally:
-        os.close(fd)
-
-
-def _fsync_dir(path):
-    try:
-        _fsync_path(Path(path).resolve().parent)
-    except OSError:   # some file systems cannot fsync a directory; the rename still happened
-        pass
-
 
 def _record_chunk(row_bytes, n_records):
     """Rows per HDF5 chunk: a power of two giving <= ~1 MiB (at least 1 row)."""
@@ -149,15 +115,15 @@ class Store:
                     ds.dims[i].attach_scale(h5[d])
                 ds.attrs.update(vattrs)
             for gname, (gvars, gattrs) in (groups or {}).items():
-                _write_group(h5, gname, gvars, gattrs)
+                write_group(h5, gname, gvars, gattrs)
             h5.attrs.update(attrs)
             h5.attrs["layout_version"] = np.int64(LAYOUT_VERSION)
             h5.attrs["complete"] = np.int8(0)
             for k, v in placeholders.items():
                 h5.attrs.create(k, v, dtype=np.asarray(v).dtype)
             h5.flush()
-            _fsync_path(part)
-            _fsync_dir(part)
+            fsync_path(part)
+            fsync_dir(part)
         except BaseException:
             h5.close()
             part.unlink(missing_ok=True)
@@ -225,7 +191,7 @@ class Store:
         if not ranges:
             return
         self._h5.flush()
-        _fsync_path(self.path)       # data on disk before the marks that vouch for it
+        fsync_path(self.path)       # data on disk before the marks that vouch for it
         d = self._h5[DONE]
         for a, b in ranges:
             d[a:b] = 1
@@ -249,9 +215,9 @@ class Store:
         self._h5.attrs.modify("complete", np.int8(1))
         self._h5.flush()
         self._h5.close()
-        _fsync_path(self.path)
+        fsync_path(self.path)
         os.replace(self.path, self.final_path)
-        _fsync_dir(self.final_path)
+        fsync_dir(self.final_path)
         return self.final_path
 
     def close(self):
@@ -288,142 +254,3 @@ def _create_allocated(h5, name, shape, dtype, fill):
     tid = h5py.h5t.py_create(dtype, logical=True)
     dsid = h5py.h5d.create(h5.id, name.encode(), tid, space, dcpl=dcpl)
     return h5py.Dataset(dsid)
-
-
-# ----------------------------------------------------------------------------- reading
-
-def _open_read(path):
-    try:
-        # locking=False: readable while a run writes it (its metadata does not change)
-        return h5py.File(path, "r", locking=False)
-    except FileNotFoundError:
-        raise StoreError(f"{path}: no such file") from None
-    except OSError as e:
-        raise StoreError(f"{path}: not a readable HDF5 file ({e})") from None
-
-
-def read_attrs(path):
-    """Root attributes of a results file (complete or partial) as a dict."""
-    with _open_read(path) as h5:
-        return {k: _plain(v) for k, v in h5.attrs.items()}
-
-
-def _plain(v):
-    if isinstance(v, bytes):
-        return v.decode()
-    if isinstance(v, np.generic):
-        return v.item()
-    return v
-
-
-def describe(path):
-    """Layout summary: root attributes, and per dataset its dims, shape and dtype."""
-    with _open_read(path) as h5:
-        out = {"attrs": {k: _plain(v) for k, v in h5.attrs.items()}, "datasets": {}}
-        for name, ds in h5.items():
-            if isinstance(ds, h5py.Dataset):
-                dims = (name,) if ds.is_scale else tuple(
-                    d[0].name.lstrip("/") if len(d) else "?" for d in ds.dims)
-                out["datasets"][name] = (dims, ds.shape, ds.dtype)
-        if DONE in h5:
-            out["done"] = int(np.count_nonzero(h5[DONE][...]))
-        return out
-
-
-def iter_records(path, names, block=4096, only_done=True):
-    """Yield ``(start, {name: array})`` in blocks of records (memory stays flat).
-
-    Records not marked done are skipped when ``only_done`` (they may hold garbage).
-    """
-    with _open_read(path) as h5:
-        n = h5[DONE].shape[0]
-        for a in range(0, n, block):
-            b = min(n, a + block)
-            done = h5[DONE][a:b].astype(bool)
-            if only_done and not done.any():
-                continue
-            arrays = {k: h5[k][a:b] for k in names}
-            if only_done and not done.all():
-                arrays = {k: v[done] for k, v in arrays.items()}
-            yield a, arrays
-
-
-def read(path, name):
-    """One whole dataset (use :func:`iter_records` for big ones)."""
-    with _open_read(path) as h5:
-        return h5[name][...]
-
-
-def open_results(path, allow_incomplete=False):
-    """The results file as an ``xarray.Dataset`` (lazy; needs xarray and h5netcdf).
-
-    Parameters
-    ----------
-    path : str or Path
-        A results file written by ``mcfric run``.
-    allow_incomplete : bool
-        Open a ``.partial`` file too (records with ``done == 0`` hold garbage).
-
-    Raises
-    ------
-    StoreError
-        The file is incomplete (and ``allow_incomplete`` is False) or not a results file.
-    """
-    try:
-        import xarray as xr
-    except ImportError:   # pragma: no cover - depends on the environment
-        raise ImportError("open_results needs xarray and h5netcdf: "
-                          "pip install 'mcfric[test]' or pip install xarray h5netcdf") from None
-    attrs = read_attrs(path)
-    if attrs.get("layout_version") is None:
-        raise StoreError(f"{path}: not an mcfric results file (no layout_version)")
-    if attrs.get("complete") != 1 and not allow_incomplete:
-        raise StoreError(f"{path}: incomplete run (complete = 0); continue it with "
-                         f"`mcfric run ... --resume`, or pass allow_incomplete=True")
-    return xr.open_dataset(path, engine="h5netcdf")
-
-
-def add_group(path, name, variables, attrs=None):
-    """Add (or replace) a group of arrays to a complete results file.
-
-    The hook for later stages (e.g. ``bounds/`` from the bounds stage): each variable is
-    labelled with dimensions of the root (``frequency``, ``beam``, ...), so
-    ``xarray.open_dataset(path, engine="h5netcdf", group=name)`` reads it.
-
-    Parameters
-    ----------
-    path : str or Path
-        A complete results file.
-    name : str
-        Group name, e.g. ``"bounds"``.
-    variables : dict
-        ``{var: (dims, array, attrs)}``; every dim must be a root dimension and
-        ``array.shape`` must match their lengths.
-    attrs : dict, optional
-        Attributes of the group.
-    """
-    a = read_attrs(path)
-    if a.get("complete") != 1:
-        raise StoreError(f"{path}: add_group needs a complete results file")
-    with h5py.File(path, "r+") as h5:
-        _write_group(h5, name, variables, attrs)
-        h5.flush()
-
-
-def _write_group(h5, name, variables, attrs):
-    """Write (or replace) group ``name`` of labelled arrays in an open file."""
-    for var, (dims, array, _) in variables.items():
-        array = np.asarray(array)
-        expect = tuple(h5[d].shape[0] if d in h5 else -1 for d in dims)
-        if array.shape != expect:
-            raise ValueError(f"{name}/{var}: shape {array.shape} does not match dims "
-                             f"{dims} {expect}")
-    if name in h5:
-        del h5[name]
-    g = h5.create_group(name, track_order=True)
-    g.attrs.update(attrs or {})
-    for var, (dims, array, vattrs) in variables.items():
-        ds = g.create_dataset(var, data=np.asarray(array), track_times=False)
-        for i, d in enumerate(dims):
-            ds.dims[i].attach_scale(h5[d])
-        ds.attrs.update(vattrs or {})

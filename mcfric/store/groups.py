@@ -1,0 +1,97 @@
+"""Groups of labelled arrays (e.g. ``bounds/``) in a results file, and small files made of
+coordinates and groups alone, written atomically."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from .files import LAYOUT_VERSION, StoreError, fsync_path, partial_path
+from .reader import read_attrs
+
+def add_group(path, name, variables, attrs=None):
+    """Add (or replace) a group of arrays to a complete results file.
+
+    The hook for later stages (e.g. ``bounds/`` from the bounds stage): each variable is
+    labelled with dimensions of the root (``frequency``, ``beam``, ...), so
+    ``xarray.open_dataset(path, engine="h5netcdf", group=name)`` reads it.
+
+    Parameters
+    ----------
+    path : str or Path
+        A complete results file.
+    name : str
+        Group name, e.g. ``"bounds"``.
+    variables : dict
+        ``{var: (dims, array, attrs)}``; every dim must be a root dimension and
+        ``array.shape`` must match their lengths.
+    attrs : dict, optional
+        Attributes of the group.
+    """
+    a = read_attrs(path)
+    if a.get("complete") != 1:
+        raise StoreError(f"{path}: add_group needs a complete results file")
+    with h5py.File(path, "r+") as h5:
+        write_group(h5, name, variables, attrs)
+        h5.flush()
+
+
+def write_group(h5, name, variables, attrs):
+    """Write (or replace) group ``name`` of labelled arrays in an open file."""
+    for var, (dims, array, _) in variables.items():
+        array = np.asarray(array)
+        expect = tuple(h5[d].shape[0] if d in h5 else -1 for d in dims)
+        if array.shape != expect:
+            raise ValueError(f"{name}/{var}: shape {array.shape} does not match dims "
+                             f"{dims} {expect}")
+    if name in h5:
+        del h5[name]
+    g = h5.create_group(name, track_order=True)
+    g.attrs.update(attrs or {})
+    for var, (dims, array, vattrs) in variables.items():
+        ds = g.create_dataset(var, data=np.asarray(array), track_times=False)
+        for i, d in enumerate(dims):
+            ds.dims[i].attach_scale(h5[d])
+        ds.attrs.update(vattrs or {})
+
+
+def write_file(path, coords, groups, attrs):
+    """A complete file made of coordinates and groups only (no records), written atomically.
+
+    It is written to ``path + ".partial"``, fsynced and renamed, so that a killed write never
+    leaves a complete-looking file; ``layout_version`` and ``complete = 1`` are added to
+    ``attrs``.
+
+    Parameters
+    ----------
+    path : str or Path
+        Final path.
+    coords : dict
+        ``{dim: (values, attrs)}``: the dimensions and their coordinate values.
+    groups : dict
+        ``{group: (variables, attrs)}`` in the form of :func:`add_group`.
+    attrs : dict
+        Root attributes.
+
+    Returns
+    -------
+    Path
+        The final path.
+    """
+    path = Path(path)
+    part = partial_path(path)
+    with h5py.File(part, "w") as h5:
+        for dim, (values, dattrs) in coords.items():
+            d = h5.create_dataset(dim, data=np.asarray(values), track_times=False)
+            d.make_scale(dim)
+            d.attrs.update(dattrs)
+        for name, (variables, gattrs) in groups.items():
+            write_group(h5, name, variables, gattrs)
+        h5.attrs.update(attrs)
+        h5.attrs.update({"layout_version": np.int64(LAYOUT_VERSION), "complete": np.int8(1)})
+    fsync_path(part)
+    part.replace(path)
+    return path
+

@@ -1,0 +1,122 @@
+"""Reading results files: attributes, layout, records in blocks, groups, xarray."""
+
+from __future__ import annotations
+
+import h5py
+import numpy as np
+
+from .files import DONE, StoreError
+
+def _open_read(path):
+    try:
+        # locking=False: readable while a run writes it (its metadata does not change)
+        return h5py.File(path, "r", locking=False)
+    except FileNotFoundError:
+        raise StoreError(f"{path}: no such file") from None
+    except OSError as e:
+        raise StoreError(f"{path}: not a readable HDF5 file ({e})") from None
+
+
+def read_attrs(path):
+    """Root attributes of a results file (complete or partial) as a dict."""
+    with _open_read(path) as h5:
+        return {k: _plain(v) for k, v in h5.attrs.items()}
+
+
+def _plain(v):
+    if isinstance(v, bytes):
+        return v.decode()
+    if isinstance(v, np.generic):
+        return v.item()
+    return v
+
+
+def describe(path):
+    """Layout summary: root attributes, and per dataset its dims, shape and dtype."""
+    with _open_read(path) as h5:
+        out = {"attrs": {k: _plain(v) for k, v in h5.attrs.items()}, "datasets": {}}
+        for name, ds in h5.items():
+            if isinstance(ds, h5py.Dataset):
+                dims = (name,) if ds.is_scale else tuple(
+                    d[0].name.lstrip("/") if len(d) else "?" for d in ds.dims)
+                out["datasets"][name] = (dims, ds.shape, ds.dtype)
+        if DONE in h5:
+            out["done"] = int(np.count_nonzero(h5[DONE][...]))
+        return out
+
+
+def iter_records(path, names, block=4096, only_done=True):
+    """Yield ``(start, {name: array})`` in blocks of records (memory stays flat).
+
+    Records not marked done are skipped when ``only_done`` (they may hold garbage).
+    """
+    with _open_read(path) as h5:
+        n = h5[DONE].shape[0]
+        for a in range(0, n, block):
+            b = min(n, a + block)
+            done = h5[DONE][a:b].astype(bool)
+            if only_done and not done.any():
+                continue
+            arrays = {k: h5[k][a:b] for k in names}
+            if only_done and not done.all():
+                arrays = {k: v[done] for k, v in arrays.items()}
+            yield a, arrays
+
+
+def read(path, name):
+    """One whole dataset (use :func:`iter_records` for big ones)."""
+    with _open_read(path) as h5:
+        return h5[name][...]
+
+
+def open_results(path, allow_incomplete=False):
+    """The results file as an ``xarray.Dataset`` (lazy; needs xarray and h5netcdf).
+
+    Parameters
+    ----------
+    path : str or Path
+        A results file written by ``mcfric run``.
+    allow_incomplete : bool
+        Open a ``.partial`` file too (records with ``done == 0`` hold garbage).
+
+    Raises
+    ------
+    StoreError
+        The file is incomplete (and ``allow_incomplete`` is False) or not a results file.
+    """
+    try:
+        import xarray as xr
+    except ImportError:   # pragma: no cover - depends on the environment
+        raise ImportError("open_results needs xarray and h5netcdf: "
+                          "pip install 'mcfric[test]' or pip install xarray h5netcdf") from None
+    attrs = read_attrs(path)
+    if attrs.get("layout_version") is None:
+        raise StoreError(f"{path}: not an mcfric results file (no layout_version)")
+    if attrs.get("complete") != 1 and not allow_incomplete:
+        raise StoreError(f"{path}: incomplete run (complete = 0); continue it with "
+                         f"`mcfric run ... --resume`, or pass allow_incomplete=True")
+    return xr.open_dataset(path, engine="h5netcdf")
+
+
+def read_group(path, name):
+    """A group of labelled arrays and its attributes, or None if the file has no such group.
+
+    Returns
+    -------
+    (dict, dict) or None
+        ``{var: array}`` (the group's datasets, whole) and the group's attributes (bytes
+        decoded, numpy scalars as Python numbers, arrays as they are).
+    """
+    with _open_read(path) as h5:
+        if name not in h5:
+            return None
+        g = h5[name]
+        return ({k: v[()] for k, v in g.items() if isinstance(v, h5py.Dataset)},
+                {k: _plain(v) for k, v in g.attrs.items()})
+
+
+def dataset_names(path):
+    """Names of the datasets and groups at the root of a file."""
+    with _open_read(path) as h5:
+        return set(h5.keys())
+
