@@ -1,7 +1,8 @@
 """Naive reference implementation for tests of ``mcfric`` (slow, plain, obviously correct).
 
 Friction-damped beam arrays, single-harmonic describing-function harmonic balance, following
-/work/shared/docs/physics.md (sections 1-4 and 7), which fixes the conventions.
+the conventions of docs/theory.md (sections "The rig" to "Single-harmonic balance", and
+"Response bounds").
 
 This module is formulated in PHYSICAL BEAM SPACE (the paper's Section 2.2): the full FRF matrix
 D over the contact, output and drive positions of every beam, the physical damper stiffness
@@ -18,7 +19,7 @@ from scipy import optimize
 
 
 def receptance(omega, freq_hz, zeta, u_p, u_q):
-    """Receptance of one beam (physics.md Eq. 1). omega rad/s scalar or array; freq_hz, zeta, u_p, u_q:
+    """Receptance of one beam (paper Eq. 1). omega rad/s scalar or array; freq_hz, zeta, u_p, u_q:
     (n_modes,) arrays. Returns complex, shape of omega."""
     omega = np.asarray(omega, dtype=float)
     total = np.zeros(omega.shape, dtype=complex)
@@ -29,7 +30,7 @@ def receptance(omega, freq_hz, zeta, u_p, u_q):
 
 
 def describing_function(s, kc):
-    """K(s) for Coulomb friction + tangential stiffness kc (physics.md section 2): for 0<s<1 the
+    """K(s) for Coulomb friction + tangential stiffness kc (docs/theory.md, "Describing function"): for 0<s<1 the
     partial-slip formulas, for s>=1 K=kc. Scalar in, complex out. Handles s==0 (K=0)."""
     s = float(s)
     if s < 0:
@@ -44,7 +45,7 @@ def describing_function(s, kc):
 
 
 def describing_function_derivative(s, kc):
-    """dK/ds (complex) for 0<s<1 from the closed forms in physics.md; 0 for s>1.
+    """dK/ds (complex) for 0<s<1 from the closed forms (docs/theory.md, "Describing function"); 0 for s>1.
     At s == 1 exactly the left (partial-slip) derivative is returned: d(Re K)/ds = 0, d(Im K)/ds = -4 kc/pi."""
     s = float(s)
     if s > 1.0:
@@ -82,7 +83,7 @@ def _frf_matrix(omega, beams, dofs):
 
 def _damper_force_shapes(pairs, index, contact):
     """Matrix P (n_dofs, nd): column j is the physical force vector of a unit damper force f_j = 1,
-    i.e. physics.md 'beam forces B^T f': +1 at (a_j, contact) and -1 at (b_j, contact).
+    i.e. docs/theory.md 'beam forces B^T f': +1 at (a_j, contact) and -1 at (b_j, contact).
     (f_j = -K_j q_j then puts -K_j q_j on beam a_j and +K_j q_j on beam b_j.)"""
     P = np.zeros((len(index), len(pairs)))
     for j, (a, b) in enumerate(pairs):
@@ -255,7 +256,7 @@ def solve_point(omega, beams, pairs, F, mu0, N0, kc, contact=0, output=1, drive=
 
 
 def force_bound(omega, beams, pairs, F, F_lim, output=1, contact=0, drive=2):
-    """physics.md section 7 step 3 (Eq. 10) at the output position:
+    """The force-only bound (paper Eq. 10; docs/theory.md, "Response bounds") at the output position:
     |(D F)_i| + F_lim * sum_j |(D B^T)_ij| per beam i. Returns (n_beams,) float."""
     n_beams = len(beams)
     D, Fext, index = _assemble(omega, beams, F, contact, output, drive)

@@ -89,7 +89,7 @@ def test_upper_bound_is_the_largest_beam_bound_of_box_and_eq_10():
 
 @pytest.mark.parametrize("F0", [0.22, 1.1])
 def test_upper_bound_never_above_the_papers(F0):
-    """Never above min(box maximum of M, force bound of M) (physics.md section 7, step 4)."""
+    """Never above min(box maximum of M, force bound of M) (paper Section 3.2, step 4)."""
     model = mcfric.eight_beam(F0)
     f = np.linspace(10, 150, 57)
     B = compute_bounds(model, f, K_MAX, F_lim=F_LIM)

@@ -1,4 +1,4 @@
-"""Describing function identities (physics.md section 2) against the plain formulas in naive.py."""
+"""Describing function identities (docs/theory.md) against the plain formulas in naive.py."""
 
 import math
 
