@@ -17,7 +17,7 @@ extensions = [
     "sphinx.ext.mathjax",
     "numpydoc",
 ]
-source_suffix = {".md": "markdown"}
+source_suffix = {".md": "markdown", ".rst": "restructuredtext"}
 myst_enable_extensions = ["dollarmath", "amsmath"]
 myst_heading_anchors = 3          # links such as theory.md#response-bounds
 exclude_patterns = ["_build"]

@@ -222,6 +222,7 @@ def _check_members(path):
 
 
 def cmd_run(args):
+    """``mcfric run``: run (or resume) an ensemble, check it against its bounds, draw it."""
     from . import ensemble, plot
 
     cfg = _load(args)
@@ -261,6 +262,7 @@ def cmd_run(args):
 
 
 def cmd_bounds(args):
+    """``mcfric bounds``: the response bounds alone, into a bounds file, and a figure."""
     import time
 
     from . import bounds, plot
@@ -285,6 +287,7 @@ def cmd_bounds(args):
 
 
 def cmd_plot(args):
+    """``mcfric plot``: the figure of a results or bounds file, measured data on top."""
     from . import plot
     from .store import StoreError, read_attrs
 
@@ -380,12 +383,14 @@ def _print_inside(path, measured, quantity):
 
 
 def cmd_config(args):
+    """``mcfric config``: the complete, commented configuration on stdout."""
     cfg = _load(args)
     sys.stdout.write(cfg.toml())
     return EXIT_OK
 
 
 def cmd_info(args):
+    """``mcfric info``: a summary of a results file (complete or partial)."""
     from .metric import METRIC_UNITS
     from .store import StoreError, describe, iter_records, partial_path
 
@@ -451,6 +456,7 @@ def cmd_info(args):
 
 
 def cmd_hbm(args):
+    """``mcfric hbm``: one deterministic parameter set, to a CSV file and a figure."""
     import numpy as np
 
     from . import hbm, plot

@@ -84,9 +84,11 @@ class Summary:
 
     @property
     def points(self):
+        """Points (sample, frequency) stored."""
         return self.samples_done * self.n_freq
 
     def text(self):
+        """The summary printed at the end of a run, several lines."""
         pts = self.points
         pct = 100.0 * self.not_converged / max(pts, 1)
         rate = self.samples_this_session * self.n_freq / max(self.wall_s, 1e-9)
@@ -285,6 +287,7 @@ def prepare(spec, path, *, resume=False, force=False):
 
 
 def iter_done(path):
+    """The ``done`` mask of a results file (complete or partial), bool (samples,)."""
     from .store import read
     return read(path, "done").astype(bool)
 

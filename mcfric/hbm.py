@@ -68,6 +68,7 @@ class HBMResult:
 
     @property
     def n_not_converged(self):
+        """Number of points that did not converge."""
         return int(np.count_nonzero(~self.converged))
 
     def metric(self, quantity="displacement", beams=None):
@@ -83,6 +84,7 @@ class HBMResult:
         return response_metric(self.response, self.freq_hz, quantity, beams)
 
     def summary(self):
+        """One line: samples x frequencies and the non-converged points."""
         n = self.status.size
         bad = self.n_not_converged
         return (f"{self.status.shape[0]} samples x {self.status.shape[1]} frequencies = {n} "

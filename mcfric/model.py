@@ -67,6 +67,7 @@ class ModalTable:
 
     @property
     def n_modes(self):
+        """Number of modes in the table."""
         return len(self.freq_hz)
 
     def column(self, position):
@@ -187,10 +188,12 @@ class Model:
 
     @property
     def n_beams(self):
+        """Number of beams."""
         return len(self.beams)
 
     @property
     def n_dampers(self):
+        """Number of dampers: ``n_beams - 1`` (linear) or ``n_beams`` (circular)."""
         return self.n_beams - 1 if self.topology == "linear" else self.n_beams
 
     @property

@@ -17,7 +17,7 @@ distribution's inverse CDF. So a sample's parameters depend on (seed, i, config)
 on the chunk it was computed in, the thread count, the ensemble size or a resume.
 
 Distributions (all values in the parameter's own unit: mu0 -, kc N/m, N0 N)
---------------------------------------------------------------------------
+---------------------------------------------------------------------------
 ``fixed(value)``, ``uniform(low, high)``, ``normal(mean, std)``,
 ``truncnormal(mean, std, low, high)``, ``lognormal(median, sigma)``; see the classes.
 Every parameter must be >= 0, and the distributions are validated so that no draw can be
@@ -55,6 +55,7 @@ class Fixed:
         object.__setattr__(self, "value", real("value", self.value, lo=0))
 
     def ppf(self, u):
+        """Inverse CDF at the uniforms ``u`` in (0, 1), in the parameter's unit."""
         return np.full(np.shape(u), self.value)
 
 
@@ -75,6 +76,7 @@ class Uniform:
         object.__setattr__(self, "high", high)
 
     def ppf(self, u):
+        """Inverse CDF at the uniforms ``u`` in (0, 1), in the parameter's unit."""
         return self.low + (self.high - self.low) * np.asarray(u)
 
 
@@ -101,6 +103,7 @@ class Normal:
         object.__setattr__(self, "std", std)
 
     def ppf(self, u):
+        """Inverse CDF at the uniforms ``u`` in (0, 1), in the parameter's unit."""
         if self.std == 0:
             return np.full(np.shape(u), self.mean)
         return _truncnorm_ppf(u, self.mean, self.std, 0.0, math.inf)
@@ -131,6 +134,7 @@ class TruncNormal:
             object.__setattr__(self, k, v)
 
     def ppf(self, u):
+        """Inverse CDF at the uniforms ``u`` in (0, 1), in the parameter's unit."""
         return _truncnorm_ppf(u, self.mean, self.std, self.low, self.high)
 
 
@@ -147,6 +151,7 @@ class LogNormal:
         object.__setattr__(self, "sigma", real("sigma", self.sigma, lo=0))
 
     def ppf(self, u):
+        """Inverse CDF at the uniforms ``u`` in (0, 1), in the parameter's unit."""
         return self.median * np.exp(self.sigma * special.ndtri(np.asarray(u)))
 
 

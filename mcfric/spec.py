@@ -134,8 +134,10 @@ class RunSpec:
 
     @property
     def seed(self):
+        """Root seed of the sampler."""
         return self.sampler.seed
 
     @property
     def mistuned(self):
+        """True when the members' modal frequencies are drawn (mistuning > 0)."""
         return self.sampler.mistuning > 0

@@ -97,7 +97,8 @@ def test_stored_sample_equals_its_contract_parameters_and_a_lone_solve(tmp_path)
         assert d["N0"][i, 0] == 0.5
         r = hbm.solve(m, f, u[0], 15000.0 * u[1], 0.5)
         assert r.response[0].tobytes() == d["response"][i].tobytes()
-        # the metric is max over beams of |y| (docs/theory.md, "Response metric"), computed here independently
+        # the metric is max over beams of |y| (docs/theory.md, "Response metric"), computed
+        # here independently
         y = d["response"][i]
         np.testing.assert_allclose(d["metric"][i], np.sqrt(y.real ** 2 + y.imag ** 2)
                                    .max(axis=1), rtol=1e-15)

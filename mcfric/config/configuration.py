@@ -88,10 +88,12 @@ class Config:
 
     @property
     def samples(self):
+        """Ensemble size (``sampling.samples``)."""
         return self.data["sampling"]["samples"]
 
     @property
     def seed(self):
+        """Root seed (``sampling.seed``)."""
         return self.data["sampling"]["seed"]
 
     def identity(self):

@@ -147,6 +147,7 @@ class Store:
 
     @property
     def attrs(self):
+        """Root attributes of the open file (h5py attribute manager)."""
         return self._h5.attrs
 
     def done(self):
