@@ -7,7 +7,6 @@ and it owns the output arrays.
 
 from __future__ import annotations
 
-import contextlib
 import threading
 from dataclasses import dataclass
 
@@ -18,6 +17,7 @@ from .core import sweep as _sweep
 from .core.newton import NOT_CONVERGED
 from .metric import METRIC_UNITS, QUANTITIES, response_metric  # noqa: F401 (public here too)
 from .model import Model
+from .threads import threads
 from .validators import frequencies as check_frequencies
 from .validators import per_damper as check_parameters
 
@@ -91,23 +91,6 @@ class HBMResult:
                 f"points; not converged: {bad} ({100.0 * bad / max(n, 1):.4g} %)")
 
 
-@contextlib.contextmanager
-def threads(n):
-    """Run numba parallel kernels with ``n`` threads (None: leave as is)."""
-    if n is None:
-        yield
-        return
-    n = int(n)
-    if not 1 <= n <= numba.config.NUMBA_NUM_THREADS:
-        raise ValueError(f"threads: expected 1..{numba.config.NUMBA_NUM_THREADS}, got {n}")
-    old = numba.get_num_threads()
-    numba.set_num_threads(n)
-    try:
-        yield
-    finally:
-        numba.set_num_threads(old)
-
-
 def solve(model, freq_hz, mu0, kc, N0=0.5, *, modal_freq_hz=None, tol=TOL,
           max_iter=MAX_ITER, n_threads=None):
     """Single-harmonic balance of a friction-coupled array for many parameter sets.
@@ -174,9 +157,8 @@ def allocate(n_s, n_f, n_beams, nd, n_threads=1):
 
     Every page is touched (one byte written) here, before the kernel runs, by
     ``n_threads`` threads (numpy releases the GIL for the strided writes): first touch
-    of fresh pages inside the kernel's threads cost about three times this pass
-    (eight beams, 2000 x 1000, two threads: 1.46 -> 1.59 M solves/s, the pass included;
-    the kernel then overwrites every element).
+    of fresh pages inside the kernel's threads cost about three times this pass (the
+    docs' performance page); the kernel then overwrites every element.
     """
     out = (np.empty((n_s, n_f, n_beams), np.complex128), np.empty((n_s, n_f, nd)),
            np.empty((n_s, n_f), np.int8), np.empty((n_s, n_f), np.int16),

@@ -47,152 +47,25 @@ UFF file is read or written.
 
 from __future__ import annotations
 
-import csv
 import math
-import os
 import re
 import tomllib
 from collections.abc import Mapping
-from datetime import datetime
 from pathlib import Path
 
 import numpy as np
 
 from .model import ModalTable
+from .parsing import as_int, csv_rows, short
+from .uff import DIRECTIONS, UFF_SUFFIXES, id_date, read_datasets, si_units_dataset, write_atomic
 
-UFF_SUFFIXES = (".uff", ".unv", ".uf")
-PYUFF_HINT = 'UFF files need the optional package pyuff: pip install "mcfric[uff]"'
 #: UFF 55 analysis types, for messages.
 ANALYSIS_TYPES = {0: "unknown", 1: "static", 2: "normal mode",
                   3: "complex eigenvalue first order", 4: "transient",
                   5: "frequency response", 6: "buckling",
                   7: "complex eigenvalue second order"}
-DIRECTIONS = {1: "X", 2: "Y", 3: "Z", 4: "RX", 5: "RY", 6: "RZ"}
 #: Relative rounding of UFF's E13.5 fields (6 significant digits).
 UFF_RTOL = 5e-6
-
-
-# ---------------------------------------------------------------- shared UFF access
-
-def pyuff_module():
-    """The ``pyuff`` module, or a one-line ``ImportError`` telling how to install it."""
-    try:
-        import pyuff
-    except ImportError:
-        raise ImportError(PYUFF_HINT) from None
-    return pyuff
-
-
-def _count_delimiters(raw):
-    """Dataset delimiters as pyuff finds them: ``    -1`` followed by a line end, the end
-    of the file or blanks to column 80 (in 58b files it follows the binary data directly).
-    """
-    n, i = 0, -1
-    while True:
-        i = raw.find(b"    -1", i + 1)
-        if i < 0:
-            return n
-        rest = raw[i + 6:i + 80]
-        if not rest or rest[:1] in (b"\n", b"\r") or (len(rest) == 74 and not rest.strip()):
-            n += 1
-
-
-def uff_datasets(path, wanted):
-    """Read the datasets of the types ``wanted`` from a UFF file, checking its structure.
-
-    Shared by :mod:`mcfric.modal_io` and :mod:`mcfric.measured`.
-
-    Parameters
-    ----------
-    path : str or Path
-    wanted : tuple of int
-        Dataset numbers to return (e.g. ``(55,)``; 58b is reported as 58).
-
-    Returns
-    -------
-    sets : list of dict
-        The datasets as pyuff returns them, in file order.
-    units : tuple of float
-        ``(length, force)`` factors of the file's dataset 164 (file unit per SI unit),
-        ``(1.0, 1.0)`` without one.
-
-    Raises
-    ------
-    ValueError
-        One line naming the file: missing, empty, truncated, without the wanted datasets,
-        or a dataset pyuff cannot parse.
-    """
-    pyuff = pyuff_module()
-    path = Path(path)
-    if not path.is_file():
-        raise ValueError(f"{path}: file not found")
-    raw = path.read_bytes()
-    n_delim = _count_delimiters(raw)
-    if n_delim == 0:
-        raise ValueError(f"{path}: not a UFF file (no '    -1' dataset delimiters)")
-    # pyuff silently drops an unterminated last block, so truncation is checked here
-    if n_delim % 2 or not raw.rstrip().endswith(b"    -1"):
-        raise ValueError(f"{path}: truncated UFF file (the last dataset has no closing "
-                         f"'    -1' line)")
-    try:
-        uff = pyuff.UFF(str(path))
-        types = [int(t) for t in uff.get_set_types()]
-    except Exception as e:  # pyuff raises bare Exception
-        raise ValueError(f"{path}: not a readable UFF file ({e})") from None
-    if 2 * len(types) != n_delim:
-        raise ValueError(f"{path}: malformed UFF file ({n_delim} delimiter lines for "
-                         f"{len(types)} datasets)")
-    units = (1.0, 1.0)
-    if 164 in types:
-        u = _read_set(uff, path, types, types.index(164))
-        units = (float(u["length"]), float(u["force"]))
-        if not all(math.isfinite(x) and x > 0 for x in units):
-            raise ValueError(f"{path}: dataset 164 has invalid unit factors {units}")
-    idx = [i for i, t in enumerate(types) if t in wanted]
-    if not idx:
-        found = ", ".join(str(t) for t in sorted(set(types)))
-        want = " or ".join(str(w) for w in wanted)
-        raise ValueError(f"{path}: no dataset {want} in the file (found dataset types: "
-                         f"{found})")
-    return [_read_set(uff, path, types, i) for i in idx], units
-
-
-def _read_set(uff, path, types, i):
-    try:
-        return uff.read_sets(i)
-    except Exception as e:  # pyuff raises bare Exception without detail
-        raise ValueError(f"{path}: dataset {types[i]} (block {i + 1}) cannot be parsed "
-                         f"({e})") from None
-
-
-def _atomic_uff_write(path, dsets, overwrite):
-    """Write datasets to ``path`` via a temporary file and an atomic rename."""
-    pyuff = pyuff_module()
-    path = Path(path)
-    if path.exists() and not overwrite:
-        raise ValueError(f"{path}: file exists (pass overwrite=True to replace it)")
-    if not path.parent.is_dir():
-        raise ValueError(f"{path}: directory {path.parent} does not exist")
-    tmp = path.with_name(path.name + ".tmp")
-    try:
-        pyuff.UFF(str(tmp)).write_sets(list(dsets), mode="overwrite")
-        os.replace(tmp, path)
-    except Exception as e:
-        tmp.unlink(missing_ok=True)
-        if isinstance(e, OSError):
-            raise
-        raise ValueError(f"{path}: pyuff could not write the file ({e})") from None
-
-
-def uff_units_dataset():
-    """A dataset 164 declaring SI units (factors 1): written ahead of mcfric's data."""
-    return {"type": 164, "units_code": 1, "units_description": "SI", "temp_mode": 1,
-            "length": 1.0, "force": 1.0, "temp": 1.0, "temp_offset": 273.15}
-
-
-def uff_date():
-    """UFF ID-line date convention ``DD-MMM-YY HH:MM:SS``."""
-    return datetime.now().strftime("%d-%b-%y %H:%M:%S").upper()
 
 
 # ---------------------------------------------------------------- positions
@@ -205,11 +78,11 @@ def _position_map(positions, available, path, what="node"):
     if positions is None:
         pairs = [(k, k) for k in available]
     elif isinstance(positions, Mapping):
-        pairs = [(_as_int(lab, "positions label", path), _as_int(k, f"positions {what}", path))
+        pairs = [(as_int(lab, "positions label", path), as_int(k, f"positions {what}", path))
                  for lab, k in positions.items()]
     else:
         try:
-            keys = [_as_int(k, f"positions {what}", path) for k in positions]
+            keys = [as_int(k, f"positions {what}", path) for k in positions]
         except TypeError:
             raise ValueError(f"{path}: positions: expected None, a list of {what} numbers "
                              f"or a mapping {{label: {what}}}, got {positions!r}") from None
@@ -222,26 +95,8 @@ def _position_map(positions, available, path, what="node"):
     missing = [k for k in keys if k not in available]
     if missing:
         raise ValueError(f"{path}: {what} {missing[0]} not in the file "
-                         f"({what}s: {_short(available)})")
+                         f"({what}s: {short(available)})")
     return pairs
-
-
-def _as_int(x, name, path):
-    if isinstance(x, bool):
-        raise ValueError(f"{path}: {name}: expected an integer, got {x!r}")
-    try:
-        i = int(x)
-    except (TypeError, ValueError):
-        raise ValueError(f"{path}: {name}: expected an integer, got {x!r}") from None
-    if i != x and not (isinstance(x, str) and x.strip().lstrip("+-").isdigit()):
-        raise ValueError(f"{path}: {name}: expected an integer, got {x!r}")
-    return i
-
-
-def _short(seq, n=12):
-    seq = list(seq)
-    s = ", ".join(str(x) for x in seq[:n])
-    return s + (", ..." if len(seq) > n else "")
 
 
 def _select_modes(numbers, modes, path):
@@ -253,9 +108,9 @@ def _select_modes(numbers, modes, path):
         return sorted(range(len(numbers)), key=numbers.__getitem__)
     out = []
     for m in modes:
-        m = _as_int(m, "modes", path)
+        m = as_int(m, "modes", path)
         if m not in numbers:
-            raise ValueError(f"{path}: mode {m} not in the file (modes: {_short(sorted(numbers))})")
+            raise ValueError(f"{path}: mode {m} not in the file (modes: {short(sorted(numbers))})")
         out.append(numbers.index(m))
     if not out:
         raise ValueError(f"{path}: modes: no modes selected")
@@ -283,7 +138,7 @@ def _check_modes(path, numbers, freq, zeta, mass, shapes, labels):
             raise ValueError(f"{path}: mode {n}: shape values must be finite")
         if not np.any(u != 0):
             raise ValueError(f"{path}: mode {n} is zero at all positions "
-                             f"({_short(labels)}): leave it out with modes=")
+                             f"({short(labels)}): leave it out with modes=")
 
 
 def _mass_normalise(shape, m):
@@ -363,7 +218,7 @@ def _format(path, fmt):
 
 
 def _read_uff55(path, positions, direction, modes, max_imag):
-    sets, (Lf, Ff) = uff_datasets(path, (55,))
+    sets, (Lf, Ff) = read_datasets(path, (55,))
     if not (math.isfinite(max_imag) and max_imag >= 0):
         raise ValueError(f"{path}: max_imag: expected a number >= 0, got {max_imag!r}")
     parsed = [_uff55_mode(path, k, d) for k, d in enumerate(sets)]
@@ -384,7 +239,7 @@ def _read_uff55(path, positions, direction, modes, max_imag):
         for n in nodes:
             if n not in p["nodes"]:
                 raise ValueError(f"{path}: node {n} missing from mode {p['mode']} "
-                                 f"(nodes: {_short(p['nodes'])})")
+                                 f"(nodes: {short(p['nodes'])})")
             rows.append(p["values"][p["nodes"][n]])
         vals.append(rows)
     vals = np.array(vals)
@@ -450,7 +305,7 @@ def _uff55_values(path, where, d, n_nodes):
 def _direction(path, vals, direction, nodes):
     ndv = vals.shape[2]
     if direction is not None:
-        d = _as_int(direction, "direction", path)
+        d = as_int(direction, "direction", path)
         if not 1 <= d <= ndv:
             raise ValueError(f"{path}: direction: expected 1..{ndv} (values per node), got {d}")
         return d - 1
@@ -461,7 +316,7 @@ def _direction(path, vals, direction, nodes):
         return 0  # all zero: reported as zero modes
     names = ", ".join(DIRECTIONS.get(c + 1, str(c + 1)) for c in nonzero)
     raise ValueError(f"{path}: the modes have non-zero {names} components at nodes "
-                     f"{_short(nodes)}: pass direction= (1=X, 2=Y, 3=Z)")
+                     f"{short(nodes)}: pass direction= (1=X, 2=Y, 3=Z)")
 
 
 def _realise(path, mode, v, max_imag):
@@ -478,22 +333,6 @@ def _realise(path, mode, v, max_imag):
 
 
 _CSV_SHAPE = re.compile(r"^u_?(-?\d+)$")
-
-
-def csv_rows(path, what="CSV file"):
-    """Non-empty, non-comment rows of a CSV file as ``(line number, cells)``.
-
-    Raises a one-line ValueError naming the file when it is not text or has no rows.
-    """
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except UnicodeDecodeError:
-        raise ValueError(f"{path}: not a text file") from None
-    rows = [(i + 1, r) for i, r in enumerate(csv.reader(text.splitlines()))
-            if r and any(c.strip() for c in r) and not r[0].lstrip().startswith("#")]
-    if not rows:
-        raise ValueError(f"{path}: empty {what}")
-    return rows
 
 
 def _parse_csv_table(path):
@@ -538,7 +377,7 @@ def _parse_csv_table(path):
         raise ValueError(f"{path}: no modes (only a header)")
     a = np.array(data)
     n = len(a)
-    numbers = ([_as_int(x, "mode", path) for x in a[:, known["mode"]]] if "mode" in known
+    numbers = ([as_int(x, "mode", path) for x in a[:, known["mode"]]] if "mode" in known
                else list(range(1, n + 1)))
     mass = a[:, known["modal_mass"]] if "modal_mass" in known else np.zeros(n)
     return (numbers, a[:, known["freq_hz"]], a[:, known["zeta"]], mass,
@@ -581,12 +420,12 @@ def _parse_toml_table(path):
         raise ValueError(f"{path}: expected freq_hz and zeta of one value per mode and "
                          f"shapes of one row per mode, got {freq.size}, {zeta.size} and "
                          f"shape {shapes.shape}")
-    labels = [_as_int(p, "positions", path) for p in t.get("positions",
+    labels = [as_int(p, "positions", path) for p in t.get("positions",
                                                           range(1, shapes.shape[1] + 1))]
     if len(labels) != shapes.shape[1]:
         raise ValueError(f"{path}: positions: {len(labels)} labels for {shapes.shape[1]} "
                          f"shape columns")
-    numbers = [_as_int(m, "modes", path) for m in t.get("modes", range(1, n + 1))]
+    numbers = [as_int(m, "modes", path) for m in t.get("modes", range(1, n + 1))]
     if len(numbers) != n:
         raise ValueError(f"{path}: modes: {len(numbers)} numbers for {n} modes")
     mass = np.array(t.get("modal_mass", np.zeros(n)), dtype=float)
@@ -626,7 +465,7 @@ def write_modal_table_uff55(path, table, *, nodes=None, direction=3, modes=None,
     path = Path(path)
     if not isinstance(table, ModalTable):
         raise ValueError(f"{path}: table: expected a ModalTable, got {type(table).__name__}")
-    d = _as_int(direction, "direction", path)
+    d = as_int(direction, "direction", path)
     if d not in (1, 2, 3):
         raise ValueError(f"{path}: direction: expected 1, 2 or 3 (X, Y, Z), got {direction!r}")
     nodes = dict(nodes) if nodes is not None else {p: p for p in table.positions}
@@ -634,7 +473,7 @@ def write_modal_table_uff55(path, table, *, nodes=None, direction=3, modes=None,
     for p in table.positions:
         if p not in nodes:
             raise ValueError(f"{path}: nodes: no node number for position {p}")
-        n = _as_int(nodes[p], "nodes", path)
+        n = as_int(nodes[p], "nodes", path)
         if n <= 0:
             raise ValueError(f"{path}: nodes: node numbers must be > 0, got {n} for "
                              f"position {p}")
@@ -642,11 +481,11 @@ def write_modal_table_uff55(path, table, *, nodes=None, direction=3, modes=None,
     if len(set(node_nums)) != len(node_nums):
         raise ValueError(f"{path}: nodes: node numbers must be distinct, got {node_nums}")
     numbers = (list(range(1, table.n_modes + 1)) if modes is None
-               else [_as_int(m, "modes", path) for m in modes])
+               else [as_int(m, "modes", path) for m in modes])
     if len(numbers) != table.n_modes or len(set(numbers)) != len(numbers):
         raise ValueError(f"{path}: modes: expected {table.n_modes} distinct mode numbers")
     zero = np.zeros(len(node_nums))
-    dsets = [uff_units_dataset()]
+    dsets = [si_units_dataset()]
     for k, number in enumerate(numbers):
         r = [zero, zero, zero]
         r[d - 1] = np.array(table.shapes[k], dtype=float)
@@ -654,12 +493,12 @@ def write_modal_table_uff55(path, table, *, nodes=None, direction=3, modes=None,
         dsets.append({
             "type": 55, "id1": description[:80],
             "id2": "mass-normalised real normal modes, SI (kg^-1/2)",
-            "id3": uff_date(), "id4": f"mode {number}",
+            "id3": id_date(), "id4": f"mode {number}",
             "id5": f"Mode {number:10d} Frequency {f:13.5e}",
             "model_type": 1, "analysis_type": 2, "data_ch": 2, "spec_data_type": 8,
             "data_type": 2, "n_data_per_node": 3, "load_case": 1, "mode_n": number,
             "freq": f, "modal_m": 1.0, "modal_damp_vis": float(table.zeta[k]),
             "modal_damp_his": 0.0, "node_nums": np.array(node_nums),
             "r1": r[0], "r2": r[1], "r3": r[2]})
-    _atomic_uff_write(path, dsets, overwrite)
+    write_atomic(path, dsets, overwrite)
     return path

@@ -199,7 +199,7 @@ def test_exact_coordinate_minimum_equals_a_dense_search_of_the_rectangle():
     """One coordinate of the search: min over the rectangle of max_b |y_b| for Moebius
     functions y_b = (alpha_b + beta_b z) / (d0 + d1 z) (edges exact, interior by the
     weighted 1-centre), against a 301 x 301 grid polished by Nelder-Mead."""
-    from mcfric.core.equivalent_linear import _best_on_rectangle
+    from mcfric.core.rectangle import best_on_rectangle
 
     rng = np.random.default_rng(1)
     E = np.zeros((6, 8))
@@ -223,8 +223,8 @@ def test_exact_coordinate_minimum_equals_a_dense_search_of_the_rectangle():
                                 method="Nelder-Mead", bounds=[(0, kr), (0, ki)],
                                 options=dict(xatol=1e-12, fatol=1e-15, maxiter=5000))
         ref = min(vals[i], res.fun)
-        v, z = _best_on_rectangle(alpha, beta, d0, d1, kr, ki, False, 0.5 * complex(kr, ki),
-                                  0, nb, True, E)
+        v, z = best_on_rectangle(alpha, beta, d0, d1, kr, ki, False, 0.5 * complex(kr, ki),
+                                 0, nb, True, E)
         assert v <= ref * (1 + 1e-9), (trial, v, ref)
         assert abs(M(z)[0] - v) <= 1e-12 * v            # the value is that of the point
         n_inside += 0 < z.real < kr and 0 < z.imag < ki
@@ -234,7 +234,9 @@ def test_exact_coordinate_minimum_equals_a_dense_search_of_the_rectangle():
 def test_chain_elimination_of_the_smoothed_maximum_equals_dense_lu():
     """The smoothed maximum and its gradient by the O(nd) chain elimination equal those
     of the dense LU path; a ring of beams keeps the dense path."""
-    from mcfric.core import equivalent_linear as el
+    from mcfric.bounds.search import sparsity
+    from mcfric.core.coordinate_search import workspace
+    from mcfric.core.projected_gradient import smooth_max
     from mcfric.core.receptance import contact_space
 
     model = mcfric.eight_beam(0.25)
@@ -242,23 +244,23 @@ def test_chain_elimination_of_the_smoothed_maximum_equals_dense_lu():
     rec = model.receptances(2 * np.pi * f)[0]
     G, q0, ylin, H = contact_space(rec, model.force, *model.dampers)
     nd, nb = G.shape[1], ylin.shape[1]
-    hr, gr = el._sparsity(G, H)
-    w_tri = el._workspace(nd, nb, hr, gr)
-    w_dense = el._workspace(nd, nb, np.tile([0, nd], (nb, 1)), np.tile([0, nd], (nd, 1)))
+    hr, gr = sparsity(G, H)
+    w_tri = workspace(nd, nb, hr, gr)
+    w_dense = workspace(nd, nb, np.tile([0, nd], (nb, 1)), np.tile([0, nd], (nd, 1)))
     assert w_tri[14] and not w_dense[14]
     rng = np.random.default_rng(2)
     for k in range(len(f)):
         for _ in range(10):
             K = K_MAX * (rng.uniform(size=nd) + 1j * rng.uniform(size=nd))
             g1, g2 = np.zeros(nd, complex), np.zeros(nd, complex)
-            v1, _ = el._smooth_max(G[k], q0[k], ylin[k], H[k], K, 0.01, 0, nb, g1, w_tri)
-            v2, _ = el._smooth_max(G[k], q0[k], ylin[k], H[k], K, 0.01, 0, nb, g2, w_dense)
+            v1, _ = smooth_max(G[k], q0[k], ylin[k], H[k], K, 0.01, 0, nb, g1, w_tri)
+            v2, _ = smooth_max(G[k], q0[k], ylin[k], H[k], K, 0.01, 0, nb, g2, w_dense)
             assert abs(v1 - v2) <= 1e-10 * abs(v2)
             assert np.max(np.abs(g1 - g2)) <= 1e-9 * np.max(np.abs(g2))
     ring = dataclasses.replace(model, topology="circular")
     Gr, _, _, Hr = contact_space(ring.receptances(2 * np.pi * f)[0], ring.force,
                                  *ring.dampers)
-    assert not el._workspace(Gr.shape[1], nb, *el._sparsity(Gr, Hr))[14]
+    assert not workspace(Gr.shape[1], nb, *sparsity(Gr, Hr))[14]
 
 
 @pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2, reason="needs 2 threads")

@@ -1,6 +1,6 @@
 """Describing function of Coulomb friction in series with a tangential stiffness.
 
-physics.md section 2 (paper Eq. 2-5). With ``s = mu0 N0 / (kc A)``:
+Paper Eq. 2-5; the docs' theory page, section "Describing function". With ``s = mu0 N0 / (kc A)``:
 
 * ``0 < s < 1`` (partial slip):
   ``Re K = kc/pi (arccos(1-2s) - 2(1-2s) sqrt(s(1-s)))``, ``Im K = 4 kc/pi s(1-s)``;

@@ -1,10 +1,12 @@
-"""Small dense and tridiagonal solves for the Newton kernel.
+"""Small dense and tridiagonal linear solves for the Newton kernels and the bounds searches.
 
 Every routine works in place and returns an info code instead of raising:
 0 = success, k > 0 = zero or non-finite pivot at step k (1-based), as LAPACK does.
 """
 
 import math
+
+import numpy as np
 
 from ._jit import inline_jit, jit
 
@@ -129,8 +131,104 @@ def cinv(z):
     return complex(z.real * r, -z.imag * r)
 
 
-#: Samples solved in lockstep by the batched kernels (:mod:`mcfric.core.batch`): their
-#: O(nd) eliminations are latency-bound chains, and interleaving independent systems fills
-#: the pipeline (measured for nd = 7: 250 ns per system alone, 72 ns with 4 lanes, 60 ns
-#: with 8).
+#: Samples solved in lockstep by the batched kernels (:mod:`mcfric.core.chain_newton`):
+#: their O(nd) eliminations are latency-bound chains, and interleaving independent systems
+#: fills the pipeline (timings per lane count: the docs' performance page).
 LANES = 4
+
+
+@jit
+def factor_inverse(G, K, Tinv, T, piv, nd):
+    """``Tinv = (I + G diag(K))^-1``. Returns False if singular."""
+    for i in range(nd):
+        for j in range(nd):
+            T[i, j] = G[i, j] * K[j]
+        T[i, i] += 1.0
+    if lu_factor(T, piv, nd) != 0:
+        return False
+    col = np.zeros(nd, dtype=np.complex128)
+    for j in range(nd):
+        for i in range(nd):
+            col[i] = 0.0j
+        col[j] = 1.0
+        lu_solve(T, piv, col, nd)
+        for i in range(nd):
+            Tinv[i, j] = col[i]
+    return True
+
+
+@inline_jit
+def tri_factor(G, K, T, nd):
+    """LU factors of ``I + G diag(K)`` for a tridiagonal G, without pivoting, in rows
+    0-2 of ``T`` (1 / pivots, the eliminated super-diagonal, the sub-diagonal). Returns
+    False (use pivoting instead) at a pivot small against its row."""
+    cp = 0.0j
+    for i in range(nd):
+        a = 1.0 + G[i, i] * K[i]
+        if i > 0:
+            lo = G[i, i - 1] * K[i - 1]
+            a -= lo * cp
+            T[2, i - 1] = lo
+        if not (abs(a) > 1e-10 * (1.0 + abs(G[i, i] * K[i]))):
+            return False
+        inv = 1.0 / a
+        cp = G[i, i + 1] * K[i + 1] * inv if i < nd - 1 else 0.0j
+        T[0, i] = inv
+        T[1, i] = cp
+    return True
+
+
+@inline_jit
+def tri_solve(T, x, nd):
+    """Solve ``(I + G diag(K)) x = b`` in place (``x`` holds b) with the factors of
+    :func:`tri_factor`."""
+    x[0] *= T[0, 0]
+    for i in range(1, nd):
+        x[i] = (x[i] - T[2, i - 1] * x[i - 1]) * T[0, i]
+    for i in range(nd - 2, -1, -1):
+        x[i] -= T[1, i] * x[i + 1]
+
+
+@inline_jit
+def tri_solve_transposed(T, b, nd):
+    """Solve ``(I + G diag(K))^T x = b`` in place with the factors of
+    :func:`tri_factor` (``A = L U``, U unit upper: ``U^T`` forward, ``L^T`` back)."""
+    for i in range(1, nd):
+        b[i] -= T[1, i - 1] * b[i - 1]
+    b[nd - 1] *= T[0, nd - 1]
+    for i in range(nd - 2, -1, -1):
+        b[i] = (b[i] - T[2, i] * b[i + 1]) * T[0, i]
+
+
+@jit
+def lu_solve_transposed(A, piv, b, n):
+    """Solve ``A^T x = b`` in place with the factors of :func:`lu_factor` (P A = L U)."""
+    # A^T = U^T L^T P: solve U^T z = b, L^T v = z, then x = P^T v
+    for i in range(n):
+        acc = b[i]
+        for j in range(i):
+            acc -= A[j, i] * b[j]
+        b[i] = acc / A[i, i]
+    for i in range(n - 1, -1, -1):
+        acc = b[i]
+        for j in range(i + 1, n):
+            acc -= A[j, i] * b[j]
+        b[i] = acc
+    for k in range(n - 1, -1, -1):
+        p = piv[k]
+        if p != k:
+            t = b[k]
+            b[k] = b[p]
+            b[p] = t
+
+
+@jit
+def is_tridiagonal(gr, nd):
+    """G is tridiagonal (a chain of dampers) and large enough for the row storage of
+    :func:`tri_factor`."""
+    if nd < 3:
+        return False
+    for j in range(nd):
+        if gr[j, 0] < j - 1 or gr[j, 1] > j + 2:
+            return False
+    return True

@@ -1,4 +1,6 @@
-"""One fixed-point solve of the single-harmonic balance (physics.md section 3).
+"""One fixed-point solve of the single-harmonic balance.
+
+The equations are those of the docs' theory page, section "Single-harmonic balance".
 
 Unknowns are ``x_j = log s_j`` for the active dampers (``mu0 N0 > 0`` and ``kc > 0``);
 the residual is ``f_j = log(s_j kc_j |q_j| / (mu0_j N0_j))`` with the relative contact
@@ -13,7 +15,7 @@ tiny ``|q_j|`` from stalling the line search.
 This module holds the per-point solvers: a dense Newton (any damper graph, LU with
 partial pivoting, O(nd^3)), Levenberg-Marquardt, and a scalar Newton with a bracketing
 fallback for one damper. The fast path for chains, several samples in lockstep with O(nd)
-linear algebra, is :mod:`mcfric.core.batch`; it falls back to the solvers here.
+linear algebra, is :mod:`mcfric.core.chain_newton`; it falls back to the solvers here.
 
 Fallback chain per point: Newton from the warm start -> Newton (dense) restarted from the
 stick limit ``s = 1`` -> Levenberg-Marquardt (dense) from ``s = 1``.
@@ -284,7 +286,7 @@ def workspace(nd):
             np.zeros((nd, nd)), np.zeros(nd, np.int64))
 
 
-# --- one damper (two beams): scalar specialisation, ~2x faster than the general path ---
+# --- one damper (two beams): a scalar specialisation, faster than the general path ---
 
 _SLIP_SIDE = complex(0.0, -4.0 / math.pi)   # d(K/kc)/dlog s at s = 1 from the slip side
 

@@ -85,7 +85,7 @@ def difference_matrix(a, b, n_beams):
 
 
 def contact_space(rec, force, a, b):
-    """Contact-space reduction of the linear array (physics.md section 3), dense.
+    """Contact-space reduction of the linear array (docs: theory, "Contact-space reduction"), dense.
 
     With ``K = diag(K_j)`` the damper describing functions, the relative contact
     displacements solve ``(I + G K) q = q0`` and the output is ``y2 = y2_lin - H K q``.

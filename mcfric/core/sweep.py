@@ -1,8 +1,8 @@
 """Parallel sweeps: ``prange`` over samples, a warm-started frequency sweep inside each.
 
 Each sample sweeps its frequencies in the given order, starting each point from a cubic
-extrapolation in ``log s`` of its previous solutions (a linear one alone is measured ~2.8x
-faster than cold starts, kernel-notes.md); the extrapolation weights depend only on the
+extrapolation in ``log s`` of its previous solutions (a warm start needs far fewer Newton
+steps than a cold one); the extrapolation weights depend only on the
 frequencies and are computed once per call (:func:`predict_weights`). A sample's results
 depend only on its own inputs, never on which thread ran it or which other samples shared
 the call: results are bitwise identical for any thread count and any chunking of the
@@ -14,7 +14,7 @@ Three kernels, one per structure:
   candidate of all lanes in one SIMD loop (the exact solution at most points), scalar
   Newton with a bracketing fallback for the rest;
 * :func:`sweep_chain`: a linear array, ``LANES`` samples in lockstep with O(nd) algebra
-  (:mod:`mcfric.core.batch`);
+  (:mod:`mcfric.core.chain_newton`);
 * :func:`sweep_dense`: any damper graph (rings), dense LU per sample.
 
 The last two fall back per point to Newton restarted from ``s = 1`` and then
@@ -55,7 +55,7 @@ import math
 import numpy as np
 from numba import prange
 
-from . import batch
+from . import chain_newton
 from ._jit import inline_jit, jit
 from .linalg import LANES
 from .newton import (CONVERGED, CONVERGED_LM, CONVERGED_RESTART, NOT_CONVERGED,
@@ -64,9 +64,8 @@ from .newton import (CONVERGED, CONVERGED_LM, CONVERGED_RESTART, NOT_CONVERGED,
 from .friction import MIN_NORMAL, log_normal
 from .receptance import D11, D13, D21, D23
 
-#: Points of the frequency sweep the warm start extrapolates from (a cubic: the median
-#: error of log s falls from 3e-4 (linear) to 3e-5 (quadratic) to 4e-6 (cubic) on the
-#: eight-beam rig at 0.14 Hz steps, measured).
+#: Points of the frequency sweep the warm start extrapolates from (a cubic: each order
+#: cuts the error of the predicted log s about tenfold, see the performance page).
 N_PREDICT = 4
 
 #: Samples per batch of the one-damper kernel (two SIMD vectors of four doubles).
@@ -250,7 +249,7 @@ def sweep_chain(rec, force, a, b, omega, mu0, N0, kc, tol, max_iter,
 # The prange bodies live in plain jitted functions: numba's parfor passes then see a
 # small loop body, which keeps the compile time down.
 
-@jit(fastmath=batch.FASTMATH)
+@jit(fastmath=chain_newton.FASTMATH)
 def _chain_batch(g, rec, force, a, b, W, mu0, N0, kc, tol, max_iter,
                  y, s, status, iterations, residual):
     """Samples ``g * LANES ...`` of :func:`sweep_chain`, all frequencies."""
@@ -259,22 +258,22 @@ def _chain_batch(g, rec, force, a, b, W, mu0, N0, kc, tol, max_iter,
     n_f = W.shape[1]
     nd = a.shape[0]
     n_beams = force.shape[0]
-    C, R, B, V, M = batch.workspace(nd)
+    C, R, B, V, M = chain_newton.workspace(nd)
     # the state at the solution, as views made once per batch (a view's reference
     # count is this thread's own: no contention, unlike views of rec)
-    K = C[batch.K_]
-    q = C[batch.Q_]
-    f = R[batch.F_]
-    # and the inputs of batch.newton_lanes, which takes no other arrays
-    x = R[batch.X_]
-    kcl = R[batch.KC_]
-    cl = R[batch.CC_]
-    actl = M[batch.ACT_:]
-    Gd = C[batch.GD_]
-    Gu = C[batch.GU_]
-    q0 = C[batch.Q0_]
-    need = M[batch.NEED_]
-    ok = M[batch.OK_]
+    K = C[chain_newton.K_]
+    q = C[chain_newton.Q_]
+    f = R[chain_newton.F_]
+    # and the inputs of chain_newton.newton_lanes, which takes no other arrays
+    x = R[chain_newton.X_]
+    kcl = R[chain_newton.KC_]
+    cl = R[chain_newton.CC_]
+    actl = M[chain_newton.ACT_:]
+    Gd = C[chain_newton.GD_]
+    Gu = C[chain_newton.GU_]
+    q0 = C[chain_newton.Q0_]
+    need = M[chain_newton.NEED_]
+    ok = M[chain_newton.OK_]
     s_off = np.zeros((nd, LANES))
     sq = np.zeros((nd, LANES))
     xp = np.zeros((N_PREDICT, nd, LANES))
@@ -333,14 +332,14 @@ def _chain_batch(g, rec, force, a, b, W, mu0, N0, kc, tol, max_iter,
                 for m in range(h):
                     v += W[h, k, m] * xp[m, j, l]
                 x[j, l] = v if math.isfinite(v) else 0.0
-        batch.newton_lanes(tol, max_iter, C, R, B, V, M, nd)
+        chain_newton.newton_lanes(tol, max_iter, C, R, B, V, M, nd)
         for l in range(LANES):
             if not need[l]:
                 continue
             i = g * LANES + l
             r = rl[l]
             st = CONVERGED
-            n_it = int(V[batch.ITS_, l])
+            n_it = int(V[chain_newton.ITS_, l])
             good = ok[l]
             if not good:            # rare: one sample's copy through the dense solvers
                 for j in range(nd):
@@ -357,7 +356,7 @@ def _chain_batch(g, rec, force, a, b, W, mu0, N0, kc, tol, max_iter,
                     q[j, l] = wd[1][j]
                     f[j, l] = wd[2][j]
             # _write_point and _remember, written out: an inlined helper that takes arrays
-            # costs two atomic reference counts per array and call (~5 % here, measured)
+            # costs two atomic reference counts per array and call
             iterations[i, k] = min(n_it, 32767)
             res = 0.0
             for j in range(nd):
@@ -494,7 +493,7 @@ def _one_damper_batch(g, rec, force, a, b, W, mu0, N0, kc, tol, max_iter,
                       y, s, status, iterations, residual):
     """Samples ``g * ONE_LANES ...`` of :func:`sweep_one_damper`, all frequencies.
 
-    Most points are stuck and predicted stuck (86 % of the two-beam benchmark): then the
+    Most points are stuck and predicted stuck (see the performance page): then the
     stuck state ``K = kc`` is the exact solution, found with one complex division and one
     log. That candidate is formed for all lanes in one branch-free loop, which LLVM turns
     into SIMD code (:func:`mcfric.core.friction.log_normal` instead of a libm call per

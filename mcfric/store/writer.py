@@ -158,7 +158,7 @@ class Store:
         """Write records ``start .. start + n`` of each named variable (not yet committed).
 
         Whole HDF5 chunks go straight to their pre-allocated place (``H5Dwrite_chunk``,
-        no copy, no type conversion: ~2x less CPU than a selection write, measured);
+        no copy, no type conversion: less CPU than a selection write);
         partial chunks at the edges go through the normal path.
         """
         for name, arr in arrays.items():

@@ -1,15 +1,15 @@
-"""Gauss-Newton searches of the box minimum of ``M = max_b |y_b|`` (physics.md section 7).
+"""Gauss-Newton searches of the box minimum of ``M = max_b |y_b|``: a valley fit and minimax.
 
 Where the lower bound is small the minimum is a deep, narrow valley in which every beam
 is nearly at rest at once and several beams are equal at its bottom. The coordinate and
-smoothed-gradient searches of :mod:`.equivalent_linear` stall on such ridges (a dozen
-beams equal, one damper moved at a time). Here the outputs ``y_b(K)`` are used with
-their Jacobian:
+smoothed-gradient searches (:mod:`.coordinate_search`, :mod:`.projected_gradient`)
+stall on such ridges (a dozen beams equal, one damper moved at a time). Here the outputs
+``y_b(K)`` are used with their Jacobian:
 
-* :func:`_lsq_valley` fits every ``y_b`` to zero (projected Levenberg-Marquardt on
+* :func:`lsq_valley` fits every ``y_b`` to zero (projected Levenberg-Marquardt on
   ``sum_b |y_b|^2``): it falls into the valley from far away, and starts a coordinate
   search at every frequency;
-* :func:`_minimax_barrier` minimises ``max_b |y_b|^2`` itself, as ``min t`` subject to
+* :func:`minimax_barrier` minimises ``max_b |y_b|^2`` itself, as ``min t`` subject to
   ``|y_b|^2 <= t`` and the box, by a log-barrier Newton method with the Gauss-Newton
   curvature ``2 Re(J_b^H J_b)`` of each ``|y_b|^2``: every beam and box face enters the
   step together, so it walks along the ridge where the others stall. It ends the
@@ -64,7 +64,7 @@ def _jacobian(G, H, K, T, piv, q, kr, ki, X, col, D, nd, nb, hr):
 
 
 @jit
-def _lsq_valley(G, q0, ylin, H, kr, ki, K, w, n_iter=40):
+def lsq_valley(G, q0, ylin, H, kr, ki, K, w, n_iter=40):
     """Projected Levenberg-Marquardt on ``sum_b |y_b|^2`` from ``K`` (in place).
 
     The box minimum of M can be a deep, narrow valley where all beams are nearly at rest
@@ -136,14 +136,10 @@ def _lsq_valley(G, q0, ylin, H, kr, ki, K, w, n_iter=40):
     return phi
 
 
-#: Barrier weights of :func:`_minimax_barrier` (in units of the starting ``M^2``): the
+#: Barrier weights of :func:`minimax_barrier` (in units of the starting ``M^2``): the
 #: first, the last, and the factor between stages; a stage ends when the Newton decrement
-#: falls below ``_BARRIER_DECREMENT`` times the weight. Measured at the 46 frequencies
-#: (eight beams, 0.25 N) where a 200-start reference beat the lower bound by > 1e-3:
-#: mean 45 Newton steps to reach the reference (52 over all 1000 frequencies, ~0.3 ms a
-#: search); 1e-10 / factor 0.1 / decrement 1e-10 took 150 for the same values. A
-#: primal-dual variant took 30 steps but ~150 line-search solves, no faster, and ended
-#: higher at 2-3 of those frequencies.
+#: falls below ``_BARRIER_DECREMENT`` times the weight. Chosen by measurement against
+#: reference searches (the docs' performance page, "Measured design choices").
 _BARRIER_MU = 1e-2
 _BARRIER_MU_END = 1e-9
 _BARRIER_SHRINK = 0.02
@@ -185,7 +181,7 @@ def _scaled_phi(G, q0, ylin, H, x, Kt, T, piv, q, y, ph, s, kr, ki, nd, nb, hr):
 
 
 @jit
-def _minimax_barrier(G, q0, ylin, H, kr, ki, K, w):
+def minimax_barrier(G, q0, ylin, H, kr, ki, K, w):
     """Minimise ``M = max_b |y_b|`` over the box from ``K`` by a log-barrier method.
 
     ``min t`` subject to ``t >= |y_b|^2 / s`` (``s``: the starting ``M^2``) and

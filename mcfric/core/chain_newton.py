@@ -5,7 +5,7 @@ Every array has the lane index last, and every loop over dampers has an inner lo
 lanes. The point is instruction-level parallelism: the O(nd) eliminations of a chain
 (tridiagonal ``I + G K``; block-tridiagonal Newton step with real 2x2 blocks in
 ``w = dq``) are chains of dependent divisions, and interleaving independent samples keeps
-the pipeline full (~3.5x on the eliminations with 4 lanes, measured).
+the pipeline full (measured gains: the docs' performance page).
 
 Each lane runs exactly the single-sample algorithm of :mod:`mcfric.core.newton` in its own
 arithmetic (damped Newton in ``x = log s`` with an Armijo line search, stuck dampers
@@ -15,7 +15,7 @@ does not depend on which samples share its batch, its thread, or its chunk.
 The scratch state lives in five arrays indexed by the slot constants below (``C[K_]``,
 ``R[F_]``, ...) rather than in some twenty separate arrays: every array passed to or
 unpacked in a compiled function costs an atomic reference count and a struct copy per
-call, which was ~10 % of the eight-beam time. The per-point inputs (iterate, damper
+call. The per-point inputs (iterate, damper
 constants, ``G`` and ``q0``) and the per-lane results live there too, so that the three
 kernels take no other arrays.
 """

@@ -1,4 +1,4 @@
-"""Equivalent-linear response bounds (paper Section 3, physics.md section 7).
+"""Equivalent-linear response bounds (paper Section 3): the admissible region and the bounds.
 
 The friction law is not specified: each damper's describing function ``K_j`` may be any
 complex number in the admissible region
@@ -22,10 +22,11 @@ Every Coulomb damper with ``kc <= k_max``, ``mu0 <= mu_max`` and ``N0 <= N0_max`
 admissible (``Re K <= kc``, ``Im K <= kc / pi``, ``|K| A <= (4/pi) mu0 N0``), so every
 converged ensemble member lies between the bounds.
 
-The box search is the jitted coordinate search of :mod:`mcfric.core.equivalent_linear`
+The box search is the jitted coordinate search of :mod:`mcfric.core.coordinate_search`
 (exact per damper: the response is a Moebius function of each ``K_j``), run from many
-starts per frequency and in parallel over frequencies; the minimum ends with the
-Gauss-Newton minimax search of :mod:`mcfric.core.valley` (all beams are equal there).
+starts per frequency and in parallel over frequencies (:mod:`.search`); the minimum
+ends with the Gauss-Newton minimax search of :mod:`mcfric.core.minimax` (all beams are
+equal there). The docs' bounds page describes the algorithm and its checks.
 It replaces the paper's ``fmincon``/SQP: a generic local optimiser, measured here, stopped
 up to 30 % short of the true maximum on the eight-beam rig.
 """
@@ -36,10 +37,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .core.equivalent_linear import box_extreme
-from .core.receptance import contact_space
-from .hbm import METRIC_UNITS, QUANTITIES, check_frequencies, threads
-from .model import Model
+from ..core.receptance import contact_space
+from ..metric import QUANTITIES, check_quantity
+from ..model import Model
+from ..threads import threads
+from ..validators import frequencies as check_frequencies
+from ..validators import real
+from .search import box_extreme, starts
+
 
 #: ``limited_by`` codes: which constraint sets the upper bound.
 LIMITED_BY = ("box", "force")
@@ -51,9 +56,7 @@ MIN_TOTAL_STARTS = 3000
 MAX_SWEEPS = 20
 #: The maximum's exploring searches stop after half as many sweeps: on a resonance ridge
 #: a coordinate search crawls, and the continuation's repeated searches and the tight
-#: final search take over. Measured (eight beams, 1000 frequencies, 0.25 and 1.1 N):
-#: the upper bound within 3e-8 of 20 sweeps at 8 and 10 sweeps (and, when a gradient
-#: stage still followed each search, at 5: up to 4 % lower at 13 frequencies).
+#: final search take over (measured: the docs' performance page).
 MAX_SWEEPS_FRACTION_MAX = 0.5
 
 
@@ -118,17 +121,6 @@ def force_limit(mu_max, N0_max):
     return 4.0 / np.pi * float(mu_max) * float(N0_max)
 
 
-def _check_positive(name, value, allow_inf=False):
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name}: expected a number, got {value!r}") from None
-    if not (v > 0) or (np.isinf(v) and not allow_inf) or np.isnan(v):
-        allowed = "a positive number (inf allowed)" if allow_inf else "a positive finite number"
-        raise ValueError(f"{name}: expected {allowed}, got {value!r}")
-    return v
-
-
 def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity="displacement",
                    beams=None, n_starts=N_STARTS, max_sweeps=MAX_SWEEPS, seed=0, n_threads=None):
     """Equivalent-linear bounds on the response metric of ``model``.
@@ -168,11 +160,11 @@ def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity
     if not isinstance(model, Model):
         raise ValueError(f"model: expected a mcfric Model, got {type(model).__name__}")
     f = check_frequencies(freq_hz)
-    kr = _check_positive("k_max", k_max)
-    ki = kr if k_max_im is None else _check_positive("k_max_im", k_max_im)
-    F_lim = np.inf if F_lim is None else _check_positive("F_lim", F_lim, allow_inf=True)
-    if quantity not in QUANTITIES:
-        raise ValueError(f"quantity: expected one of {QUANTITIES}, got {quantity!r}")
+    kr = real("k_max", k_max, lo=0, lo_open=True)
+    ki = kr if k_max_im is None else real("k_max_im", k_max_im, lo=0, lo_open=True)
+    F_lim = (np.inf if F_lim is None
+             else real("F_lim", F_lim, lo=0, lo_open=True, allow_inf=True))
+    check_quantity(quantity, "quantity")
     beams = tuple(range(model.n_beams)) if beams is None else tuple(int(b) for b in beams)
     if not beams or any(not 0 <= b < model.n_beams for b in beams):
         raise ValueError(f"beams: expected 0-based beam indices in 0..{model.n_beams - 1}")
@@ -188,8 +180,8 @@ def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity
     H = np.ascontiguousarray(H[:, sel, :])
     n_starts = max(int(n_starts), -(-MIN_TOTAL_STARTS // len(f)))
     # the maximum runs once per beam (each a smoother problem): half the starts each
-    starts_max, _ = _starts(len(f), model.n_dampers, max(4, n_starts // 2), seed)
-    _, starts_min = _starts(len(f), model.n_dampers, n_starts, seed + 1)
+    starts_max, _ = starts(len(f), model.n_dampers, max(4, n_starts // 2), seed)
+    _, starts_min = starts(len(f), model.n_dampers, n_starts, seed + 1)
     G = np.ascontiguousarray(G)
     q0 = np.ascontiguousarray(q0)
     # Eq. 10 on the output of each beam: every damper at the force limit, worst phases
@@ -216,127 +208,6 @@ def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity
     scale = omega ** QUANTITIES.index(quantity)
     return Bounds(f, upper * scale, lower * scale, upper_box * scale, upper_force * scale,
                   limited_by, K_upper, K_lower, kr, ki, F_lim, quantity, beams)
-
-
-def _starts(n_f, nd, n_starts, seed):
-    """Starting points in normalised box coordinates, shape (n_f, n_starts, nd) each.
-
-    Max: the four uniform corners, then random corners (the box maximum lies on the
-    perimeter of every damper's rectangle). Min: the centre, the uniform corners (no
-    friction first, then fully stuck), then random interior points and corners. The
-    random starts differ from frequency to frequency; the continuation along frequency
-    shares what each of them finds.
-    """
-    rng = np.random.default_rng(seed)
-    corners = np.array([0, 1, 1 + 1j, 1j])
-    uniform = np.broadcast_to(corners[None, :, None], (n_f, 4, nd))
-    n_rand = max(n_starts - 4, 0)
-    starts_max = np.concatenate([uniform, corners[rng.integers(0, 4, (n_f, n_rand, nd))]],
-                                axis=1)[:, :n_starts]
-    centre = np.full((n_f, 1, nd), 0.5 + 0.5j)
-    n_rand = max(n_starts - 5, 0)
-    n_int = n_rand // 2
-    interior = rng.uniform(0, 1, (n_f, n_int, nd)) + 1j * rng.uniform(0, 1, (n_f, n_int, nd))
-    starts_min = np.concatenate([centre, uniform, interior,
-                                 corners[rng.integers(0, 4, (n_f, n_rand - n_int, nd))]],
-                                axis=1)[:, :n_starts]
-    return (np.ascontiguousarray(starts_max, dtype=complex),
-            np.ascontiguousarray(starts_min, dtype=complex))
-
-
-def from_config(cfg, n_threads=None):
-    """Bounds of a validated :class:`mcfric.config.Config` (its model, frequency grid,
-    metric and ``[bounds]``, limits derived from ``[sampling]`` where "auto").
-
-    The model is the nominal one: with ``sampling.mistuning > 0`` the members come from
-    other linear rigs and need not lie inside (the paper's bounds cover friction only).
-    """
-    k_re, k_im, F_lim = cfg.bounds_limits()
-    return compute_bounds(cfg.model(), cfg.frequencies(), k_re, k_max_im=k_im,
-                          F_lim=None if np.isinf(F_lim) else F_lim,
-                          quantity=cfg["metric"]["quantity"], beams=cfg.metric_beams(),
-                          n_starts=cfg["bounds"]["n_starts"], n_threads=n_threads)
-
-
-def to_group(B):
-    """The ``bounds/`` group of a results file: ``{var: (dims, array, attrs)}, attrs``."""
-    unit = METRIC_UNITS[B.quantity]
-    variables = {
-        "upper": (("frequency",), B.upper, {
-            "units": unit, "long_name": "upper bound of the metric M for every friction law "
-                                        "in the admissible region; NaN where the search failed"}),
-        "lower": (("frequency",), B.lower, {
-            "units": unit, "long_name": "lower bound of M (minimum over the box)"}),
-        "limited_by": (("frequency",), B.limited_by, {
-            "long_name": "constraint that sets the upper bound", "flag_values": [0, 1],
-            "flag_meanings": "box force"}),
-        "upper_box": (("frequency",), B.upper_box, {
-            "units": unit, "long_name": "largest box value found (at least the force bound "
-                                        "where the force limit sets the upper bound)"}),
-        "upper_force": (("frequency",), B.upper_force, {
-            "units": unit, "long_name": "force-saturation bound of M (Eq. 10)"}),
-        "K_upper": (("frequency", "damper"), B.K_upper, {
-            "units": "N/m", "long_name": "describing functions at the box maximum"}),
-        "K_lower": (("frequency", "damper"), B.K_lower, {
-            "units": "N/m", "long_name": "describing functions at the box minimum"}),
-    }
-    attrs = {"k_max_re": B.k_max_re, "k_max_im": B.k_max_im, "F_lim": B.F_lim,
-             "quantity": B.quantity, "beams": np.asarray(B.beams, dtype=np.int64) + 1,
-             "method": "equivalent-linear bounds (physics.md 7): coordinate search exact per "
-                       "damper + smoothed projected gradient, multistart and continuation "
-                       "along frequency (mcfric.bounds)",
-             "n_failed": np.int64(B.n_failed)}
-    return variables, attrs
-
-
-def read_bounds(path):
-    """The bounds stored in a results (or bounds) file, as :class:`Bounds`; None if absent."""
-    from .store import read, read_group
-
-    found = read_group(path, "bounds")
-    if found is None:
-        return None
-    g, a = found
-    return Bounds(read(path, "frequency"), g["upper"], g["lower"], g["upper_box"],
-                  g["upper_force"], g["limited_by"], g["K_upper"], g["K_lower"],
-                  float(a["k_max_re"]), float(a["k_max_im"]), float(a["F_lim"]),
-                  str(a["quantity"]), tuple(int(b) - 1 for b in np.atleast_1d(a["beams"])))
-
-
-def write_bounds_file(path, cfg, B):
-    """A bounds-only results file: ``frequency``, ``damper`` and ``bounds/``, root
-    attributes as a run's (configuration, versions), written atomically by the store."""
-    from . import __version__
-    from .store import write_file
-
-    spec = getattr(cfg, "spec", cfg)
-    model = spec.model
-    a, b = model.dampers
-    coords = {
-        "frequency": (B.freq_hz, {"units": "Hz", "long_name": "excitation frequency"}),
-        "damper": (np.arange(1, model.n_dampers + 1),
-                   {"long_name": "damper number (1-based); couples beam_a and beam_b",
-                    "beam_a": a + 1, "beam_b": b + 1}),
-    }
-    attrs = {"title": f"mcfric response bounds: {model.name}", "model_name": model.name,
-             "config": spec.config_toml, "config_json": spec.config_json,
-             "samples": np.int64(0), "mcfric_version": __version__}
-    return write_file(path, coords, {"bounds": to_group(B)}, attrs)
-
-
-def group_from_config(cfg, verbose=True):
-    """``{"bounds": (variables, attrs)}`` for a results file of ``cfg``: the bounds of its
-    nominal model, computed now (``mcfric run`` does this before the ensemble)."""
-    import time
-
-    if verbose and cfg["sampling"]["mistuning"] > 0:
-        print("note: the bounds are for the nominal rig; mistuned members need not lie "
-              "inside them", flush=True)
-    t = time.perf_counter()
-    B = from_config(cfg, n_threads=cfg["run"]["threads"] or None)
-    if verbose:
-        print(f"{B.summary()} ({time.perf_counter() - t:.1f} s)", flush=True)
-    return {"bounds": to_group(B)}
 
 
 def from_spec(spec, n_threads=None):

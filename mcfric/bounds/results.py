@@ -1,0 +1,79 @@
+"""The bounds in results files: the ``bounds/`` group, and files holding only bounds.
+
+This module says what is stored (names, units, attributes); the store writes and reads
+it (:mod:`mcfric.store`), as it does every HDF5 file.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..metric import METRIC_UNITS
+from .equivalent_linear import Bounds
+
+
+def to_group(B):
+    """The ``bounds/`` group of a results file: ``{var: (dims, array, attrs)}, attrs``."""
+    unit = METRIC_UNITS[B.quantity]
+    variables = {
+        "upper": (("frequency",), B.upper, {
+            "units": unit, "long_name": "upper bound of the metric M for every friction law "
+                                        "in the admissible region; NaN where the search failed"}),
+        "lower": (("frequency",), B.lower, {
+            "units": unit, "long_name": "lower bound of M (minimum over the box)"}),
+        "limited_by": (("frequency",), B.limited_by, {
+            "long_name": "constraint that sets the upper bound", "flag_values": [0, 1],
+            "flag_meanings": "box force"}),
+        "upper_box": (("frequency",), B.upper_box, {
+            "units": unit, "long_name": "largest box value found (at least the force bound "
+                                        "where the force limit sets the upper bound)"}),
+        "upper_force": (("frequency",), B.upper_force, {
+            "units": unit, "long_name": "force-saturation bound of M (Eq. 10)"}),
+        "K_upper": (("frequency", "damper"), B.K_upper, {
+            "units": "N/m", "long_name": "describing functions at the box maximum"}),
+        "K_lower": (("frequency", "damper"), B.K_lower, {
+            "units": "N/m", "long_name": "describing functions at the box minimum"}),
+    }
+    attrs = {"k_max_re": B.k_max_re, "k_max_im": B.k_max_im, "F_lim": B.F_lim,
+             "quantity": B.quantity, "beams": np.asarray(B.beams, dtype=np.int64) + 1,
+             "method": "equivalent-linear bounds (paper Section 3; docs: bounds): extremes "
+                       "found by a search, not certified: coordinate search exact per "
+                       "damper, multistart, continuation along frequency, projected "
+                       "gradient and minimax search for the minimum (mcfric.bounds)",
+             "n_failed": np.int64(B.n_failed)}
+    return variables, attrs
+
+
+def read_bounds(path):
+    """The bounds stored in a results (or bounds) file, as :class:`Bounds`; None if absent."""
+    from ..store import read, read_group
+
+    found = read_group(path, "bounds")
+    if found is None:
+        return None
+    g, a = found
+    return Bounds(read(path, "frequency"), g["upper"], g["lower"], g["upper_box"],
+                  g["upper_force"], g["limited_by"], g["K_upper"], g["K_lower"],
+                  float(a["k_max_re"]), float(a["k_max_im"]), float(a["F_lim"]),
+                  str(a["quantity"]), tuple(int(b) - 1 for b in np.atleast_1d(a["beams"])))
+
+
+def write_bounds_file(path, cfg, B):
+    """A bounds-only results file: ``frequency``, ``damper`` and ``bounds/``, root
+    attributes as a run's (configuration, versions), written atomically by the store."""
+    from .. import __version__
+    from ..store import write_file
+
+    spec = getattr(cfg, "spec", cfg)
+    model = spec.model
+    a, b = model.dampers
+    coords = {
+        "frequency": (B.freq_hz, {"units": "Hz", "long_name": "excitation frequency"}),
+        "damper": (np.arange(1, model.n_dampers + 1),
+                   {"long_name": "damper number (1-based); couples beam_a and beam_b",
+                    "beam_a": a + 1, "beam_b": b + 1}),
+    }
+    attrs = {"title": f"mcfric response bounds: {model.name}", "model_name": model.name,
+             "config": spec.config_toml, "config_json": spec.config_json,
+             "samples": np.int64(0), "mcfric_version": __version__}
+    return write_file(path, coords, {"bounds": to_group(B)}, attrs)
