@@ -29,6 +29,7 @@ import numpy as np
 
 from . import hbm
 from .config import NOT_IDENTITY, first_difference
+from .metric import METRIC_UNITS
 from .store import Store, StoreError, iter_records, partial_path, read_attrs
 
 RECORD = "sample"
@@ -151,7 +152,7 @@ def layout(spec):
     P = (RECORD, "damper")
     variables = {
         "metric": ((RECORD, "frequency"), np.float64,
-                   {"units": hbm.METRIC_UNITS[q],
+                   {"units": METRIC_UNITS[q],
                     "long_name": f"max over beams of the {q} amplitude at the output "
                                  f"position; NaN where not converged",
                     "quantity": q, "beams": json.dumps(spec.metric.beams_label)}),

@@ -15,7 +15,6 @@ from .metric import METRIC_UNITS, omega_power
 from .store import dataset_names, iter_records, read, read_attrs
 
 
-
 def _figure(size=(8, 4.5)):
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure

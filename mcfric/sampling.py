@@ -156,7 +156,7 @@ class LogNormal:
 
 
 def _truncnorm_ppf(u, mean, std, low, high):
-    from scipy.stats import truncnorm   # scipy.stats costs ~0.3 s to import: only when used
+    from scipy.stats import truncnorm  # scipy.stats costs ~0.3 s to import: only when used
 
     a = (low - mean) / std
     b = (high - mean) / std

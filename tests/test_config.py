@@ -165,8 +165,8 @@ def test_every_toml_example_in_the_docs_is_valid():
 def test_modal_table_from_a_uff_file(tmp_path):
     """[model.table] file + nodes: the table read from UFF 55 replaces the numbers."""
     pytest.importorskip("pyuff")
-    from mcfric.model import TABLE_1
     from mcfric.modal_io import write_modal_table_uff55
+    from mcfric.model import TABLE_1
 
     write_modal_table_uff55(tmp_path / "beam.uff", TABLE_1, nodes={1: 101, 2: 102, 3: 103})
     p = tmp_path / "c.toml"
@@ -191,8 +191,8 @@ def test_modal_table_from_a_uff_file(tmp_path):
 ])
 def test_bad_modal_table_file(tmp_path, table, key):
     pytest.importorskip("pyuff")
-    from mcfric.model import TABLE_1
     from mcfric.modal_io import write_modal_table_uff55
+    from mcfric.model import TABLE_1
 
     write_modal_table_uff55(tmp_path / "beam.uff", TABLE_1, nodes={1: 101, 2: 102, 3: 103})
     p = tmp_path / "c.toml"

@@ -280,9 +280,10 @@ def test_sigkill_mid_run_then_resume_is_bitwise_identical(tmp_path):
 
 
 def test_results_file_opens_with_h5py_and_xarray_with_labelled_dims(tmp_path):
-    import mcfric
     import numba
     import xarray as xr
+
+    import mcfric
 
     cfg = two_beam(samples=12, n=9, sampling__mistuning=0.01)
     out = tmp_path / "r.h5"

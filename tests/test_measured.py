@@ -10,8 +10,15 @@ import numpy as np
 import pytest
 
 import mcfric
-from mcfric.measured import (METRIC, Measurement, export_uff58, fraction_inside,
-                             interpolate_log, normalise, read_measured)
+from mcfric.measured import (
+    METRIC,
+    Measurement,
+    export_uff58,
+    fraction_inside,
+    interpolate_log,
+    normalise,
+    read_measured,
+)
 from mcfric.modal_io import write_modal_table_uff55
 
 pyuff = pytest.importorskip("pyuff")

@@ -10,7 +10,7 @@ import pytest
 
 from mcfric.core.receptance import receptance
 from mcfric.modal_io import UFF_RTOL, read_modal_table, write_modal_table_uff55
-from mcfric.model import TABLE_1, Model, ModalTable
+from mcfric.model import TABLE_1, ModalTable, Model
 
 pyuff = pytest.importorskip("pyuff")
 

@@ -5,8 +5,15 @@ Modules: :mod:`.equivalent_linear` (the admissible region, :func:`compute_bounds
 :mod:`.results` (the ``bounds/`` group of results files and bounds-only files).
 """
 
-from .equivalent_linear import (LIMITED_BY, MAX_SWEEPS, N_STARTS, Bounds, compute_bounds,
-                                force_limit, from_spec)
+from .equivalent_linear import (
+                                LIMITED_BY,
+                                MAX_SWEEPS,
+                                N_STARTS,
+                                Bounds,
+                                compute_bounds,
+                                force_limit,
+                                from_spec,
+)
 from .results import read_bounds, to_group, write_bounds_file
 
 __all__ = ["LIMITED_BY", "MAX_SWEEPS", "N_STARTS", "Bounds", "compute_bounds", "force_limit",

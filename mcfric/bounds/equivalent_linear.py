@@ -45,7 +45,6 @@ from ..validators import frequencies as check_frequencies
 from ..validators import real
 from .search import box_extreme, starts
 
-
 #: ``limited_by`` codes: which constraint sets the upper bound.
 LIMITED_BY = ("box", "force")
 N_STARTS = 3
@@ -102,9 +101,11 @@ class Bounds:
 
     @property
     def n_failed(self):
+        """Frequencies where the search failed (NaN bounds)."""
         return int(np.count_nonzero(~np.isfinite(self.upper) | ~np.isfinite(self.lower)))
 
     def summary(self):
+        """One line: what sets the upper bound where, and the failures."""
         force = np.count_nonzero(self.limited_by == 1)
         return (f"bounds at {len(self.freq_hz)} frequencies: upper set by the force limit at "
                 f"{force}, by the box at {len(self.freq_hz) - force}; failed: {self.n_failed}")

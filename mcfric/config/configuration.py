@@ -19,7 +19,7 @@ import numpy as np
 from .. import sampling
 from ..model import Excitation, ModalTable, Model
 from ..spec import BoundsSpec, ExecutionSpec, MetricSpec, RunSpec, SolverSpec
-from . import loading, rendering, validation   # used at call time (they import Config)
+from . import loading, rendering, validation  # used at call time (they import Config)
 from .schema import NOT_IDENTITY
 
 

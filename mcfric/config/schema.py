@@ -13,8 +13,21 @@ from ..metric import QUANTITIES
 from ..model import PATTERNS, TOPOLOGIES
 from ..presets import PRESETS
 from ..presets import preset as make_preset
-from ..validators import (InputError, auto_or_number, beams_or_all, boolean, choice, choices,
-                          integer, integers, matrix, number, numbers, show, string)
+from ..validators import (
+    InputError,
+    auto_or_number,
+    beams_or_all,
+    boolean,
+    choice,
+    choices,
+    integer,
+    integers,
+    matrix,
+    number,
+    numbers,
+    show,
+    string,
+)
 
 DEFAULT_PRESET = "eight-beam"
 SPACINGS = ("linear", "log")

@@ -14,7 +14,7 @@ import math
 
 from .. import sampling
 from ..validators import InputError, choices, is_num, show
-from . import configuration   # at call time: configuration imports this module
+from . import configuration  # at call time: configuration imports this module
 from .schema import BEAM, SPEC, TABLE
 
 

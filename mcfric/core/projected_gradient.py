@@ -13,7 +13,6 @@ from ._jit import jit
 from .coordinate_search import contact_q
 from .linalg import lu_solve_transposed, tri_solve_transposed
 
-
 _TINY = 1e-300
 
 

@@ -57,11 +57,19 @@ from numba import prange
 
 from . import chain_newton
 from ._jit import inline_jit, jit
-from .linalg import LANES
-from .newton import (CONVERGED, CONVERGED_LM, CONVERGED_RESTART, NOT_CONVERGED,
-                     bracket_scalar, levenberg_marquardt, newton, newton_scalar,
-                     workspace)
 from .friction import MIN_NORMAL, log_normal
+from .linalg import LANES
+from .newton import (
+    CONVERGED,
+    CONVERGED_LM,
+    CONVERGED_RESTART,
+    NOT_CONVERGED,
+    bracket_scalar,
+    levenberg_marquardt,
+    newton,
+    newton_scalar,
+    workspace,
+)
 from .receptance import D11, D13, D21, D23
 
 #: Points of the frequency sweep the warm start extrapolates from (a cubic: each order

@@ -50,9 +50,11 @@ class Inside:
 
     @property
     def overall(self):
+        """The fraction of all compared points inside, 0..1."""
         return self.fraction()
 
     def text(self):
+        """The fractions inside, overall and per beam, as one line."""
         parts = [f"{'M' if b == METRIC else f'beam {b}'} {_percent(self.fraction(b))} % "
                  f"({self.inside[b]}/{self.compared(b)})" for b in self.beams]
         excl = sum(self.outside_range.values())

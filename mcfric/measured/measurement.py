@@ -98,6 +98,7 @@ class Measurement:
 
     @property
     def is_complex(self):
+        """True when the response is complex (a phase is known), not amplitudes."""
         return np.iscomplexobj(self.response)
 
     @property
@@ -155,6 +156,7 @@ class Measurement:
         return replace(self, response=self.response * c, force_n=F)
 
     def describe(self):
+        """One line: kind, frequencies, beams, quantity and force level."""
         F = "unknown force" if self.force_n is None else f"F = {self.force_n:g} N"
         p = "" if self.percentile is None else f", percentile {self.percentile:g}"
         cols = ", ".join("M" if b == METRIC else str(b) for b in self.beams)

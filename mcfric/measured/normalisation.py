@@ -35,6 +35,7 @@ class Normalisation:
     N0_equivalent: float | None = None
 
     def text(self):
+        """The normalisation applied and what it means for the preload, as text."""
         s = (f"normalised to F0 = {self.F0:g} N: c = F0/F_meas = {self.F0:g}/{self.F_meas:g} "
              f"= {self.c:.6g}; responses x c. A run at force {self.F_meas:g} N with preload "
              f"N0 stands for force {self.F0:g} N with preload {self.c:.6g} N0")

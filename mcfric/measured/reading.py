@@ -17,8 +17,16 @@ import numpy as np
 
 from ..metric import QUANTITIES
 from ..parsing import as_int, csv_rows, short
-from ..uff import (FRF, FUNCTION_TYPES, GENERAL, QUANTITY_OF_SPEC, SPECTRUM, TAG, UFF_SUFFIXES,
-                   read_datasets)
+from ..uff import (
+    FRF,
+    FUNCTION_TYPES,
+    GENERAL,
+    QUANTITY_OF_SPEC,
+    SPECTRUM,
+    TAG,
+    UFF_SUFFIXES,
+    read_datasets,
+)
 from .measurement import KINDS, Measurement
 
 

@@ -13,8 +13,15 @@ groups, xarray).
 
 from .files import LAYOUT_VERSION, StoreError, partial_path
 from .groups import add_group, write_file
-from .reader import (dataset_names, describe, iter_records, open_results, read, read_attrs,
-                     read_group)
+from .reader import (
+                     dataset_names,
+                     describe,
+                     iter_records,
+                     open_results,
+                     read,
+                     read_attrs,
+                     read_group,
+)
 from .writer import Store
 
 __all__ = ["LAYOUT_VERSION", "StoreError", "partial_path", "add_group", "write_file",

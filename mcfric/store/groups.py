@@ -11,6 +11,7 @@ import numpy as np
 from .files import LAYOUT_VERSION, StoreError, fsync_path, partial_path
 from .reader import read_attrs
 
+
 def add_group(path, name, variables, attrs=None):
     """Add (or replace) a group of arrays to a complete results file.
 

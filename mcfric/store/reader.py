@@ -7,6 +7,7 @@ import numpy as np
 
 from .files import DONE, StoreError
 
+
 def _open_read(path):
     try:
         # locking=False: readable while a run writes it (its metadata does not change)
