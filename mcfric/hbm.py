@@ -15,7 +15,7 @@ import numpy as np
 
 from .core import sweep as _sweep
 from .core.newton import NOT_CONVERGED
-from .metric import METRIC_UNITS, QUANTITIES, response_metric  # noqa: F401 (public here too)
+from .metric import response_metric
 from .model import Model
 from .threads import threads
 from .validators import frequencies as check_frequencies
@@ -185,6 +185,11 @@ def run_kernel(model, rec, omega, mu0, N0, kc, tol, max_iter, y, s, status, iter
     a = a.astype(np.int64)
     b = b.astype(np.int64)
     force = np.ascontiguousarray(model.force, dtype=np.complex128)
+    # fresh writable copies: numba compiles a separate specialisation for read-only
+    # arrays (broadcast views are read-only), and a call may then reuse whichever one
+    # was compiled first, whose rounding differs in the last bit; one signature keeps
+    # every result independent of how the parameters were given and of compile history
+    mu0, N0, kc = (np.array(x, dtype=np.float64, order="C") for x in (mu0, N0, kc))
     args = (np.ascontiguousarray(rec), force, a, b, np.ascontiguousarray(omega), mu0, N0, kc)
     if model.n_dampers == 1:
         kernel = _sweep.sweep_one_damper
