@@ -17,6 +17,7 @@ from .core import sweep as _sweep
 from .core.newton import NOT_CONVERGED
 from .metric import response_metric
 from .model import Model
+from .peaks import Peaks, PeakSettings, refine
 from .threads import threads
 from .validators import frequencies as check_frequencies
 from .validators import per_damper as check_parameters
@@ -49,6 +50,8 @@ class HBMResult:
         ``max_j |s_j kc_j A_j / (mu0_j N0_j) - 1|`` of the returned point.
     mu0, kc, N0 : ndarray, shape (n_s, nd)
         The parameters solved for (N0 in N, kc in N/m).
+    peaks : Peaks or None
+        The refined peaks of every member (:mod:`mcfric.peaks`), when asked for.
     """
 
     freq_hz: np.ndarray
@@ -60,6 +63,7 @@ class HBMResult:
     mu0: np.ndarray
     kc: np.ndarray
     N0: np.ndarray
+    peaks: Peaks | None = None
 
     @property
     def converged(self):
@@ -92,7 +96,7 @@ class HBMResult:
 
 
 def solve(model, freq_hz, mu0, kc, N0=0.5, *, modal_freq_hz=None, tol=TOL,
-          max_iter=MAX_ITER, n_threads=None):
+          max_iter=MAX_ITER, n_threads=None, peaks=None):
     """Single-harmonic balance of a friction-coupled array for many parameter sets.
 
     Each sample sweeps the frequencies in the order given (upward for a sorted grid),
@@ -116,6 +120,10 @@ def solve(model, freq_hz, mu0, kc, N0=0.5, *, modal_freq_hz=None, tol=TOL,
         Newton iterations per attempt (default 50).
     n_threads : int, optional
         numba threads for this call.
+    peaks : PeakSettings or int, optional
+        Refine the largest peaks of every member after its sweep (an int: that many
+        peaks of the displacement metric over all beams, default settings); needs an
+        increasing frequency grid. None: no refinement.
 
     Returns
     -------
@@ -140,11 +148,21 @@ def solve(model, freq_hz, mu0, kc, N0=0.5, *, modal_freq_hz=None, tol=TOL,
         if not (np.all(np.isfinite(mf)) and np.all(mf > 0)):
             raise ValueError("modal_freq_hz: values must be finite and > 0 Hz")
         modal_freq_hz = mf
+    if isinstance(peaks, (int, np.integer)) and not isinstance(peaks, bool):
+        peaks = PeakSettings(count=int(peaks))
+    if peaks is not None and not isinstance(peaks, PeakSettings):
+        raise ValueError(f"peaks: expected a PeakSettings or a count, got {peaks!r}")
+    if peaks is not None and np.any(np.diff(f) <= 0):
+        raise ValueError("peaks: refinement needs increasing frequencies")
     rec = model.receptances(omega, modal_freq_hz)
     with threads(n_threads):
         out = allocate(n_s, len(f), model.n_beams, nd, numba.get_num_threads())
-        run_kernel(model, rec, omega, p["mu0"], p["N0"], p["kc"], tol, max_iter, *out)
-    return HBMResult(f, *out, mu0=p["mu0"], kc=p["kc"], N0=p["N0"])
+        args = run_kernel(model, rec, omega, p["mu0"], p["N0"], p["kc"], tol, max_iter, *out)
+        result = HBMResult(f, *out, mu0=p["mu0"], kc=p["kc"], N0=p["N0"])
+        if peaks is not None:
+            mf = model.modal_arrays()[0][None] if modal_freq_hz is None else modal_freq_hz
+            result.peaks = refine(model, result, omega, mf, peaks, *args, tol, max_iter)
+    return result
 
 
 #: Bytes per memory page, for touching fresh output arrays (a multiple of the real size
@@ -180,7 +198,8 @@ def allocate(n_s, n_f, n_beams, nd, n_threads=1):
 
 def run_kernel(model, rec, omega, mu0, N0, kc, tol, max_iter, y, s, status, iterations,
                residual):
-    """Dispatch to the kernel for this model (validated, contiguous inputs)."""
+    """Dispatch to the kernel for this model (validated, contiguous inputs); returns the
+    parameters as the kernel saw them (fresh writable copies: mu0, N0, kc)."""
     a, b = model.dampers
     a = a.astype(np.int64)
     b = b.astype(np.int64)
@@ -198,3 +217,4 @@ def run_kernel(model, rec, omega, mu0, N0, kc, tol, max_iter, y, s, status, iter
     else:
         kernel = _sweep.sweep_dense
     kernel(*args, float(tol), int(max_iter), y, s, status, iterations, residual)
+    return mu0, N0, kc

@@ -1,0 +1,441 @@
+"""Resolved resonance peaks of each member's sweep, and folds between sweep directions.
+
+A lightly damped resonance is narrower than a practical frequency grid (the first mode of
+the paper's beams, zeta = 0.0017, is about 0.055 Hz wide), so the largest value of a
+sweep on a grid underestimates the member's peak. After the sweep, for every member:
+
+1. the local maxima of the metric ``M = max_b omega^p |y_b|`` over the grid are ranked
+   and the ``n_peaks`` largest kept (the metric, not each beam: ``M`` is what the bounds
+   and the statistics are about);
+2. each is refined in frequency: eight sub-intervals of the bracket between its grid
+   neighbours, then parabolic steps on ``1/M^2`` around the best point (golden-section
+   steps where no parabola fits), every new point solved by continuation from the
+   nearest solved point below it (so the refined peak is on the branch the upward sweep
+   follows). The search stops when a parabola's prediction has come true at its vertex
+   and the next parabola promises less than a quarter of ``rtol``; the peak reported is
+   the best point actually solved, never an interpolation;
+3. the sweep is repeated downward over ``window`` grid points on each side of the peak,
+   from the upward solution above it. Where the downward branch differs from the upward
+   one (relative ``FOLD_RTOL`` in ``M``), the member has more than one steady state
+   there: the fold is flagged and the downward branch's peak is refined the same way,
+   continued from above.
+
+Points are solved by the dense Newton of :mod:`.newton` with its fallbacks, from
+receptances formed here at each new frequency (any damper graph, per-member modal
+frequencies allowed). A point that fails every solver is skipped; a peak whose
+refinement failed keeps its grid value and says so in its status.
+"""
+
+import math
+
+import numpy as np
+from numba import prange
+
+from ._jit import jit
+from .newton import levenberg_marquardt, newton, workspace
+from .receptance import CONTACT, D11, D13, D21, D23, DRIVE, OUTPUT
+
+#: Status of a reported peak.
+PEAK_REFINED = 0        # a local maximum, refined to rtol
+PEAK_AT_EDGE = 1        # the largest values are at an end of the band: refined there
+PEAK_GRID = 2           # refinement failed (a solver did not converge): the grid value
+PEAK_NONE = -1          # fewer local maxima than asked (or no converged point): NaN
+#: Fold flags.
+FOLD_NONE = 0           # the downward sweep reproduces the upward one
+FOLD_FOUND = 1          # the two directions reach different steady states
+FOLD_UNCHECKED = -1     # the downward sweep failed to converge somewhere
+#: Relative difference of M between the sweep directions that counts as another branch
+#: (converged points agree to ~1e-9; the tolerance of the residual is 1e-10).
+FOLD_RTOL = 1e-6
+#: Sub-intervals of the bracket sampled before the golden-section search.
+N_SUB = 8
+#: Parabolic (or golden-section) steps at most per peak.
+MAX_STEPS = 40
+_INV_PHI = 0.6180339887498949
+
+
+@jit
+def _receptances_at(omega, r, modal_f, zeta, u, rec1):
+    """``rec1[p, b]``: the four receptances of every beam at ``omega`` (rad/s), m/N."""
+    n_beams, n_modes = zeta.shape
+    for b in range(n_beams):
+        d11 = d13 = d21 = d23 = 0.0j
+        for k in range(n_modes):
+            wk = 2.0 * math.pi * modal_f[r, b, k]
+            den = complex(wk * wk - omega * omega, 2.0 * zeta[b, k] * wk * omega)
+            inv = 1.0 / den
+            uc, uo, ud = u[b, k, CONTACT], u[b, k, OUTPUT], u[b, k, DRIVE]
+            d11 += uc * uc * inv
+            d13 += uc * ud * inv
+            d21 += uo * uc * inv
+            d23 += uo * ud * inv
+        rec1[D11, b] = d11
+        rec1[D13, b] = d13
+        rec1[D21, b] = d21
+        rec1[D23, b] = d23
+
+
+@jit
+def _solve_at(omega, r, modal_f, zeta, u, force, a, b, kc, c, act, x, tol, max_iter, w,
+              rec1, G, q0, y):
+    """Solve one frequency from the guess ``x`` (log s); fills ``y`` (output amplitudes
+    of every beam, m) and ``x``. Newton, then Newton from ``s = 1``, then
+    Levenberg-Marquardt; returns False if all fail."""
+    nd = a.shape[0]
+    n_beams = force.shape[0]
+    _receptances_at(omega, r, modal_f, zeta, u, rec1)
+    for j in range(nd):
+        q0[j] = rec1[D13, a[j]] * force[a[j]] - rec1[D13, b[j]] * force[b[j]]
+        for m in range(nd):
+            g = 0.0j
+            if a[j] == a[m]:
+                g += rec1[D11, a[j]]
+            if a[j] == b[m]:
+                g -= rec1[D11, a[j]]
+            if b[j] == b[m]:
+                g += rec1[D11, b[j]]
+            if b[j] == a[m]:
+                g -= rec1[D11, b[j]]
+            G[j, m] = g
+    for j in range(nd):
+        if not math.isfinite(x[j]):
+            x[j] = 0.0
+    ok, _ = newton(x, kc, c, act, G, q0, tol, max_iter, w)
+    if not ok:
+        for j in range(nd):
+            x[j] = 0.0
+        ok, _ = newton(x, kc, c, act, G, q0, tol, max_iter, w)
+    if not ok:
+        for j in range(nd):
+            x[j] = 0.0
+        ok, _ = levenberg_marquardt(x, kc, c, act, G, q0, tol, w)
+    if not ok:
+        return False
+    K, q = w[0], w[1]
+    for bb in range(n_beams):
+        y[bb] = rec1[D23, bb] * force[bb]
+    for j in range(nd):
+        fj = -K[j] * q[j]
+        y[a[j]] += rec1[D21, a[j]] * fj
+        y[b[j]] -= rec1[D21, b[j]] * fj
+    return True
+
+
+@jit
+def _metric_of(y, omega, beams, power):
+    """``max over beams of omega^power |y_b|``."""
+    m = 0.0
+    for bb in beams:
+        v = abs(y[bb])
+        if not (v <= m):
+            m = v
+    return m * omega ** power
+
+
+@jit
+def _add_point(om, src, P, S):
+    """Solve at ``om`` (rad/s) from the state ``src`` and store it as the next point of
+    ``S = (w, m, x, y, count)``; returns its index, or -1 (not converged, or no room)."""
+    (r, modal_f, zeta, u, force, a, b, kc, c, act, tol, max_iter, w, rec1, G, q0, beams,
+     power, xs, ys) = P
+    pw, pm, px, py, cnt = S
+    n = cnt[0]
+    if n >= pw.shape[0]:
+        return -1
+    nd = a.shape[0]
+    for j in range(nd):
+        xs[j] = src[j]
+    if not _solve_at(om, r, modal_f, zeta, u, force, a, b, kc, c, act, xs, tol, max_iter,
+                     w, rec1, G, q0, ys):
+        return -1
+    pw[n] = om
+    pm[n] = _metric_of(ys, om, beams, power)
+    for j in range(nd):
+        px[n, j] = xs[j]
+    for bb in range(ys.shape[0]):
+        py[n, bb] = ys[bb]
+    cnt[0] = n + 1
+    return n
+
+
+@jit
+def _seed(om, x, y, m, S):
+    """Store a point already solved by the sweep; returns its index."""
+    pw, pm, px, py, cnt = S
+    n = cnt[0]
+    pw[n] = om
+    pm[n] = m
+    for j in range(x.shape[0]):
+        px[n, j] = x[j] if math.isfinite(x[j]) else 0.0
+    for bb in range(y.shape[0]):
+        py[n, bb] = y[bb]
+    cnt[0] = n + 1
+    return n
+
+
+@jit
+def _nearest(om, from_below, S, fallback):
+    """Index of the solved point nearest to ``om`` on the side of continuation (below or
+    above it), or ``fallback``."""
+    pw, cnt = S[0], S[4]
+    best, dist = fallback, math.inf
+    for p in range(cnt[0]):
+        d = om - pw[p] if from_below else pw[p] - om
+        if 0.0 <= d < dist:
+            best, dist = p, d
+    return best
+
+
+@jit
+def _refine(idx, from_below, P, S, rtol):
+    """Largest ``M`` on the bracket ``pw[idx[0]] .. pw[idx[N_SUB]]``, continued from below
+    or from above.
+
+    ``idx[t]`` is the stored point at sub-position ``t`` (``-1``: not solved yet; the
+    ends, and the middle for an interior grid maximum, are seeded from the sweep). The
+    missing sub-points are solved in the direction of continuation; then parabolic steps
+    (on ``1/M^2``, nearly quadratic near a resonance; golden-section steps where no
+    parabola fits) until a parabola's prediction has come true at its vertex (within
+    ``rtol / 4``) and the next one promises no more than ``rtol / 4``. Returns (index of
+    the best point solved, complete): ``complete`` is False if a solve failed on the way
+    or the steps ran out.
+    """
+    pw, pm, px = S[0], S[1], S[2]
+    lo, hi = pw[idx[0]], pw[idx[N_SUB]]
+    for step in range(1, N_SUB):
+        t = step if from_below else N_SUB - step
+        if idx[t] >= 0:
+            continue
+        prev = idx[t - 1] if from_below else idx[t + 1]
+        idx[t] = _add_point(lo + (hi - lo) * t / N_SUB, px[prev], P, S)
+        if idx[t] < 0:
+            return -1, False
+    tb = 0
+    for t in range(1, N_SUB + 1):
+        if pm[idx[t]] > pm[idx[tb]]:
+            tb = t
+    best = idx[tb]
+    # the bracket: the best sub-point's neighbours
+    left, right = pw[idx[max(tb - 1, 0)]], pw[idx[min(tb + 1, N_SUB)]]
+    start = idx[0] if from_below else idx[N_SUB]
+    last, last_pred = -1, math.nan      # the last parabolic step and what it predicted
+    for _ in range(MAX_STEPS):
+        # parabola through the best point and its nearest solved neighbours in
+        # g = 1/M^2, which is close to quadratic in omega near a resonance peak
+        ib, il, ir = best, -1, -1
+        for p in range(S[4][0]):
+            if left <= pw[p] < pw[ib] and (il < 0 or pw[p] > pw[il]):
+                il = p
+            if pw[ib] < pw[p] <= right and (ir < 0 or pw[p] < pw[ir]):
+                ir = p
+        new = pred = math.nan
+        if il >= 0 and ir >= 0:
+            x0, x1, x2 = pw[il], pw[ib], pw[ir]
+            g0, g1, g2 = 1.0 / pm[il] ** 2, 1.0 / pm[ib] ** 2, 1.0 / pm[ir] ** 2
+            d01 = (g1 - g0) / (x1 - x0)
+            d12 = (g2 - g1) / (x2 - x1)
+            curv = (d12 - d01) / (x2 - x0)
+            if curv > 0.0:
+                xv = 0.5 * (x0 + x1) - d01 / (2.0 * curv)
+                gv = g1 + d01 * (xv - x1) + curv * (xv - x0) * (xv - x1)
+                if gv > 0.0:
+                    pred = 1.0 / math.sqrt(gv)
+                # converged: the last parabola's prediction came true at its vertex, and
+                # this one's peak is within rtol / 4 of the best point
+                tol_m = 0.25 * rtol * pm[ib]
+                if (last >= 0 and abs(pm[last] - last_pred) <= tol_m
+                        and pred <= pm[ib] + tol_m):
+                    return best, True
+                if x0 < xv < x2 and abs(xv - x1) > 1e-12 * x1:
+                    new = xv
+        last, last_pred = -1, math.nan
+        if new == new:
+            last_pred = pred
+        else:
+            # no usable parabola: golden step into the larger side of the bracket
+            lo_s = pw[ib] - (pw[il] if il >= 0 else left)
+            hi_s = (pw[ir] if ir >= 0 else right) - pw[ib]
+            if max(lo_s, hi_s) <= 1e-12 * pw[ib]:
+                return best, True
+            new = (pw[ib] - (1.0 - _INV_PHI) * lo_s if lo_s > hi_s
+                   else pw[ib] + (1.0 - _INV_PHI) * hi_s)
+        n = _add_point(new, px[_nearest(new, from_below, S, start)], P, S)
+        if n < 0:
+            return best, False
+        if last_pred == last_pred:
+            last = n
+        if pm[n] > pm[best]:
+            best = n
+    return best, False
+
+
+@jit
+def _log_s(s, i, k, nd, x):
+    """``x = log s`` of sample ``i`` at grid point ``k`` (0 where s is 0 or not finite)."""
+    for j in range(nd):
+        v = s[i, k, j]
+        x[j] = math.log(v) if v > 0.0 and math.isfinite(v) else 0.0
+
+
+@jit
+def _member(i, omega, modal_f, zeta, u, force, a, b, mu0, N0, kc, tol, max_iter, y, s,
+            status, beams, power, n_peaks, rtol, window, pk_w, pk_m, pk_y, pk_st, fold,
+            pkd_w, pkd_m):
+    """Peaks and folds of sample ``i`` (see the module docstring)."""
+    n_f = omega.shape[0]
+    nd = a.shape[0]
+    n_beams = force.shape[0]
+    r = np.int64(i) if modal_f.shape[0] > 1 else np.int64(0)
+    kc1 = np.empty(nd)
+    c1 = np.empty(nd)
+    act = np.empty(nd, dtype=np.bool_)
+    for j in range(nd):
+        mn = mu0[i, j] * N0[i, j]
+        act[j] = mn > 0.0 and kc[i, j] > 0.0
+        c1[j] = math.log(mn / kc[i, j]) if act[j] else 0.0
+        kc1[j] = kc[i, j]
+    P = (r, modal_f, zeta, u, force, a, b, kc1, c1, act, tol, max_iter, workspace(nd),
+         np.empty((4, n_beams), np.complex128), np.empty((nd, nd), np.complex128),
+         np.empty(nd, np.complex128), beams, power, np.empty(nd),
+         np.empty(n_beams, np.complex128))
+    cap = 2 * N_SUB + 2 * MAX_STEPS + 2 * window + 8
+    S = (np.empty(cap), np.empty(cap), np.empty((cap, nd)),
+         np.empty((cap, n_beams), np.complex128), np.zeros(1, np.int64))
+    x = np.empty(nd)
+    # the metric on the grid; local maxima, largest first
+    M = np.empty(n_f)
+    for k in range(n_f):
+        M[k] = _metric_of(y[i, k], omega[k], beams, power) if status[i, k] >= 0 else math.nan
+    cand = np.empty(n_f, np.int64)
+    n_c = 0
+    for k in range(n_f):
+        if not math.isfinite(M[k]):
+            continue
+        up = k == 0 or not (M[k - 1] >= M[k])          # strictly above the left
+        down = k == n_f - 1 or not (M[k + 1] > M[k])   # at least the right
+        if up and down:
+            cand[n_c] = k
+            n_c += 1
+    order = np.argsort(-M[cand[:n_c]], kind="mergesort")
+    for p in range(n_peaks):
+        pk_st[i, p] = PEAK_NONE
+        fold[i, p] = FOLD_UNCHECKED
+        pk_w[i, p] = pk_m[i, p] = pkd_w[i, p] = pkd_m[i, p] = math.nan
+        for bb in range(n_beams):
+            pk_y[i, p, bb] = complex(math.nan, math.nan)
+        if p >= n_c:
+            continue
+        k = cand[order[p]]
+        # the bracket between the converged grid neighbours
+        k_lo = k - 1 if k > 0 and status[i, k - 1] >= 0 else k
+        k_hi = k + 1 if k < n_f - 1 and status[i, k + 1] >= 0 else k
+        edge = k_lo == k or k_hi == k
+        if k_lo == k_hi:                      # isolated point: nothing to refine
+            pk_st[i, p] = PEAK_GRID
+            pk_w[i, p], pk_m[i, p] = omega[k], M[k]
+            pk_y[i, p, :] = y[i, k, :]
+            continue
+        S[4][0] = 0
+        idx = np.full(N_SUB + 1, -1, np.int64)
+        for g, t in ((k_lo, 0), (k_hi, N_SUB), (k, N_SUB // 2)):
+            if g == k_lo and t != 0 or g == k_hi and t != N_SUB:
+                continue                      # k is an end of the bracket
+            _log_s(s, i, g, nd, x)
+            idx[t] = _seed(omega[g], x, y[i, g], M[g], S)
+        best, ok = _refine(idx, True, P, S, rtol)
+        if best < 0:
+            pk_st[i, p] = PEAK_GRID
+            pk_w[i, p], pk_m[i, p] = omega[k], M[k]
+            pk_y[i, p, :] = y[i, k, :]
+        else:
+            pk_st[i, p] = (PEAK_AT_EDGE if edge else PEAK_REFINED) if ok else PEAK_GRID
+            pk_w[i, p], pk_m[i, p] = S[0][best], S[1][best]
+            pk_y[i, p, :] = S[3][best]
+        pkd_w[i, p], pkd_m[i, p] = pk_w[i, p], pk_m[i, p]
+        # the same stretch swept downward, from the upward state above the peak
+        k_top = min(k + window, n_f - 1)
+        k_bot = max(k - window, 0)
+        if k_top == k or status[i, k_top] < 0:
+            continue                          # nothing above the peak to start from
+        S[4][0] = 0
+        _log_s(s, i, k_top, nd, x)
+        first = _seed(omega[k_top], x, y[i, k_top], M[k_top], S)
+        prev = first
+        differs = False
+        complete = True
+        dn = np.full(k_top - k_bot + 1, -1, np.int64)
+        dn[k_top - k_bot] = first
+        for g in range(k_top - 1, k_bot - 1, -1):
+            n = _add_point(omega[g], S[2][prev], P, S)
+            if n < 0:
+                complete = False
+                break
+            dn[g - k_bot] = n
+            prev = n
+            if status[i, g] >= 0 and abs(S[1][n] - M[g]) > FOLD_RTOL * max(S[1][n], M[g]):
+                differs = True
+        if not differs:
+            fold[i, p] = FOLD_NONE if complete else FOLD_UNCHECKED
+            continue
+        fold[i, p] = FOLD_FOUND
+        # the downward branch's own peak, refined continued from above
+        gb = k_top
+        for g in range(k_bot, k_top + 1):
+            if dn[g - k_bot] >= 0 and S[1][dn[g - k_bot]] > S[1][dn[gb - k_bot]]:
+                gb = g
+        g_lo = gb - 1 if gb > k_bot and dn[gb - 1 - k_bot] >= 0 else gb
+        g_hi = gb + 1 if gb < k_top else gb
+        if g_lo == g_hi:
+            pkd_w[i, p], pkd_m[i, p] = S[0][dn[gb - k_bot]], S[1][dn[gb - k_bot]]
+            continue
+        idx = np.full(N_SUB + 1, -1, np.int64)
+        idx[0] = dn[g_lo - k_bot]
+        idx[N_SUB] = dn[g_hi - k_bot]
+        if g_lo < gb < g_hi:
+            idx[N_SUB // 2] = dn[gb - k_bot]
+        best, ok = _refine(idx, False, P, S, rtol)
+        j = best if best >= 0 else dn[gb - k_bot]
+        pkd_w[i, p], pkd_m[i, p] = S[0][j], S[1][j]
+
+
+@jit(parallel=True, nogil=True)
+def refine_peaks(omega, modal_f, zeta, u, force, a, b, mu0, N0, kc, tol, max_iter, y, s,
+                 status, beams, power, n_peaks, rtol, window, pk_w, pk_m, pk_y, pk_st, fold,
+                 pkd_w, pkd_m):
+    """Resolved peaks and fold checks of every sample, after its sweep.
+
+    Parameters
+    ----------
+    omega : ndarray, shape (n_f,)
+        The sweep's frequencies, increasing, rad/s.
+    modal_f : ndarray, shape (n_r, n_beams, n_modes)
+        Modal frequencies, Hz (``n_r``: 1, or one rig per sample).
+    zeta : ndarray, shape (n_beams, n_modes)
+    u : ndarray, shape (n_beams, n_modes, 3)
+        Mode shapes at the contact, output and drive positions, kg^-1/2.
+    force : ndarray of complex, shape (n_beams,)
+        Drive amplitudes, N.
+    a, b : ndarray of int64, shape (nd,)
+    mu0, N0, kc : ndarray, shape (n_s, nd)
+    tol, max_iter :
+        As for the sweep.
+    y, s, status : ndarray
+        The sweep's outputs (n_s, n_f, n_beams), (n_s, n_f, nd), (n_s, n_f).
+    beams : ndarray of int64
+        0-based beams of the metric.
+    power : int
+        0, 1, 2: displacement, velocity, acceleration.
+    n_peaks : int
+    rtol : float
+        Relative tolerance of the peak amplitudes.
+    window : int
+        Grid points on each side of a peak swept downward.
+    pk_w, pk_m, pk_y, pk_st, fold, pkd_w, pkd_m : ndarray
+        Outputs per (sample, peak): frequency (rad/s), metric and responses (m) of the
+        upward branch's peak, its status, the fold flag, and the downward branch's peak
+        frequency and metric.
+    """
+    for i in prange(mu0.shape[0]):
+        _member(i, omega, modal_f, zeta, u, force, a, b, mu0, N0, kc, tol, max_iter, y, s,
+                status, beams, power, n_peaks, rtol, window, pk_w, pk_m, pk_y, pk_st, fold,
+                pkd_w, pkd_m)
