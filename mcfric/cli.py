@@ -4,8 +4,9 @@
 
     mcfric                                   # = mcfric run: the embedded default
     mcfric run [PRESET|CONFIG.toml] [-o FILE] [--samples N] [--seed S] [--resume]
-               [--force] [--threads T] [--chunk N] [--F0 N] [--f-min HZ] [--f-max HZ]
-               [--n-freq N] [--no-progress] [--no-figure]
+               [--force] [--threads T] [--chunk N] [--peaks N] [--peak-rtol X]
+               [--no-peaks] [--F0 N] [--f-min HZ] [--f-max HZ] [--n-freq N]
+               [--no-progress] [--no-figure]
     mcfric config [PRESET|CONFIG.toml]       # complete, commented TOML on stdout
     mcfric info FILE                         # summary of a results file
     mcfric hbm [PRESET|CONFIG.toml] [--mu0 X] [--kc N_PER_M] [--N0 N] [--F0 N]
@@ -71,6 +72,12 @@ def _parser():
                    help="replace an existing FILE or FILE.partial holding another run")
     r.add_argument("--threads", type=int, metavar="T", help="numba threads (0 = all)")
     r.add_argument("--chunk", type=int, metavar="N", help="samples per chunk (0 = auto)")
+    r.add_argument("--peaks", type=int, metavar="N",
+                   help="resolved peaks kept per member (default: one per mode)")
+    r.add_argument("--peak-rtol", type=float, metavar="X",
+                   help="relative tolerance of a refined peak (default 1e-4)")
+    r.add_argument("--no-peaks", action="store_true",
+                   help="do not refine peaks or look for folds")
     _model_flags(r)
     r.add_argument("--no-progress", action="store_true", help="no progress bar")
     r.add_argument("--no-figure", action="store_true", help="do not draw the figure")
@@ -158,9 +165,13 @@ def _overrides(args):
                             ("run.threads", "threads", "--threads"),
                             ("run.chunk", "chunk", "--chunk"),
                             ("bounds.k_max", "k_max", "--k-max"),
-                            ("bounds.F_lim", "F_lim", "--F-lim")):
+                            ("bounds.F_lim", "F_lim", "--F-lim"),
+                            ("peaks.count", "peaks", "--peaks"),
+                            ("peaks.rtol", "peak_rtol", "--peak-rtol")):
         if hasattr(args, attr):
             o[key] = (getattr(args, attr), flag)
+    if getattr(args, "no_peaks", False):
+        o["peaks.enabled"] = (False, "--no-peaks")
     return o
 
 
@@ -392,6 +403,8 @@ def cmd_config(args):
 def cmd_info(args):
     """``mcfric info``: a summary of a results file (complete or partial)."""
     from .metric import METRIC_UNITS
+    from .peaks import file_report as peak_report
+    from .peaks import report_text
     from .store import StoreError, describe, iter_records, partial_path
 
     path = Path(args.file)
@@ -440,6 +453,9 @@ def cmd_info(args):
         (f"metric:      {q} {METRIC_UNITS[q]}, {lo:.4g} to {hi:.4g}" if pts - bad
          else f"metric:      {q}, no converged points"),
     ]
+    report = peak_report(path)
+    if report is not None:
+        lines += report_text(report, METRIC_UNITS[q])
     if a.get("complete") == 1:
         lines.append(f"run time:    {a.get('wall_time_s', float('nan')):.1f} s "
                      f"(kernel {a.get('kernel_time_s', float('nan')):.1f} s) in the session "
@@ -449,7 +465,7 @@ def cmd_info(args):
                  f"{a.get('hdf5_version')}; created {a.get('created_utc')}")
     lines.append("datasets:")
     for name, (dims, shape, dtype) in d["datasets"].items():
-        lines.append(f"  {name:<14} {'(' + ', '.join(dims) + ')':<30} "
+        lines.append(f"  {name:<20} {'(' + ', '.join(dims) + ')':<26} "
                      f"{' x '.join(map(str, shape)):<18} {dtype}")
     print("\n".join(lines))
     return EXIT_OK

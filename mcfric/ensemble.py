@@ -30,6 +30,8 @@ import numpy as np
 from . import hbm
 from .config import NOT_IDENTITY, first_difference
 from .metric import METRIC_UNITS
+from .peaks import file_report as peak_report
+from .peaks import report_text
 from .store import Store, StoreError, iter_records, partial_path, read_attrs
 
 RECORD = "sample"
@@ -82,6 +84,7 @@ class Summary:
     kernel_s: float
     complete: bool
     already_complete: bool = False
+    peaks: list | None = None
 
     @property
     def points(self):
@@ -99,6 +102,7 @@ class Summary:
         if self.samples_this_session:
             lines.append(f"wall time: {self.wall_s:.2f} s for {self.samples_this_session} "
                          f"samples (kernel {self.kernel_s:.2f} s), {rate:,.0f} points/s")
+        lines += list(self.peaks or [])
         lines.append(f"results: {self.path}")
         return "\n".join(lines)
 
@@ -124,6 +128,8 @@ def auto_chunk(spec):
     n_f = len(spec.freq_hz)
     nb, nd = spec.model.n_beams, spec.model.n_dampers
     per_sample = n_f * (16 * nb + 8 * nd + 1 + 2 + 8 + 8 + 1)   # kernel outputs + metric
+    if spec.peaks:
+        per_sample += spec.peaks.count * (16 * nb + 8 * 4 + 2)
     if spec.mistuned:
         per_sample += n_f * 4 * nb * 16                           # per-sample receptances
     k = max(1, CHUNK_TARGET_BYTES // per_sample)
@@ -168,6 +174,35 @@ def layout(spec):
                                    "complex displacement amplitude at the output position, "
                                    "x(t) = Re{X exp(i omega t)}; NaN where not converged"}),
                      **variables}
+    if spec.peaks:
+        pk = (RECORD, "peak")
+        unit = METRIC_UNITS[q]
+        coords["peak"] = (np.arange(1, spec.peaks.count + 1),
+                          {"long_name": "peak rank (1 = the member's largest refined peak)"})
+        variables.update({
+            "peak_metric": (pk, np.float64, {
+                "units": unit, "long_name": "the metric at each refined peak, on the branch "
+                "continued from below; NaN: the member has no such peak"}),
+            "peak_frequency": (pk, np.float64, {"units": "Hz",
+                                                "long_name": "frequency of each peak"}),
+            "peak_status": (pk, np.int8, {
+                "long_name": "0 refined to peaks.rtol, 1 at an end of the band, 2 the grid "
+                "value (refinement failed), -1 no such peak",
+                "flag_values": [-1, 0, 1, 2], "flag_meanings": "none refined at_edge grid"}),
+            "fold": (pk, np.int8, {
+                "long_name": "1: sweeping down around the peak reaches another steady state; "
+                "0: it does not; -1: not checked", "flag_values": [-1, 0, 1],
+                "flag_meanings": "unchecked none fold"}),
+            "peak_metric_down": (pk, np.float64, {
+                "units": unit, "long_name": "peak of the branch reached from above (equal "
+                "to peak_metric without a fold)"}),
+            "peak_frequency_down": (pk, np.float64, {
+                "units": "Hz", "long_name": "frequency of peak_metric_down"}),
+        })
+        if spec.keep_response:
+            variables["peak_response"] = ((RECORD, "peak", "beam"), np.complex128, {
+                "units": "m", "long_name": "complex displacement amplitude of every beam "
+                "at each refined peak"})
     if spec.mistuned:
         n_modes = model.modal_arrays()[0].shape[1]
         coords["mode"] = (np.arange(1, n_modes + 1), {"long_name": "mode number (1-based)"})
@@ -377,9 +412,17 @@ def _bounds_groups(spec, verbose):
                   "inside them", flush=True)
         t = time.perf_counter()
         B = from_spec(spec)
+        variables, attrs = to_group(B)
+        if spec.peaks:
+            from .bounds.peak import refine_upper_peak
+
+            f_pk, up_pk, ok = refine_upper_peak(spec.model, B, spec.peaks.rtol)
+            attrs.update({"peak_upper": np.float64(up_pk),
+                          "peak_upper_frequency": np.float64(f_pk),
+                          "peak_upper_refined": np.int8(ok)})
         if verbose:
             print(f"{B.summary()} ({time.perf_counter() - t:.1f} s)", flush=True)
-        return {"bounds": to_group(B)}
+        return {"bounds": (variables, attrs)}
     return group
 
 
@@ -416,6 +459,14 @@ def _drive(spec, store, done, not_conv_before, progress, t_start):
                           "converged": conv, "mu0": d.mu0, "kc": d.kc, "N0": d.N0}
                 if spec.keep_response:
                     arrays["response"] = res.response
+                if res.peaks is not None:
+                    pk = res.peaks
+                    arrays.update({"peak_metric": pk.metric, "peak_frequency": pk.freq_hz,
+                                   "peak_status": pk.status, "fold": pk.fold,
+                                   "peak_metric_down": pk.metric_down,
+                                   "peak_frequency_down": pk.freq_hz_down})
+                    if spec.keep_response:
+                        arrays["peak_response"] = pk.response
                 if d.modal_freq_hz is not None:
                     arrays["modal_freq_hz"] = d.modal_freq_hz
                 store.write(start, arrays)
@@ -447,7 +498,8 @@ def _drive(spec, store, done, not_conv_before, progress, t_start):
                    if n + 1 < len(chunks) else None)
             t0 = time.perf_counter()
             res = hbm.solve(model, freq, d.mu0, d.kc, d.N0, modal_freq_hz=d.modal_freq_hz,
-                            tol=tol, max_iter=max_iter, n_threads=ex.threads)
+                            tol=tol, max_iter=max_iter, n_threads=ex.threads,
+                            peaks=spec.peaks)
             kernel_s += time.perf_counter() - t0
             _put(q, (a, d, res), w, err)
             del res, d
@@ -477,8 +529,11 @@ def _drive(spec, store, done, not_conv_before, progress, t_start):
                           "wall_time_s": np.float64(wall),
                           "kernel_time_s": np.float64(kernel_s),
                           "finished_unix": np.float64(time.time())})
+    report = peak_report(final) if spec.peaks else None
     return Summary(final, spec.samples, n_f, n_done, stats["written"], not_conv,
-                   time.perf_counter() - t_start, kernel_s, True)
+                   time.perf_counter() - t_start, kernel_s, True,
+                   peaks=report_text(report, METRIC_UNITS[spec.metric.quantity])
+                   if report else None)
 
 
 def summary_of_file(path):

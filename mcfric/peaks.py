@@ -144,5 +144,164 @@ def refine(model, result, omega, modal_freq_hz, settings, mu0, N0, kc, tol, max_
         beams.astype(np.int64), np.int64(QUANTITIES.index(settings.quantity)), np.int64(n),
         float(settings.rtol), np.int64(settings.window),
         out_w, out_m, out_y, out_st, out_fold, out_wd, out_md)
+    # largest refined peak first (the kernel ranks them by their grid values)
+    order = np.argsort(np.where(np.isnan(out_m), np.inf, -out_m), axis=1, kind="stable")
+    take = np.take_along_axis
     to_hz = 1.0 / (2.0 * np.pi)
-    return Peaks(out_w * to_hz, out_m, out_y, out_st, out_fold, out_wd * to_hz, out_md)
+    return Peaks(take(out_w, order, 1) * to_hz, take(out_m, order, 1),
+                 take(out_y, order[:, :, None], 1), take(out_st, order, 1),
+                 take(out_fold, order, 1), take(out_wd, order, 1) * to_hz,
+                 take(out_md, order, 1))
+
+
+def statistics(largest):
+    """Median, 95th percentile and maximum of the members' largest peaks (NaN ignored).
+
+    Parameters
+    ----------
+    largest : array_like, shape (n_s,)
+        Each member's largest peak of the metric.
+
+    Returns
+    -------
+    dict
+        ``members`` (with a peak), ``median``, ``p95``, ``max``.
+    """
+    v = np.asarray(largest, dtype=float)
+    v = v[np.isfinite(v)]
+    if v.size == 0:
+        return {"members": 0, "median": np.nan, "p95": np.nan, "max": np.nan}
+    return {"members": int(v.size), "median": float(np.median(v)),
+            "p95": float(np.percentile(v, 95)), "max": float(v.max())}
+
+
+def file_report(path):
+    """Peak statistics of a results file (None if it has no refined peaks).
+
+    Returns
+    -------
+    dict or None
+        ``statistics`` of the members' largest peaks (:func:`statistics`), ``grid_ratio``
+        (median over members of the grid's maximum over the refined peak), ``folds``
+        (members with a fold), ``unchecked`` (members whose fold check failed),
+        ``members``, and the bound's refined peak ``bound_peak``, ``bound_peak_hz`` when
+        the file has bounds.
+    """
+    from .store import dataset_names, iter_records, read_group
+
+    if "peak_metric" not in dataset_names(path):
+        return None
+    from .store import read
+
+    largest, ratio, folds, unchecked = [], [], 0, 0
+    # blocks of ~1 MB of metric: memory stays flat in the number of members (8 bytes per
+    # member are kept for the percentiles)
+    block = max(1, (1 << 17) // max(1, len(read(path, "frequency"))))
+    names = ["metric", "peak_metric", "peak_metric_down", "fold"]
+    for _, arr in iter_records(path, names, block=block):
+        both = np.concatenate([arr["peak_metric"], arr["peak_metric_down"]], axis=1)
+        with np.errstate(invalid="ignore"):
+            big = np.nanmax(np.where(np.isnan(both), -np.inf, both), axis=1)
+            grid = np.nanmax(np.where(np.isnan(arr["metric"]), -np.inf, arr["metric"]), axis=1)
+        big = np.where(np.isfinite(big), big, np.nan)
+        largest.append(big)
+        ratio.append(grid / big)
+        folds += int(np.count_nonzero((arr["fold"] == FOLD_FOUND).any(axis=1)))
+        unchecked += int(np.count_nonzero((arr["fold"] == FOLD_UNCHECKED).any(axis=1)))
+    largest = np.concatenate(largest) if largest else np.empty(0)
+    ratio = np.concatenate(ratio) if ratio else np.empty(0)
+    out = {"statistics": statistics(largest), "members": int(largest.size),
+           "grid_ratio": float(np.nanmedian(ratio)) if np.isfinite(ratio).any() else np.nan,
+           "folds": folds, "unchecked": unchecked}
+    g = read_group(path, "bounds")
+    if g is not None and "peak_upper" in g[1]:
+        out["bound_peak"] = float(g[1]["peak_upper"])
+        out["bound_peak_hz"] = float(g[1]["peak_upper_frequency"])
+    return out
+
+
+def report_text(report, unit):
+    """The lines ``mcfric info`` and the run summary print about the peaks."""
+    st = report["statistics"]
+    lines = [f"peaks:       each member's largest, refined: median {st['median']:.4g}, "
+             f"95th percentile {st['p95']:.4g}, max {st['max']:.4g} {unit} "
+             f"({st['members']} members; the grid's maximum is {report['grid_ratio']:.3g} "
+             f"of the refined peak, median)",
+             f"folds:       {report['folds']} of {report['members']} members have more than "
+             f"one steady state near a peak"
+             + (f" ({report['unchecked']} could not be checked)" if report["unchecked"]
+                else "")]
+    if "bound_peak" in report:
+        lines.append(f"bound peak:  upper bound {report['bound_peak']:.4g} {unit} at "
+                     f"{report['bound_peak_hz']:.5g} Hz (refined); largest member / bound "
+                     f"{st['max'] / report['bound_peak']:.4g}")
+    return lines
+
+
+def maximize(fun, lo, hi, m_lo, m_hi, rtol, n_sub=_kernel.N_SUB, max_steps=_kernel.MAX_STEPS):
+    """Largest value of a peaked function of one variable on ``[lo, hi]``, refined.
+
+    The same search as the kernel's (:mod:`mcfric.core.peaks`) for functions evaluated
+    in Python (the response bounds): ``n_sub`` sub-intervals, then parabolic steps on
+    ``1/m^2`` until a prediction has come true within ``rtol / 4`` and the next one
+    promises less. ``fun(x)`` returns ``(m, extra)``; NaN ``m`` counts as a failure.
+
+    Returns
+    -------
+    (x, m, extra, complete)
+        The best point evaluated and whether the search converged.
+    """
+    pts = {lo: (m_lo, None), hi: (m_hi, None)}
+
+    def add(x):
+        m, extra = fun(x)
+        pts[x] = (m, extra)
+        return m
+
+    for t in range(1, n_sub):
+        if not np.isfinite(add(lo + (hi - lo) * t / n_sub)):
+            break
+    last_pred = np.nan
+    last = None
+    complete = False
+    for _ in range(max_steps):
+        xs = np.array(sorted(x for x, (m, _) in pts.items() if np.isfinite(m)))
+        ms = np.array([pts[x][0] for x in xs])
+        ib = int(np.argmax(ms))
+        if 0 < ib < len(xs) - 1:
+            x0, x1, x2 = xs[ib - 1:ib + 2]
+            g0, g1, g2 = 1.0 / ms[ib - 1:ib + 2] ** 2
+            d01, d12 = (g1 - g0) / (x1 - x0), (g2 - g1) / (x2 - x1)
+            curv = (d12 - d01) / (x2 - x0)
+        else:
+            curv = 0.0
+        new, pred = np.nan, np.nan
+        if curv > 0:
+            xv = 0.5 * (x0 + x1) - d01 / (2.0 * curv)
+            gv = g1 + d01 * (xv - x1) + curv * (xv - x0) * (xv - x1)
+            pred = 1.0 / np.sqrt(gv) if gv > 0 else np.nan
+            tol_m = 0.25 * rtol * ms[ib]
+            if last is not None and abs(pts[last][0] - last_pred) <= tol_m and \
+                    pred <= ms[ib] + tol_m:
+                complete = True
+                break
+            if x0 < xv < x2 and abs(xv - x1) > 1e-12 * x1:
+                new = xv
+        if not np.isfinite(new):
+            left = xs[ib - 1] if ib > 0 else xs[ib]
+            right = xs[ib + 1] if ib < len(xs) - 1 else xs[ib]
+            lo_s, hi_s = xs[ib] - left, right - xs[ib]
+            if max(lo_s, hi_s) <= 1e-12 * xs[ib]:
+                complete = True
+                break
+            new = (xs[ib] - (1 - _INV_PHI) * lo_s if lo_s > hi_s
+                   else xs[ib] + (1 - _INV_PHI) * hi_s)
+            pred = np.nan
+        last, last_pred = new, pred
+        if not np.isfinite(add(new)):
+            break
+    best = max((x for x in pts if np.isfinite(pts[x][0])), key=lambda x: pts[x][0])
+    return best, pts[best][0], pts[best][1], complete
+
+
+_INV_PHI = 0.6180339887498949

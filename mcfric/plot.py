@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from .metric import METRIC_UNITS, omega_power
-from .store import dataset_names, iter_records, read, read_attrs
+from .store import dataset_names, iter_records, read, read_attrs, read_group
 
 
 def _figure(size=(8, 4.5)):
@@ -100,6 +100,19 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
         if highlight is not None:
             ax.plot(fw, np.where(highlight > 0, highlight, np.nan), color="k", lw=1.1,
                     label=f"member {member}")
+    if "peak_metric" in dataset_names(path):
+        # the members' refined peaks (the grid underestimates lightly damped peaks)
+        px, py = [], []
+        for _, arr in iter_records(path, ["peak_metric", "peak_frequency", "sample"]):
+            keep = arr["sample"] % step == 0
+            px.append(arr["peak_frequency"][keep].ravel())
+            py.append(arr["peak_metric"][keep].ravel())
+        px, py = np.concatenate(px), np.concatenate(py)
+        py = py * omega_power(px, quantity, stored)
+        ok = np.isfinite(py) & (px >= lo_f) & (px <= hi_f) & (py > 0)
+        if ok.any():
+            ax.plot(px[ok], py[ok], ".", color="0.15", ms=2.5, alpha=0.6,
+                    label="refined member peaks")
     B = read_bounds(path)
     if B is not None:
         up = B.upper[win] * scale[win]
@@ -108,6 +121,11 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
                         lw=0)
         ax.plot(fw, up, color="tab:blue", lw=2.0, label="upper bound")
         ax.plot(fw, np.where(lo > 0, lo, np.nan), color="tab:red", lw=2.0, label="lower bound")
+        g = read_group(path, "bounds")[1]
+        if "peak_upper" in g and lo_f <= g["peak_upper_frequency"] <= hi_f:
+            fb = g["peak_upper_frequency"]
+            ax.plot([fb], [g["peak_upper"] * omega_power(fb, quantity, stored)], "*",
+                    color="tab:blue", ms=9, label="refined peak of the upper bound")
     for mm in measured:
         g = mm.to_quantity(quantity)
         mf = g.frequency_hz

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .model import Model
+from .peaks import PeakSettings
 from .sampling import Sampler
 
 
@@ -108,6 +109,8 @@ class RunSpec:
         Ensemble size.
     metric : MetricSpec
     solver : SolverSpec
+    peaks : PeakSettings or None
+        Resolved peaks of every member (of the metric), or None.
     bounds : BoundsSpec or None
         None when the bounds are not computed with the run.
     keep_response : bool
@@ -125,6 +128,7 @@ class RunSpec:
     samples: int
     metric: MetricSpec
     solver: SolverSpec
+    peaks: PeakSettings | None
     bounds: BoundsSpec | None
     keep_response: bool
     execution: ExecutionSpec

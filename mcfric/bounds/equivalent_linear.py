@@ -122,6 +122,34 @@ def force_limit(mu_max, N0_max):
     return 4.0 / np.pi * float(mu_max) * float(N0_max)
 
 
+def upper_bound(G, q0, ylin, H, kr, ki, F_lim, starts_max, max_sweeps):
+    """The upper bound per frequency, in displacement (m), from contact-space arrays.
+
+    Each beam is bounded by the smaller of its maximum over the box and its force bound
+    (paper Eq. 10: every damper at the force limit with the worst phases); ``M`` by the
+    largest of these, never above the paper's min(box max of M, force bound of M).
+
+    Returns
+    -------
+    upper, upper_box, upper_force : ndarray, shape (n_f,)
+    limited_by : ndarray of int8, shape (n_f,)
+    K_upper : ndarray of complex, shape (n_f, nd)
+    """
+    force_beam = np.abs(ylin) + F_lim * np.abs(H).sum(axis=2)          # (n_f, nb)
+    box_beam, K_beam = box_extreme(G, q0, ylin, H, kr, ki, starts_max, True, cap=force_beam,
+                                   max_sweeps=max_sweeps)
+    per_beam = np.fmin(box_beam.T, force_beam)                          # (n_f, nb)
+    failed = np.isnan(box_beam).all(axis=0)
+    b_star = np.argmax(np.where(np.isnan(per_beam), -np.inf, per_beam), axis=1)
+    idx = np.arange(G.shape[0])
+    upper = np.where(failed, np.nan, per_beam[idx, b_star])
+    upper_box = np.where(failed, np.nan, np.nanmax(np.where(np.isnan(box_beam), -np.inf,
+                                                            box_beam), axis=0))
+    upper_force = force_beam.max(axis=1)
+    limited_by = (force_beam[idx, b_star] <= box_beam[b_star, idx]).astype(np.int8)
+    return upper, upper_box, upper_force, limited_by, K_beam[b_star, idx]
+
+
 def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity="displacement",
                    beams=None, n_starts=N_STARTS, max_sweeps=MAX_SWEEPS, seed=0, n_threads=None):
     """Equivalent-linear bounds on the response metric of ``model``.
@@ -185,27 +213,13 @@ def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity
     _, starts_min = starts(len(f), model.n_dampers, n_starts, seed + 1)
     G = np.ascontiguousarray(G)
     q0 = np.ascontiguousarray(q0)
-    # Eq. 10 on the output of each beam: every damper at the force limit, worst phases
-    force_beam = np.abs(ylin) + F_lim * np.abs(H).sum(axis=2)          # (n_f, nb)
     with threads(n_threads):
-        box_beam, K_beam = box_extreme(
-            G, q0, ylin, H, kr, ki, starts_max, True, cap=force_beam,
-            max_sweeps=max(1, round(MAX_SWEEPS_FRACTION_MAX * int(max_sweeps))))
+        upper, upper_box, upper_force, limited_by, K_upper = upper_bound(
+            G, q0, ylin, H, kr, ki, F_lim, starts_max,
+            max(1, round(MAX_SWEEPS_FRACTION_MAX * int(max_sweeps))))
         lower, K_lower = box_extreme(G, q0, ylin, H, kr, ki, starts_min, False,
                                      max_sweeps=int(max_sweeps))
     lower, K_lower = lower[0], K_lower[0]
-    # each beam is bounded by the smaller of its box maximum and its force bound; M by
-    # the largest of these (never above the paper's min(box max of M, force bound of M))
-    per_beam = np.fmin(box_beam.T, force_beam)                          # (n_f, nb)
-    failed = np.isnan(box_beam).all(axis=0)
-    b_star = np.argmax(np.where(np.isnan(per_beam), -np.inf, per_beam), axis=1)
-    idx = np.arange(len(f))
-    upper = np.where(failed, np.nan, per_beam[idx, b_star])
-    upper_box = np.where(failed, np.nan, np.nanmax(np.where(np.isnan(box_beam), -np.inf,
-                                                            box_beam), axis=0))
-    upper_force = force_beam.max(axis=1)
-    limited_by = (force_beam[idx, b_star] <= box_beam[b_star, idx]).astype(np.int8)
-    K_upper = K_beam[b_star, idx]
     scale = omega ** QUANTITIES.index(quantity)
     return Bounds(f, upper * scale, lower * scale, upper_box * scale, upper_force * scale,
                   limited_by, K_upper, K_lower, kr, ki, F_lim, quantity, beams)

@@ -18,6 +18,7 @@ import numpy as np
 
 from .. import sampling
 from ..model import Excitation, ModalTable, Model
+from ..peaks import PeakSettings
 from ..spec import BoundsSpec, ExecutionSpec, MetricSpec, RunSpec, SolverSpec
 from . import loading, rendering, validation  # used at call time (they import Config)
 from .schema import NOT_IDENTITY
@@ -54,11 +55,16 @@ class Config:
         bounds = (BoundsSpec(*validation.bounds_limits(d), n_starts=b["n_starts"])
                   if b["enabled"] else None)
         r = d["run"]
+        metric = MetricSpec(d["metric"]["quantity"],
+                            None if beams == "all" else tuple(x - 1 for x in beams))
+        pk = d["peaks"]
+        peaks = (PeakSettings(count=pk["count"], rtol=pk["rtol"], window=pk["window"],
+                              quantity=metric.quantity, beams=metric.beams)
+                 if pk["enabled"] else None)
         return RunSpec(
             model=model, freq_hz=freq, sampler=sampler, samples=s["samples"],
-            metric=MetricSpec(d["metric"]["quantity"],
-                              None if beams == "all" else tuple(x - 1 for x in beams)),
-            solver=SolverSpec(d["solver"]["tol"], d["solver"]["max_iter"]),
+            metric=metric,
+            solver=SolverSpec(d["solver"]["tol"], d["solver"]["max_iter"]), peaks=peaks,
             bounds=bounds, keep_response=d["output"]["keep_response"],
             execution=ExecutionSpec(r["threads"] or None, r["chunk"], r["checkpoint_s"]),
             config_toml=self.toml(comments=False), config_json=self.json(),

@@ -60,6 +60,7 @@ def defaults(preset=DEFAULT_PRESET):
         "sampling": {"samples": 2000, "seed": 0, "mistuning": 0.0, "mistuning_per": "beam",
                      **{k: sampling.as_dict(d) for k, d in sampling.PAPER.items()}},
         "metric": {"quantity": "displacement", "beams": "all"},
+        "peaks": {"enabled": True, "count": t.n_modes, "rtol": 1e-4, "window": 4},
         "solver": {"tol": 1e-10, "max_iter": 50},
         "output": {"keep_response": True},
         "run": {"threads": 0, "chunk": 0, "checkpoint_s": 0.0},
@@ -133,6 +134,16 @@ SPEC = {
         "beams": (beams_or_all(), '"all" or a list of beam numbers (1-based) to take the '
                                   'maximum over'),
     },
+    "peaks": {
+        "enabled": (boolean(), "refine every member's largest peaks in frequency and check "
+                               "them for folds (stored in peak_*)"),
+        "count": (integer(1, 100), "peaks kept per member, largest first (default: one "
+                                   "per mode of the table)"),
+        "rtol": (number(lo=0, hi=0.1, lo_open=True), "relative tolerance of a refined "
+                                                     "peak's amplitude"),
+        "window": (integer(1, 1000), "grid points on each side of a peak swept downward "
+                                     "to look for folds"),
+    },
     "solver": {
         "tol": (number(lo=0, hi=0.1, lo_open=True),
                 "accepted relative friction-force residual"),
@@ -169,6 +180,7 @@ SECTION_DOC = {
     "frequency": "the frequency grid",
     "sampling": "the Monte Carlo ensemble (docs: theory, Monte Carlo ensembles)",
     "metric": "response metric M per sample and frequency (docs: theory, Response metric)",
+    "peaks": "resolved peaks and fold checks of every member (docs: peaks)",
     "solver": "harmonic-balance solver",
     "output": "what the results file keeps",
     "run": "how to compute: never changes the results, not compared on --resume",

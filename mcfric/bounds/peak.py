@@ -1,0 +1,89 @@
+"""The peak of the upper bound over frequency, refined like the members' peaks.
+
+The largest value of the upper bound on a frequency grid misses a lightly damped
+resonance as the members' grid peaks do. Here the bracket between its grid neighbours
+is searched again on a sub-grid (the same search as on the grid, continuation along
+the sub-grid included), and the best sub-interval refined by
+:func:`mcfric.peaks.maximize`, the bound at each new frequency searched from the
+uniform corners and the optima of the two nearest frequencies already searched.
+Like the bound itself, the refined peak is the result of a search.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..core.receptance import contact_space
+from ..metric import QUANTITIES
+from ..peaks import maximize
+from .equivalent_linear import MAX_SWEEPS, MAX_SWEEPS_FRACTION_MAX, compute_bounds, upper_bound
+
+_CORNERS = np.array([0, 1, 1 + 1j, 1j])
+#: Frequencies of the sub-grid searched between the grid neighbours of the bound's peak.
+SUB_GRID = 33
+
+
+def refine_upper_peak(model, B, rtol=1e-4):
+    """Frequency and value of the largest upper bound, refined to ``rtol``.
+
+    Parameters
+    ----------
+    model : Model
+        The model the bounds ``B`` were computed for.
+    B : Bounds
+        Bounds on an increasing frequency grid.
+    rtol : float
+        Relative tolerance of the refined value.
+
+    Returns
+    -------
+    (float, float, bool)
+        Frequency (Hz) and value (the metric's unit) of the refined peak, and whether the
+        refinement converged (False: the best value found, or the grid's where every
+        evaluation failed).
+    """
+    f = B.freq_hz
+    up = np.where(np.isfinite(B.upper), B.upper, -np.inf)
+    k = int(np.argmax(up))
+    if not np.isfinite(up[k]):
+        return float("nan"), float("nan"), False
+    lo, hi = max(k - 1, 0), min(k + 1, len(f) - 1)
+    if lo == hi:
+        return float(f[k]), float(up[k]), False
+    # a sub-grid of the bracket searched as the grid was (with continuation along it)
+    sub_f = np.linspace(f[lo], f[hi], SUB_GRID)
+    S = compute_bounds(model, sub_f, B.k_max_re, k_max_im=B.k_max_im,
+                       F_lim=None if np.isinf(B.F_lim) else B.F_lim, quantity=B.quantity,
+                       beams=B.beams or None)
+    s_up = np.where(np.isfinite(S.upper), S.upper, -np.inf)
+    j = int(np.argmax(s_up))
+    if s_up[j] < up[k]:                  # never below what the grid found
+        return float(f[k]), float(up[k]), False
+    j_lo, j_hi = max(j - 1, 0), min(j + 1, SUB_GRID - 1)
+    a, b = model.dampers
+    beams = list(B.beams) if B.beams else list(range(model.n_beams))
+    power = QUANTITIES.index(B.quantity)
+    solved = {float(sub_f[i]): S.K_upper[i] for i in range(SUB_GRID)}
+
+    def upper_at(f_hz):
+        # starts: the uniform corners and the optima of the two nearest frequencies
+        near = sorted(solved, key=lambda x: abs(x - f_hz))[:2]
+        K = np.array([solved[x] for x in near])
+        start = np.concatenate([np.broadcast_to(_CORNERS[:, None], (4, K.shape[1])),
+                                K.real / B.k_max_re + 1j * K.imag / B.k_max_im])
+        omega = 2.0 * np.pi * np.array([f_hz])
+        G, q0, ylin, H = contact_space(model.receptances(omega)[0], model.force, a, b)
+        ylin = np.ascontiguousarray(ylin[:, beams])
+        H = np.ascontiguousarray(H[:, beams, :])
+        upper, _, _, _, K_upper = upper_bound(
+            np.ascontiguousarray(G), np.ascontiguousarray(q0), ylin, H, B.k_max_re,
+            B.k_max_im, B.F_lim, np.ascontiguousarray(start[None], dtype=complex),
+            max(1, round(MAX_SWEEPS_FRACTION_MAX * MAX_SWEEPS)))
+        solved[f_hz] = K_upper[0]
+        return float(upper[0] * omega[0] ** power), None
+
+    x, m, _, ok = maximize(upper_at, float(sub_f[j_lo]), float(sub_f[j_hi]),
+                           float(s_up[j_lo]), float(s_up[j_hi]), rtol)
+    if not np.isfinite(m) or m < s_up[j]:
+        return float(sub_f[j]), float(s_up[j]), False
+    return float(x), float(m), ok
