@@ -20,7 +20,7 @@ from .validators import integer, real
 #: Default relative tolerance of a refined peak's amplitude.
 RTOL = 1e-4
 #: Default number of grid points swept downward on each side of a peak.
-WINDOW = 4
+WINDOW = 3
 #: Status and fold codes (see :mod:`mcfric.core.peaks`).
 REFINED, AT_EDGE, GRID, NONE = (_kernel.PEAK_REFINED, _kernel.PEAK_AT_EDGE,
                                 _kernel.PEAK_GRID, _kernel.PEAK_NONE)

@@ -60,7 +60,7 @@ def defaults(preset=DEFAULT_PRESET):
         "sampling": {"samples": 2000, "seed": 0, "mistuning": 0.0, "mistuning_per": "beam",
                      **{k: sampling.as_dict(d) for k, d in sampling.PAPER.items()}},
         "metric": {"quantity": "displacement", "beams": "all"},
-        "peaks": {"enabled": True, "count": t.n_modes, "rtol": 1e-4, "window": 4},
+        "peaks": {"enabled": True, "count": t.n_modes, "rtol": 1e-4, "window": 3},
         "solver": {"tol": 1e-10, "max_iter": 50},
         "output": {"keep_response": True},
         "run": {"threads": 0, "chunk": 0, "checkpoint_s": 0.0},

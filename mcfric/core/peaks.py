@@ -7,13 +7,17 @@ sweep on a grid underestimates the member's peak. After the sweep, for every mem
 1. the local maxima of the metric ``M = max_b omega^p |y_b|`` over the grid are ranked
    and the ``n_peaks`` largest kept (the metric, not each beam: ``M`` is what the bounds
    and the statistics are about);
-2. each is refined in frequency: eight sub-intervals of the bracket between its grid
-   neighbours, then parabolic steps on ``1/M^2`` around the best point (golden-section
-   steps where no parabola fits), every new point solved by continuation from the
-   nearest solved point below it (so the refined peak is on the branch the upward sweep
-   follows). The search stops when a parabola's prediction has come true at its vertex
-   and the next parabola promises less than a quarter of ``rtol``; the peak reported is
-   the best point actually solved, never an interpolation;
+2. each is refined in frequency: parabolic steps on ``1/M^2`` from its grid neighbours
+   (golden-section steps where no parabola fits) for a peak broader than the grid; for a
+   sharper one, or where that does not converge in a few steps, eight sub-intervals of
+   the bracket are solved first and the best one is climbed the same way. ``M`` is a
+   maximum over beams, so its top can be a kink where two beams cross: every beam within
+   2 % of ``M`` there is then climbed on its own amplitude. Every new point is
+   solved by continuation from the nearest solved point below it (so the refined peak is
+   on the branch the upward sweep follows). The search stops when the nearest solved
+   points on both sides of the best are within a quarter of ``rtol`` of it; the peak
+   reported is the best point actually
+   solved, never an interpolation;
 3. the sweep is repeated downward over ``window`` grid points on each side of the peak,
    from the upward solution above it. Where the downward branch differs from the upward
    one (relative ``FOLD_RTOL`` in ``M``), the member has more than one steady state
@@ -51,6 +55,8 @@ FOLD_RTOL = 1e-6
 N_SUB = 8
 #: Parabolic (or golden-section) steps at most per peak.
 MAX_STEPS = 40
+#: Steps of the first climb from the grid neighbours alone, before sub-sampling.
+QUICK_STEPS = 4
 _INV_PHI = 0.6180339887498949
 
 
@@ -174,16 +180,107 @@ def _seed(om, x, y, m, S):
 
 
 @jit
-def _nearest(om, from_below, S, fallback):
-    """Index of the solved point nearest to ``om`` on the side of continuation (below or
-    above it), or ``fallback``."""
-    pw, cnt = S[0], S[4]
-    best, dist = fallback, math.inf
+def _guess(om, from_below, S, fallback, x):
+    """The start at ``om``: extrapolated linearly in ``omega`` from the two solved points
+    nearest to it on the side of continuation (below or above it); the nearest alone if
+    there is one, ``fallback``'s state if none."""
+    pw, px, cnt = S[0], S[2], S[4]
+    p1, p2, d1, d2 = fallback, -1, math.inf, math.inf
     for p in range(cnt[0]):
         d = om - pw[p] if from_below else pw[p] - om
-        if 0.0 <= d < dist:
-            best, dist = p, d
-    return best
+        if 0.0 <= d < d1:
+            p2, d2 = p1 if d1 < math.inf else -1, d1
+            p1, d1 = p, d
+        elif d1 <= d < d2:
+            p2, d2 = p, d
+    t = 0.0
+    if p2 >= 0 and pw[p1] != pw[p2]:
+        t = (om - pw[p1]) / (pw[p1] - pw[p2])
+    for j in range(x.shape[0]):
+        x[j] = px[p1, j] + (t * (px[p1, j] - px[p2, j]) if p2 >= 0 else 0.0)
+
+
+@jit
+def _val(S, p, beam, power):
+    """The metric at point ``p`` (``beam`` -1) or one beam's ``omega^power |y_b|``."""
+    if beam < 0:
+        return S[1][p]
+    return abs(S[3][p, beam]) * S[0][p] ** power
+
+
+@jit
+def _climb(best, left, right, start, from_below, P, S, rtol, max_steps, beam):
+    """Parabolic steps (on ``1/v^2``, nearly quadratic near a resonance; golden-section
+    steps where no parabola fits) from the best point ``best`` inside ``[left, right]``,
+    on ``v`` = the metric (``beam`` -1) or one beam's amplitude ``omega^p |y_b|``.
+
+    A vertex that becomes the best point is checked by two points where the parabola
+    drops by about ``rtol / 5``; the search ends when the nearest solved points on both
+    sides of the best are within ``rtol / 4`` of it. Returns (index of the best point,
+    complete): ``complete`` is False if a solve failed or the steps ran out.
+    """
+    pw = S[0]
+    power = P[17]
+    verify = False
+    for _ in range(max_steps):
+        ib, il, ir = best, -1, -1
+        for p in range(S[4][0]):
+            if left <= pw[p] < pw[ib] and (il < 0 or pw[p] > pw[il]):
+                il = p
+            if pw[ib] < pw[p] <= right and (ir < 0 or pw[p] < pw[ir]):
+                ir = p
+        # done: the solved neighbours on both sides are within rtol / 4 of the best
+        vb = _val(S, ib, beam, power)
+        tol_m = 0.25 * rtol * vb
+        if (il >= 0 and ir >= 0 and _val(S, il, beam, power) >= vb - tol_m
+                and _val(S, ir, beam, power) >= vb - tol_m):
+            return best, True
+        lo_w = pw[ib] - (pw[il] if il >= 0 else left)
+        hi_w = (pw[ir] if ir >= 0 else right) - pw[ib]
+        if max(lo_w, hi_w) <= 1e-12 * pw[ib]:
+            return best, True
+        new1 = new2 = math.nan
+        if il >= 0 and ir >= 0:
+            # a parabola in g = 1/M^2, nearly quadratic in omega near a resonance peak
+            x0, x1, x2 = pw[il], pw[ib], pw[ir]
+            g0 = 1.0 / _val(S, il, beam, power) ** 2
+            g1 = 1.0 / vb ** 2
+            g2 = 1.0 / _val(S, ir, beam, power) ** 2
+            d01 = (g1 - g0) / (x1 - x0)
+            curv = ((g2 - g1) / (x2 - x1) - d01) / (x2 - x0)
+            if curv > 0.0:
+                if verify:
+                    # the last vertex became the best point: check it with the two points
+                    # where the parabola drops by about rtol / 5
+                    delta = math.sqrt(0.2 * rtol * 2.0 * g1 / curv)
+                    if delta < lo_w:
+                        new1 = x1 - delta
+                    if delta < hi_w:
+                        new2 = x1 + delta
+                if not (new1 == new1 or new2 == new2):
+                    xv = 0.5 * (x0 + x1) - d01 / (2.0 * curv)
+                    if x0 < xv < x2 and abs(xv - x1) > 1e-3 * (x2 - x0):
+                        new1 = xv
+        if not (new1 == new1 or new2 == new2):
+            # no usable parabola: a golden-section step into the larger side
+            new1 = (pw[ib] - (1.0 - _INV_PHI) * lo_w if lo_w > hi_w
+                    else pw[ib] + (1.0 - _INV_PHI) * hi_w)
+            verify = False
+        else:
+            verify = not (new2 == new2)         # after a vertex step, verify next time
+        for new in (new1, new2):
+            if new == new:
+                _guess(new, from_below, S, start, P[18])
+                n = _add_point(new, P[18], P, S)
+                if n < 0:
+                    return best, False
+                if _val(S, n, beam, power) > _val(S, best, beam, power):
+                    best = n
+        if verify and best != S[4][0] - 1:
+            verify = False                      # the vertex was not an improvement
+    return best, False
+
+
 
 
 @jit
@@ -192,16 +289,22 @@ def _refine(idx, from_below, P, S, rtol):
     or from above.
 
     ``idx[t]`` is the stored point at sub-position ``t`` (``-1``: not solved yet; the
-    ends, and the middle for an interior grid maximum, are seeded from the sweep). The
-    missing sub-points are solved in the direction of continuation; then parabolic steps
-    (on ``1/M^2``, nearly quadratic near a resonance; golden-section steps where no
-    parabola fits) until a parabola's prediction has come true at its vertex (within
-    ``rtol / 4``) and the next one promises no more than ``rtol / 4``. Returns (index of
-    the best point solved, complete): ``complete`` is False if a solve failed on the way
-    or the steps ran out.
+    ends, and the middle for an interior grid maximum, are seeded from the sweep). A
+    broad interior grid maximum (both neighbours above half of it) is first climbed from
+    its grid neighbours alone (a few steps); otherwise, or if that does not
+    converge, the missing sub-points are solved in the direction of continuation and the
+    best sub-interval is climbed (:func:`_climb`). Returns (index of the best point
+    solved, complete).
     """
     pw, pm, px = S[0], S[1], S[2]
     lo, hi = pw[idx[0]], pw[idx[N_SUB]]
+    start = idx[0] if from_below else idx[N_SUB]
+    mid = idx[N_SUB // 2]
+    # a broad peak (the grid neighbours above half of it): climb from the grid alone
+    if mid >= 0 and min(pm[idx[0]], pm[idx[N_SUB]]) >= 0.5 * pm[mid]:
+        best, ok = _climb(mid, lo, hi, start, from_below, P, S, rtol, QUICK_STEPS, -1)
+        if ok:
+            return _beam_peaks(best, lo, hi, start, from_below, P, S, rtol)
     for step in range(1, N_SUB):
         t = step if from_below else N_SUB - step
         if idx[t] >= 0:
@@ -215,58 +318,40 @@ def _refine(idx, from_below, P, S, rtol):
         if pm[idx[t]] > pm[idx[tb]]:
             tb = t
     best = idx[tb]
-    # the bracket: the best sub-point's neighbours
-    left, right = pw[idx[max(tb - 1, 0)]], pw[idx[min(tb + 1, N_SUB)]]
-    start = idx[0] if from_below else idx[N_SUB]
-    last, last_pred = -1, math.nan      # the last parabolic step and what it predicted
-    for _ in range(MAX_STEPS):
-        # parabola through the best point and its nearest solved neighbours in
-        # g = 1/M^2, which is close to quadratic in omega near a resonance peak
-        ib, il, ir = best, -1, -1
+    for p in range(S[4][0]):                   # points of the quick climb count too
+        if pm[p] > pm[best]:
+            best = p
+    left = min(pw[idx[max(tb - 1, 0)]], pw[best])
+    right = max(pw[idx[min(tb + 1, N_SUB)]], pw[best])
+    best, ok = _climb(best, left, right, start, from_below, P, S, rtol, MAX_STEPS, -1)
+    if not ok:
+        return best, False
+    return _beam_peaks(best, lo, hi, start, from_below, P, S, rtol)
+
+
+@jit
+def _beam_peaks(best, lo, hi, start, from_below, P, S, rtol):
+    """The metric is a maximum over beams, so its peak can be a kink where two beams
+    cross, with another beam's own (smooth) peak higher nearby: each beam within 2 % of
+    the metric at ``best`` is climbed on its own amplitude, and the best point for the
+    metric among all points solved is returned, (index, complete)."""
+    beams, power = P[16], P[17]
+    pm = S[1]
+    m_best = pm[best]
+    for bb in beams:
+        if _val(S, best, bb, power) < 0.98 * m_best:
+            continue
+        start_b = best
         for p in range(S[4][0]):
-            if left <= pw[p] < pw[ib] and (il < 0 or pw[p] > pw[il]):
-                il = p
-            if pw[ib] < pw[p] <= right and (ir < 0 or pw[p] < pw[ir]):
-                ir = p
-        new = pred = math.nan
-        if il >= 0 and ir >= 0:
-            x0, x1, x2 = pw[il], pw[ib], pw[ir]
-            g0, g1, g2 = 1.0 / pm[il] ** 2, 1.0 / pm[ib] ** 2, 1.0 / pm[ir] ** 2
-            d01 = (g1 - g0) / (x1 - x0)
-            d12 = (g2 - g1) / (x2 - x1)
-            curv = (d12 - d01) / (x2 - x0)
-            if curv > 0.0:
-                xv = 0.5 * (x0 + x1) - d01 / (2.0 * curv)
-                gv = g1 + d01 * (xv - x1) + curv * (xv - x0) * (xv - x1)
-                if gv > 0.0:
-                    pred = 1.0 / math.sqrt(gv)
-                # converged: the last parabola's prediction came true at its vertex, and
-                # this one's peak is within rtol / 4 of the best point
-                tol_m = 0.25 * rtol * pm[ib]
-                if (last >= 0 and abs(pm[last] - last_pred) <= tol_m
-                        and pred <= pm[ib] + tol_m):
-                    return best, True
-                if x0 < xv < x2 and abs(xv - x1) > 1e-12 * x1:
-                    new = xv
-        last, last_pred = -1, math.nan
-        if new == new:
-            last_pred = pred
-        else:
-            # no usable parabola: golden step into the larger side of the bracket
-            lo_s = pw[ib] - (pw[il] if il >= 0 else left)
-            hi_s = (pw[ir] if ir >= 0 else right) - pw[ib]
-            if max(lo_s, hi_s) <= 1e-12 * pw[ib]:
-                return best, True
-            new = (pw[ib] - (1.0 - _INV_PHI) * lo_s if lo_s > hi_s
-                   else pw[ib] + (1.0 - _INV_PHI) * hi_s)
-        n = _add_point(new, px[_nearest(new, from_below, S, start)], P, S)
-        if n < 0:
+            if lo <= S[0][p] <= hi and _val(S, p, bb, power) > _val(S, start_b, bb, power):
+                start_b = p
+        _, ok = _climb(start_b, lo, hi, start, from_below, P, S, rtol, MAX_STEPS, bb)
+        if not ok:
             return best, False
-        if last_pred == last_pred:
-            last = n
-        if pm[n] > pm[best]:
-            best = n
-    return best, False
+    for p in range(S[4][0]):
+        if lo <= S[0][p] <= hi and pm[p] > pm[best]:
+            best = p
+    return best, True
 
 
 @jit
@@ -365,13 +450,22 @@ def _member(i, omega, modal_f, zeta, u, force, a, b, mu0, N0, kc, tol, max_iter,
         complete = True
         dn = np.full(k_top - k_bot + 1, -1, np.int64)
         dn[k_top - k_bot] = first
+        prev2 = -1
         for g in range(k_top - 1, k_bot - 1, -1):
-            n = _add_point(omega[g], S[2][prev], P, S)
+            # the start: extrapolated linearly from the last two points of the way down
+            if prev2 >= 0:
+                t = (omega[g] - S[0][prev]) / (S[0][prev] - S[0][prev2])
+                for j in range(nd):
+                    x[j] = S[2][prev, j] + t * (S[2][prev, j] - S[2][prev2, j])
+            else:
+                for j in range(nd):
+                    x[j] = S[2][prev, j]
+            n = _add_point(omega[g], x, P, S)
             if n < 0:
                 complete = False
                 break
             dn[g - k_bot] = n
-            prev = n
+            prev2, prev = prev, n
             if status[i, g] >= 0 and abs(S[1][n] - M[g]) > FOLD_RTOL * max(S[1][n], M[g]):
                 differs = True
         if not differs:
