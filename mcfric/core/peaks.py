@@ -139,34 +139,9 @@ def _metric_of(y, omega, beams, power):
 
 
 @jit
-def _add_point(om, src, P, S):
-    """Solve at ``om`` (rad/s) from the state ``src`` and store it as the next point of
-    ``S = (w, m, x, y, count)``; returns its index, or -1 (not converged, or no room)."""
-    (r, modal_f, zeta, u, force, a, b, kc, c, act, tol, max_iter, w, rec1, G, q0, beams,
-     power, xs, ys) = P
-    pw, pm, px, py, cnt = S
-    n = cnt[0]
-    if n >= pw.shape[0]:
-        return -1
-    nd = a.shape[0]
-    for j in range(nd):
-        xs[j] = src[j]
-    if not _solve_at(om, r, modal_f, zeta, u, force, a, b, kc, c, act, xs, tol, max_iter,
-                     w, rec1, G, q0, ys):
-        return -1
-    pw[n] = om
-    pm[n] = _metric_of(ys, om, beams, power)
-    for j in range(nd):
-        px[n, j] = xs[j]
-    for bb in range(ys.shape[0]):
-        py[n, bb] = ys[bb]
-    cnt[0] = n + 1
-    return n
-
-
-@jit
 def _seed(om, x, y, m, S):
-    """Store a point already solved by the sweep; returns its index."""
+    """Store a solved point (omega, metric, state, responses) as the next point of
+    ``S = (w, m, x, y, count)``; returns its index."""
     pw, pm, px, py, cnt = S
     n = cnt[0]
     pw[n] = om
@@ -177,6 +152,23 @@ def _seed(om, x, y, m, S):
         py[n, bb] = y[bb]
     cnt[0] = n + 1
     return n
+
+
+@jit
+def _add_point(om, src, P, S):
+    """Solve at ``om`` (rad/s) from the state ``src`` and store it as the next point of
+    ``S = (w, m, x, y, count)``; returns its index, or -1 (not converged, or no room)."""
+    (r, modal_f, zeta, u, force, a, b, kc, c, act, tol, max_iter, w, rec1, G, q0, beams,
+     power, xs, ys) = P
+    if S[4][0] >= S[0].shape[0]:
+        return -1
+    nd = a.shape[0]
+    for j in range(nd):
+        xs[j] = src[j]
+    if not _solve_at(om, r, modal_f, zeta, u, force, a, b, kc, c, act, xs, tol, max_iter,
+                     w, rec1, G, q0, ys):
+        return -1
+    return _seed(om, xs, ys, _metric_of(ys, om, beams, power), S)
 
 
 @jit
