@@ -16,14 +16,14 @@ import numpy as np
 from .core import sweep as _sweep
 from .core.newton import NOT_CONVERGED
 from .metric import response_metric
-from .model import Model
+from .model import CONTACT_LAWS, Model
 from .peaks import Peaks, PeakSettings, refine
 from .threads import threads
 from .validators import frequencies as check_frequencies
 from .validators import per_damper as check_parameters
 
 #: Default accepted relative residual ``|s kc A - mu0 N0| <= tol mu0 N0``; Newton aims
-#: 100x lower and accepts a stall (rounding floor) only within ``tol``.
+#: 10x lower and accepts a stall (rounding floor) only within ``tol``.
 TOL = 1e-10
 MAX_ITER = 50
 
@@ -115,7 +115,7 @@ def solve(model, freq_hz, mu0, kc, N0=0.5, *, modal_freq_hz=None, tol=TOL,
     modal_freq_hz : array_like, shape (n_s, n_beams, n_modes), optional
         Per-sample modal frequencies in Hz (mistuned rigs); default the model's.
     tol : float
-        Accepted relative residual, default 1e-10 (iterations aim 100x lower).
+        Accepted relative residual, default 1e-10 (iterations aim 10x lower).
     max_iter : int
         Newton iterations per attempt (default 50).
     n_threads : int, optional
@@ -210,11 +210,12 @@ def run_kernel(model, rec, omega, mu0, N0, kc, tol, max_iter, y, s, status, iter
     # every result independent of how the parameters were given and of compile history
     mu0, N0, kc = (np.array(x, dtype=np.float64, order="C") for x in (mu0, N0, kc))
     args = (np.ascontiguousarray(rec), force, a, b, np.ascontiguousarray(omega), mu0, N0, kc)
-    if model.n_dampers == 1:
-        kernel = _sweep.sweep_one_damper
-    elif model.topology == "linear":
-        kernel = _sweep.sweep_chain
+    law = CONTACT_LAWS.index(model.contact_law)
+    outs = (float(tol), int(max_iter), y, s, status, iterations, residual)
+    if law != 0 or (model.topology != "linear" and model.n_dampers > 1):
+        _sweep.sweep_dense(*args, *outs, np.int64(law))
+    elif model.n_dampers == 1:
+        _sweep.sweep_one_damper(*args, *outs)
     else:
-        kernel = _sweep.sweep_dense
-    kernel(*args, float(tol), int(max_iter), y, s, status, iterations, residual)
+        _sweep.sweep_chain(*args, *outs)
     return mu0, N0, kc

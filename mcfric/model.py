@@ -19,6 +19,9 @@ from .core.receptance import beam_receptances
 from .validators import choice, finite_array, integer, number
 
 TOPOLOGIES = ("linear", "circular")
+#: Contact laws: Coulomb friction in series with a stiffness (the paper's), and a
+#: stiffening spring that exists to test the detection of multiple steady states.
+CONTACT_LAWS = ("coulomb", "cubic")
 PATTERNS = ("single", "mode", "travelling")
 
 
@@ -153,6 +156,11 @@ class Model:
         Position labels of the friction contact, the response output and the drive.
     name : str
         Free text used in plots and files.
+    contact_law : {"coulomb", "cubic"}
+        ``coulomb`` (default): the paper's friction damper. ``cubic``: a stiffening spring
+        ``K = kc (1 + (A kc / (mu0 N0))^2)``, no friction, solved by the dense kernel
+        only; it has multiple steady states when driven hard and is there to test their
+        detection (the bounds assume Coulomb friction).
     """
 
     beams: tuple
@@ -162,6 +170,7 @@ class Model:
     output: int = 2
     drive: int = 3
     name: str = "custom"
+    contact_law: str = "coulomb"
 
     def __post_init__(self):
         beams = tuple(self.beams)
@@ -173,6 +182,7 @@ class Model:
             raise ValueError(f"topology: expected one of {TOPOLOGIES}, got {self.topology!r}")
         if self.topology == "circular" and len(beams) < 3:
             raise ValueError("topology: a circular array needs at least 3 beams")
+        choice(*CONTACT_LAWS)(self.contact_law, "contact_law")
         if not isinstance(self.excitation, Excitation):
             raise ValueError("excitation: expected an Excitation")
         for t in beams:

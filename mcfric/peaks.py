@@ -15,6 +15,7 @@ import numpy as np
 
 from .core import peaks as _kernel
 from .metric import QUANTITIES, check_quantity
+from .model import CONTACT_LAWS
 from .validators import integer, real
 
 #: Default relative tolerance of a refined peak's amplitude.
@@ -143,7 +144,8 @@ def refine(model, result, omega, modal_freq_hz, settings, mu0, N0, kc, tol, max_
         mu0, N0, kc, float(tol), int(max_iter), result.response, result.s, result.status,
         beams.astype(np.int64), np.int64(QUANTITIES.index(settings.quantity)), np.int64(n),
         float(settings.rtol), np.int64(settings.window),
-        out_w, out_m, out_y, out_st, out_fold, out_wd, out_md)
+        out_w, out_m, out_y, out_st, out_fold, out_wd, out_md,
+        np.int64(CONTACT_LAWS.index(model.contact_law)))
     # largest refined peak first (the kernel ranks them by their grid values)
     order = np.argsort(np.where(np.isnan(out_m), np.inf, -out_m), axis=1, kind="stable")
     take = np.take_along_axis

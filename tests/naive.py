@@ -148,13 +148,20 @@ def uncoupled_response(omega, beams, F, contact=0, output=1, drive=2):
 # ----------------------------------------------------------------------------- nonlinear solve
 
 
+def describing_function_cubic(s, kc):
+    """K(s) of the stiffening spring f = kc (z + z^3 / (0.75 a^2)), a = mu0 N0 / kc:
+    K = kc (1 + (A/a)^2) = kc (1 + 1/s^2) (the harmonic-balance term of a cubic spring)."""
+    return complex(kc * (1.0 + 1.0 / float(s) ** 2))
+
+
 def solve_point(omega, beams, pairs, F, mu0, N0, kc, contact=0, output=1, drive=2, starts=None,
-                tol=1e-12, accept=1e-10):
+                tol=1e-12, accept=1e-10, law="coulomb"):
     """Nonlinear single-harmonic solve at one frequency (see module docstring for the formulation).
     Unknowns are s_j of the active dampers (mu0 N0 > 0 and kc > 0), solved in x = log s.
     tol: solver xtol; accept: a candidate is kept only if max_j |r_j|/(mu0_j N0_j) <= accept,
     r_j = s_j kc_j A_j(s) - mu0_j N0_j checked directly (solver flags are ignored).
     starts: optional list of s-vectors over the active dampers (or over all dampers).
+    law: "coulomb" (the paper's damper) or "cubic" (describing_function_cubic).
     Returns a list of distinct roots dict(s, y_output, y_contact, residual); s is 0 for
     mu0 N0 == 0 dampers (also when kc == 0 too) and inf for kc == 0 dampers with mu0 N0 > 0.
     Note: if q_j vanishes identically (e.g. identical beams driven in phase) the stuck root is s = inf;
@@ -174,7 +181,8 @@ def solve_point(omega, beams, pairs, F, mu0, N0, kc, contact=0, output=1, drive=
 
     def response(s_act):
         s = full_s(s_act)
-        K = np.array([describing_function(s[j], kc[j]) if j in active else 0j for j in range(nd)])
+        df = describing_function if law == "coulomb" else describing_function_cubic
+        K = np.array([df(s[j], kc[j]) if j in active else 0j for j in range(nd)])
         return _solve_physical(D, Fext, index, pairs, K, contact, output)
 
     def rel_residual(s_act):                      # r_j / (mu0_j N0_j)

@@ -7,8 +7,8 @@ import pytest
 from scipy import optimize
 
 import mcfric
-from mcfric import config, ensemble
-from mcfric.peaks import REFINED, PeakSettings, file_report
+from mcfric import TABLE_1, Excitation, Model, config, ensemble
+from mcfric.peaks import FOLD_FOUND, REFINED, PeakSettings, file_report
 
 from . import naive
 from .conftest import naive_beams, naive_pairs
@@ -107,3 +107,48 @@ def test_fold_search_over_the_default_ensemble(tmp_path):
     assert rep["unchecked"] == 0
     # the refined peaks lift the statistics the default grid reports
     assert rep["grid_ratio"] < 0.8
+
+
+def _naive_sweep(model, freqs, mu0, kc, N0, law):
+    """A stepped sine with tests/naive.py: each frequency solved from the previous root."""
+    beams, pairs, force = naive_beams(model), naive_pairs(model), model.force
+    s, out = None, []
+    for fk in freqs:
+        roots = naive.solve_point(2 * np.pi * fk, beams, pairs, force, [mu0], [N0], [kc],
+                                  starts=None if s is None else [s], law=law)
+        assert roots, fk
+        # the root continued from the last one
+        rt = roots[0] if s is None else min(
+            roots, key=lambda r: np.max(np.abs(np.log(r["s"] / s))))
+        s = rt["s"]
+        out.append(np.max(np.abs(rt["y_output"])))
+    return np.array(out)
+
+
+def test_folds_are_flagged_and_confirmed_by_independent_sweeps():
+    """A stiffening spring between two lightly damped beams, driven hard, has two steady
+    states over a band (the bent-over resonance of a hardening oscillator): mcfric flags
+    the fold and reports both branches' peaks, and stepped sines of tests/naive.py up and
+    down reach the two branches at the same frequencies."""
+    model = Model.identical(TABLE_1, 2, excitation=Excitation("single", 0.22, beam=1),
+                            contact_law="cubic")
+    mu0, kc, N0 = 0.277, 705.0, 0.5
+    f = np.linspace(10.0, 80.0, 500)
+    r = mcfric.solve(model, f, mu0, kc, N0, peaks=PeakSettings(count=2, window=6))
+    P = r.peaks
+    p = int(np.flatnonzero(P.fold[0] == FOLD_FOUND)[0])
+    f_up, m_up = P.freq_hz[0, p], P.metric[0, p]
+    assert 0 < P.metric_down[0, p] < 0.1 * m_up            # the branch from above is low
+    # independent stepped sines: up from 30 Hz and down from 70 Hz to just below the fold
+    check = np.array([f_up - 2.0, f_up - 1.0, f_up - 0.3])
+    up = _naive_sweep(model, np.concatenate([np.arange(30.0, check[0], 0.25), check]),
+                      mu0, kc, N0, "cubic")[-3:]
+    down = _naive_sweep(model, np.concatenate([np.arange(70.0, check[-1], -0.25),
+                                               check[::-1]]), mu0, kc, N0, "cubic")[-3:][::-1]
+    assert np.all(down < 0.1 * up)                          # two steady states there
+    # mcfric's upward sweep is the naive upward branch
+    ours = mcfric.solve(model, np.concatenate([np.arange(30.0, check[0], 0.25), check]), mu0,
+                        kc, N0).metric()[0, -3:]
+    np.testing.assert_allclose(ours, up, rtol=1e-6)
+    # the refined upward peak is at the top of the upper branch, above every naive point
+    assert m_up >= up.max()

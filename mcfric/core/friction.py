@@ -173,6 +173,27 @@ def kappa_logs(x):
     return kappa_slip(s)
 
 
+#: Contact laws of the dense solvers: Coulomb friction in series with a stiffness (the
+#: paper's, and the only one of the fast kernels), and a stiffening spring used to test
+#: the detection of multiple steady states.
+LAW_COULOMB = 0
+LAW_CUBIC = 1
+
+
+@inline_jit
+def kappa_law_logs(x, law):
+    """``K / kc`` and ``d(K/kc)/d(log s)`` of the contact law ``law``.
+
+    ``LAW_COULOMB``: :func:`kappa_logs`. ``LAW_CUBIC``: the describing function of a
+    spring ``f = kc (z + z^3 / (0.75 a^2))``, ``K = kc (1 + (A / a)^2)`` with
+    ``a = mu0 N0 / kc`` (so ``A / a = 1 / s``): real, stiffening, no dissipation.
+    """
+    if law == LAW_COULOMB:
+        return kappa_logs(x)
+    e = math.exp(-2.0 * x)
+    return complex(1.0 + e, 0.0), complex(-2.0 * e, 0.0)
+
+
 @jit
 def describing_function(s, kc):
     """Describing function ``K(s)`` in N/m (complex; Re = stiffness, Im = dissipation).

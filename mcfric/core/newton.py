@@ -26,7 +26,7 @@ import math
 import numpy as np
 
 from ._jit import inline_jit, jit
-from .friction import kappa_logs, kappa_slip
+from .friction import LAW_COULOMB, kappa_law_logs, kappa_slip
 from .linalg import cinv, contact_solve, lm_step, lu_factor, lu_solve
 
 #: Status codes of one solve.
@@ -45,8 +45,8 @@ _TARGET = 1e-1
 
 
 @inline_jit
-def _log_residual(x, c, active, q, f, nd):
-    """Residual ``f`` from ``q``; solves stuck dampers exactly (updates ``x``).
+def _log_residual(x, c, active, q, f, nd, law):
+    """Residual ``f`` from ``q``; solves stuck Coulomb dampers exactly (updates ``x``).
 
     Returns ``sum f^2``, or ``inf`` when it is not finite.
     """
@@ -57,7 +57,7 @@ def _log_residual(x, c, active, q, f, nd):
             continue
         q2 = q[j].real * q[j].real + q[j].imag * q[j].imag
         lq = 0.5 * math.log(q2)
-        if x[j] >= 0.0:
+        if x[j] >= 0.0 and law == LAW_COULOMB:
             t = c[j] - lq           # log s that makes damper j consistent with this q
             if t >= 0.0:
                 x[j] = t
@@ -74,27 +74,27 @@ def _log_residual(x, c, active, q, f, nd):
 
 
 @inline_jit
-def _damper_K(x, kc, active, K, nd):
+def _damper_K(x, kc, active, K, nd, law):
     for j in range(nd):
-        K[j] = kc[j] * kappa_logs(x[j])[0] if active[j] else 0.0j
+        K[j] = kc[j] * kappa_law_logs(x[j], law)[0] if active[j] else 0.0j
 
 
 @inline_jit
-def _residual_dense(x, kc, c, active, G, q0, K, q, f, T, piv, nd):
+def _residual_dense(x, kc, c, active, G, q0, K, q, f, T, piv, nd, law):
     """Residual on the dense path; leaves the LU factors of ``I + G K`` in ``T``."""
-    _damper_K(x, kc, active, K, nd)
+    _damper_K(x, kc, active, K, nd, law)
     if contact_solve(G, K, q0, T, piv, q, nd) != 0:
         return math.inf
-    return _log_residual(x, c, active, q, f, nd)
+    return _log_residual(x, c, active, q, f, nd, law)
 
 
 @inline_jit
-def _sensitivities(x, kc, active, q, h, e, nd):
+def _sensitivities(x, kc, active, q, h, e, nd, law):
     """``h_j = dK_j/dx_j q_j`` and ``e_j = conj(q_j)/|q_j|^2`` (0 where undefined)."""
     for j in range(nd):
         q2 = q[j].real * q[j].real + q[j].imag * q[j].imag
         if active[j] and q2 > 0.0:
-            h[j] = kc[j] * kappa_logs(x[j])[1] * q[j]
+            h[j] = kc[j] * kappa_law_logs(x[j], law)[1] * q[j]
             r2 = 1.0 / q2
             e[j] = complex(q[j].real * r2, -q[j].imag * r2)
         else:
@@ -103,12 +103,12 @@ def _sensitivities(x, kc, active, q, h, e, nd):
 
 
 @inline_jit
-def _jacobian_dense(x, kc, active, G, T, piv, q, h, e, X, J, nd):
+def _jacobian_dense(x, kc, active, G, T, piv, q, h, e, X, J, nd, law):
     """Dense Jacobian ``J = df/dx`` using the LU factors of ``I + G K`` held in ``T``.
 
     ``X`` (nd,) is scratch for one column of ``(I + G K)^-1 G diag(h)``.
     """
-    _sensitivities(x, kc, active, q, h, e, nd)
+    _sensitivities(x, kc, active, q, h, e, nd, law)
     for j in range(nd):
         # column j of X = (I + G K)^-1 G e_j h_j
         for i in range(nd):
@@ -119,8 +119,8 @@ def _jacobian_dense(x, kc, active, G, T, piv, q, h, e, X, J, nd):
 
 
 @inline_jit
-def _step_dense(x, kc, active, G, T, piv, q, f, dx, h, e, X, J, rpiv, nd):
-    _jacobian_dense(x, kc, active, G, T, piv, q, h, e, X, J, nd)
+def _step_dense(x, kc, active, G, T, piv, q, f, dx, h, e, X, J, rpiv, nd, law):
+    _jacobian_dense(x, kc, active, G, T, piv, q, h, e, X, J, nd, law)
     for j in range(nd):
         dx[j] = -f[j]
     info = lu_factor(J, rpiv, nd)
@@ -162,7 +162,7 @@ def _copy_state(src_x, src_q, src_K, src_f, x, q, K, f, nd):
 
 
 @jit
-def newton(x, kc, c, active, G, q0, tol, max_iter, w):
+def newton(x, kc, c, active, G, q0, tol, max_iter, w, law):
     """Damped Newton iteration in ``x = log s`` from the guess in ``x`` (dense path).
 
     Parameters
@@ -180,13 +180,16 @@ def newton(x, kc, c, active, G, q0, tol, max_iter, w):
     q0 : ndarray of complex, shape (nd,)
         Relative contact displacement of the uncoupled array, m.
     tol : float
-        Accepted relative force residual ``max |f_j|``; iterations aim at ``tol / 100``
+        Accepted relative force residual ``max |f_j|``; iterations aim at ``tol / 10``
         and stop early only at a stall within ``tol``.
     max_iter : int
         Newton iterations allowed.
     w : tuple
         Workspace from :func:`workspace`; on return ``w[0]``, ``w[1]``, ``w[2]`` hold
         ``K``, ``q`` and ``f`` at ``x``.
+    law : int
+        The contact law (:data:`~mcfric.core.friction.LAW_COULOMB`, the paper's, or
+        :data:`~mcfric.core.friction.LAW_CUBIC`).
 
     Returns
     -------
@@ -196,7 +199,7 @@ def newton(x, kc, c, active, G, q0, tol, max_iter, w):
     (K, q, f, xt, qt, Kt, ft, dx, h, e, T, piv, X, J, rpiv) = w
     nd = x.shape[0]
     target = _TARGET * tol
-    phi = _residual_dense(x, kc, c, active, G, q0, K, q, f, T, piv, nd)
+    phi = _residual_dense(x, kc, c, active, G, q0, K, q, f, T, piv, nd, law)
     if not math.isfinite(phi):
         return False, 0
     for it in range(max_iter + 1):
@@ -204,7 +207,7 @@ def newton(x, kc, c, active, G, q0, tol, max_iter, w):
             return True, it
         if it == max_iter:
             break
-        info = _step_dense(x, kc, active, G, T, piv, q, f, dx, h, e, X, J, rpiv, nd)
+        info = _step_dense(x, kc, active, G, T, piv, q, f, dx, h, e, X, J, rpiv, nd, law)
         if info != 0 or not _limit_step(dx, nd):
             return _max_abs(f, nd) <= tol, it
         lam = 1.0
@@ -212,7 +215,7 @@ def newton(x, kc, c, active, G, q0, tol, max_iter, w):
         for _ in range(_MAX_HALVINGS):
             for j in range(nd):
                 xt[j] = x[j] + lam * dx[j]
-            phit = _residual_dense(xt, kc, c, active, G, q0, Kt, qt, ft, T, piv, nd)
+            phit = _residual_dense(xt, kc, c, active, G, q0, Kt, qt, ft, T, piv, nd, law)
             if phit <= (1.0 - 2.0 * _ARMIJO * lam) * phi:
                 accepted = True
                 break
@@ -225,7 +228,7 @@ def newton(x, kc, c, active, G, q0, tol, max_iter, w):
 
 
 @jit
-def levenberg_marquardt(x, kc, c, active, G, q0, tol, w):
+def levenberg_marquardt(x, kc, c, active, G, q0, tol, w, law):
     """Levenberg-Marquardt on ``0.5 |f|^2`` in ``x = log s`` (dense), the last resort.
 
     Same arguments and returns as :func:`newton` (always the dense path).
@@ -234,7 +237,7 @@ def levenberg_marquardt(x, kc, c, active, G, q0, tol, w):
     nd = x.shape[0]
     A = np.empty((nd, nd))
     g = np.empty(nd)
-    phi = _residual_dense(x, kc, c, active, G, q0, K, q, f, T, piv, nd)
+    phi = _residual_dense(x, kc, c, active, G, q0, K, q, f, T, piv, nd, law)
     if not math.isfinite(phi):
         return False, 0
     lam = 1e-3
@@ -245,7 +248,7 @@ def levenberg_marquardt(x, kc, c, active, G, q0, tol, w):
         if it == _LM_MAX_ITER:
             break
         # T holds the LU of the accepted point: build J there
-        _jacobian_dense(x, kc, active, G, T, piv, q, h, e, X, J, nd)
+        _jacobian_dense(x, kc, active, G, T, piv, q, h, e, X, J, nd, law)
         for i in range(nd):
             acc = 0.0
             for k in range(nd):
@@ -261,7 +264,7 @@ def levenberg_marquardt(x, kc, c, active, G, q0, tol, w):
                 continue
             for j in range(nd):
                 xt[j] = x[j] + dx[j]
-            phit = _residual_dense(xt, kc, c, active, G, q0, Kt, qt, ft, T, piv, nd)
+            phit = _residual_dense(xt, kc, c, active, G, q0, Kt, qt, ft, T, piv, nd, law)
             if phit < phi:
                 improved = True
                 break

@@ -83,7 +83,7 @@ def _receptances_at(omega, r, modal_f, zeta, u, rec1):
 
 @jit
 def _solve_at(omega, r, modal_f, zeta, u, force, a, b, kc, c, act, x, tol, max_iter, w,
-              rec1, G, q0, y):
+              rec1, G, q0, y, law):
     """Solve one frequency from the guess ``x`` (log s); fills ``y`` (output amplitudes
     of every beam, m) and ``x``. Newton, then Newton from ``s = 1``, then
     Levenberg-Marquardt; returns False if all fail."""
@@ -106,15 +106,15 @@ def _solve_at(omega, r, modal_f, zeta, u, force, a, b, kc, c, act, x, tol, max_i
     for j in range(nd):
         if not math.isfinite(x[j]):
             x[j] = 0.0
-    ok, _ = newton(x, kc, c, act, G, q0, tol, max_iter, w)
+    ok, _ = newton(x, kc, c, act, G, q0, tol, max_iter, w, law)
     if not ok:
         for j in range(nd):
             x[j] = 0.0
-        ok, _ = newton(x, kc, c, act, G, q0, tol, max_iter, w)
+        ok, _ = newton(x, kc, c, act, G, q0, tol, max_iter, w, law)
     if not ok:
         for j in range(nd):
             x[j] = 0.0
-        ok, _ = levenberg_marquardt(x, kc, c, act, G, q0, tol, w)
+        ok, _ = levenberg_marquardt(x, kc, c, act, G, q0, tol, w, law)
     if not ok:
         return False
     K, q = w[0], w[1]
@@ -159,14 +159,14 @@ def _add_point(om, src, P, S):
     """Solve at ``om`` (rad/s) from the state ``src`` and store it as the next point of
     ``S = (w, m, x, y, count)``; returns its index, or -1 (not converged, or no room)."""
     (r, modal_f, zeta, u, force, a, b, kc, c, act, tol, max_iter, w, rec1, G, q0, beams,
-     power, xs, ys) = P
+     power, xs, ys, law) = P
     if S[4][0] >= S[0].shape[0]:
         return -1
     nd = a.shape[0]
     for j in range(nd):
         xs[j] = src[j]
     if not _solve_at(om, r, modal_f, zeta, u, force, a, b, kc, c, act, xs, tol, max_iter,
-                     w, rec1, G, q0, ys):
+                     w, rec1, G, q0, ys, law):
         return -1
     return _seed(om, xs, ys, _metric_of(ys, om, beams, power), S)
 
@@ -357,7 +357,7 @@ def _log_s(s, i, k, nd, x):
 @jit
 def _member(i, omega, modal_f, zeta, u, force, a, b, mu0, N0, kc, tol, max_iter, y, s,
             status, beams, power, n_peaks, rtol, window, pk_w, pk_m, pk_y, pk_st, fold,
-            pkd_w, pkd_m):
+            pkd_w, pkd_m, law):
     """Peaks and folds of sample ``i`` (see the module docstring)."""
     n_f = omega.shape[0]
     nd = a.shape[0]
@@ -374,7 +374,7 @@ def _member(i, omega, modal_f, zeta, u, force, a, b, mu0, N0, kc, tol, max_iter,
     P = (r, modal_f, zeta, u, force, a, b, kc1, c1, act, tol, max_iter, workspace(nd),
          np.empty((4, n_beams), np.complex128), np.empty((nd, nd), np.complex128),
          np.empty(nd, np.complex128), beams, power, np.empty(nd),
-         np.empty(n_beams, np.complex128))
+         np.empty(n_beams, np.complex128), law)
     cap = 2 * N_SUB + 2 * MAX_STEPS + 2 * window + 8
     S = (np.empty(cap), np.empty(cap), np.empty((cap, nd)),
          np.empty((cap, n_beams), np.complex128), np.zeros(1, np.int64))
@@ -487,7 +487,7 @@ def _member(i, omega, modal_f, zeta, u, force, a, b, mu0, N0, kc, tol, max_iter,
 @jit(parallel=True, nogil=True)
 def refine_peaks(omega, modal_f, zeta, u, force, a, b, mu0, N0, kc, tol, max_iter, y, s,
                  status, beams, power, n_peaks, rtol, window, pk_w, pk_m, pk_y, pk_st, fold,
-                 pkd_w, pkd_m):
+                 pkd_w, pkd_m, law):
     """Resolved peaks and fold checks of every sample, after its sweep.
 
     Parameters
@@ -520,8 +520,10 @@ def refine_peaks(omega, modal_f, zeta, u, force, a, b, mu0, N0, kc, tol, max_ite
         Outputs per (sample, peak): frequency (rad/s), metric and responses (m) of the
         upward branch's peak, its status, the fold flag, and the downward branch's peak
         frequency and metric.
+    law : int
+        The contact law (:mod:`.friction`).
     """
     for i in prange(mu0.shape[0]):
         _member(i, omega, modal_f, zeta, u, force, a, b, mu0, N0, kc, tol, max_iter, y, s,
                 status, beams, power, n_peaks, rtol, window, pk_w, pk_m, pk_y, pk_st, fold,
-                pkd_w, pkd_m)
+                pkd_w, pkd_m, law)

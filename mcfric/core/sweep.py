@@ -34,7 +34,7 @@ omega : ndarray of float64, shape (n_f,)
 mu0, N0, kc : ndarray of float64, shape (n_s, nd)
     Friction coefficient (-), normal preload (N), tangential stiffness (N/m).
 tol : float
-    Accepted relative residual ``|s kc A / (mu0 N0) - 1|``; iterations aim 100x lower.
+    Accepted relative residual ``|s kc A / (mu0 N0) - 1|``; iterations aim 10x lower.
 max_iter : int
     Newton iterations per attempt.
 y : ndarray of complex128, shape (n_s, n_f, n_beams)
@@ -57,7 +57,7 @@ from numba import prange
 
 from . import chain_newton
 from ._jit import inline_jit, jit
-from .friction import MIN_NORMAL, log_normal
+from .friction import LAW_COULOMB, MIN_NORMAL, log_normal
 from .linalg import LANES
 from .newton import (
     CONVERGED,
@@ -172,7 +172,7 @@ def _dense_G(rec, r, k, a, b, G, nd):
 
 
 @jit
-def _fallback(rec, r, k, a, b, kc, c, active, q0, G, x, tol, max_iter, w):
+def _fallback(rec, r, k, a, b, kc, c, active, q0, G, x, tol, max_iter, w, law):
     """Dense Newton restarted from s = 1, then Levenberg-Marquardt from s = 1.
 
     Returns (ok, iterations, status); ``x`` and the workspace hold the final state.
@@ -181,12 +181,12 @@ def _fallback(rec, r, k, a, b, kc, c, active, q0, G, x, tol, max_iter, w):
     _dense_G(rec, r, k, a, b, G, nd)
     for j in range(nd):
         x[j] = 0.0
-    ok, its = newton(x, kc, c, active, G, q0, tol, max_iter, w)
+    ok, its = newton(x, kc, c, active, G, q0, tol, max_iter, w, law)
     if ok:
         return True, its, CONVERGED_RESTART
     for j in range(nd):
         x[j] = 0.0
-    ok, its2 = levenberg_marquardt(x, kc, c, active, G, q0, tol, w)
+    ok, its2 = levenberg_marquardt(x, kc, c, active, G, q0, tol, w, law)
     return ok, its + its2, CONVERGED_LM
 
 
@@ -356,7 +356,7 @@ def _chain_batch(g, rec, force, a, b, W, mu0, N0, kc, tol, max_iter,
                     act1[j] = actl[j, l]
                     q01[j] = q0[j, l]
                 good, n2, st = _fallback(rec, r, k, a, b, kc1, c1, act1, q01, G, xs,
-                                         tol, max_iter, wd)
+                                         tol, max_iter, wd, LAW_COULOMB)
                 n_it += n2
                 for j in range(nd):
                     x[j, l] = xs[j]
@@ -409,17 +409,18 @@ def _chain_batch(g, rec, force, a, b, W, mu0, N0, kc, tol, max_iter,
 
 @jit(parallel=True, nogil=True)
 def sweep_dense(rec, force, a, b, omega, mu0, N0, kc, tol, max_iter,
-                y, s, status, iterations, residual):
-    """Harmonic balance of any damper graph (rings), one sample at a time, dense LU."""
+                y, s, status, iterations, residual, law):
+    """Harmonic balance of any damper graph (rings), or any contact law (``law``, see
+    :mod:`mcfric.core.friction`), one sample at a time, dense LU."""
     W = predict_weights(omega)
     for i in prange(mu0.shape[0]):
         _dense_sample(i, rec, force, a, b, W, mu0, N0, kc, tol, max_iter,
-                      y, s, status, iterations, residual)
+                      y, s, status, iterations, residual, law)
 
 
 @jit
 def _dense_sample(i, rec, force, a, b, W, mu0, N0, kc, tol, max_iter,
-                  y, s, status, iterations, residual):
+                  y, s, status, iterations, residual, law):
     """Sample ``i`` of :func:`sweep_dense`, all frequencies."""
     n_r = rec.shape[0]
     n_f = W.shape[1]
@@ -458,11 +459,11 @@ def _dense_sample(i, rec, force, a, b, W, mu0, N0, kc, tol, max_iter,
         _predict(xg, xp, W, 0, k, have, nd)
         for j in range(nd):
             x[j] = xg[j, 0]
-        ok, its = newton(x, kc1, c1, act1, G, q0, tol, max_iter, w)
+        ok, its = newton(x, kc1, c1, act1, G, q0, tol, max_iter, w, law)
         st = CONVERGED
         if not ok:
             ok, its2, st = _fallback(rec, r, k, a, b, kc1, c1, act1, q0, G, x, tol,
-                                     max_iter, w)
+                                     max_iter, w, law)
             its += its2
         for j in range(nd):
             xg[j, 0] = x[j]
