@@ -13,7 +13,9 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from .core import multi_harmonic as _multi_harmonic
 from .core import sweep as _sweep
+from .core.aft import harmonic_orders
 from .core.newton import NOT_CONVERGED
 from .metric import response_metric
 from .model import CONTACT_LAWS, Model
@@ -52,6 +54,11 @@ class HBMResult:
         The parameters solved for (N0 in N, kc in N/m).
     peaks : Peaks or None
         The refined peaks of every member (:mod:`mcfric.peaks`), when asked for.
+    harmonics : int
+        Highest odd harmonic balanced (1: the single-harmonic describing function).
+    response_peak : ndarray, shape (n_s, n_f, n_beams) or None
+        With ``harmonics > 1``: the largest ``|x(t)|`` over a period at the output of
+        every beam, all harmonics together, m. NaN where not converged.
     """
 
     freq_hz: np.ndarray
@@ -64,6 +71,8 @@ class HBMResult:
     kc: np.ndarray
     N0: np.ndarray
     peaks: Peaks | None = None
+    harmonics: int = 1
+    response_peak: np.ndarray | None = None
 
     @property
     def converged(self):
@@ -96,7 +105,8 @@ class HBMResult:
 
 
 def solve(model, freq_hz, mu0, kc, N0=0.5, *, modal_freq_hz=None, tol=TOL,
-          max_iter=MAX_ITER, n_threads=None, peaks=None):
+          max_iter=MAX_ITER, n_threads=None, peaks=None, harmonics=1, n_time=None,
+          aft=False):
     """Single-harmonic balance of a friction-coupled array for many parameter sets.
 
     Each sample sweeps the frequencies in the order given (upward for a sorted grid),
@@ -123,7 +133,18 @@ def solve(model, freq_hz, mu0, kc, N0=0.5, *, modal_freq_hz=None, tol=TOL,
     peaks : PeakSettings or int, optional
         Refine the largest peaks of every member after its sweep (an int: that many
         peaks of the displacement metric over all beams, default settings); needs an
-        increasing frequency grid. None: no refinement.
+        increasing frequency grid. None: no refinement. Single-harmonic only.
+    harmonics : int
+        Balance the odd harmonics ``1, 3, ..., harmonics`` of the contact motion (docs:
+        theory, "Multi-harmonic balance"); 1 (default) is the describing-function model.
+        Each point of a multi-harmonic solve starts from the single-harmonic solution,
+        which is computed first.
+    n_time : int, optional
+        AFT samples per period that bracket the stick-slip events; default
+        ``max(32, 8 harmonics)``; at least ``4 harmonics + 4``.
+    aft : bool
+        Solve ``harmonics = 1`` through the multi-harmonic (AFT) kernel as well, to check
+        one kernel against the other.
 
     Returns
     -------
@@ -154,14 +175,94 @@ def solve(model, freq_hz, mu0, kc, N0=0.5, *, modal_freq_hz=None, tol=TOL,
         raise ValueError(f"peaks: expected a PeakSettings or a count, got {peaks!r}")
     if peaks is not None and np.any(np.diff(f) <= 0):
         raise ValueError("peaks: refinement needs increasing frequencies")
+    harmonics, n_time = check_harmonics(harmonics, n_time)
+    if peaks is not None and (harmonics > 1 or aft):
+        raise ValueError("peaks: refinement is single-harmonic only (harmonics = 1)")
+    if harmonics > 1 or aft:
+        check_harmonic_memory(model, harmonics, n_time, len(f),
+                              1 if modal_freq_hz is None else n_s)
     rec = model.receptances(omega, modal_freq_hz)
     with threads(n_threads):
         out = allocate(n_s, len(f), model.n_beams, nd, numba.get_num_threads())
         args = run_kernel(model, rec, omega, p["mu0"], p["N0"], p["kc"], tol, max_iter, *out)
         result = HBMResult(f, *out, mu0=p["mu0"], kc=p["kc"], N0=p["N0"])
+        if harmonics > 1 or aft:
+            multi_harmonic(model, result, omega, modal_freq_hz, harmonics, n_time, tol,
+                           max_iter, args)
         if peaks is not None:
             mf = model.modal_arrays()[0][None] if modal_freq_hz is None else modal_freq_hz
             result.peaks = refine(model, result, omega, mf, peaks, *args, tol, max_iter)
+    return result
+
+
+#: Largest number of odd harmonics and of AFT samples accepted (beyond them the dense
+#: Newton system and the event brackets cost more than any use justifies).
+MAX_HARMONICS = 99
+MAX_N_TIME = 65536
+#: Memory the multi-harmonic receptances may take, bytes.
+MAX_HARMONIC_BYTES = 8 * 2**30
+
+
+def check_harmonics(harmonics, n_time=None):
+    """Validate ``harmonics`` (odd, 1..99) and ``n_time``; return both (default n_time)."""
+    if (isinstance(harmonics, bool) or not isinstance(harmonics, (int, np.integer))
+            or not 1 <= harmonics <= MAX_HARMONICS or harmonics % 2 == 0):
+        raise ValueError(f"harmonics: expected an odd integer in 1..{MAX_HARMONICS} (the odd "
+                         f"harmonics 1, 3, ..., H are balanced), got {harmonics!r}")
+    harmonics = int(harmonics)
+    if n_time is None:
+        n_time = max(32, 8 * harmonics)
+    lo = 4 * harmonics + 4
+    if (isinstance(n_time, bool) or not isinstance(n_time, (int, np.integer))
+            or not lo <= n_time <= MAX_N_TIME):
+        raise ValueError(f"n_time: expected an integer in {lo}..{MAX_N_TIME} (at least "
+                         f"4 H + 4 samples per period for H = {harmonics}), got {n_time!r}")
+    return harmonics, int(n_time)
+
+
+def check_harmonic_memory(model, harmonics, n_time, n_f, n_r):
+    """Refuse a multi-harmonic solve whose receptances would not fit in memory."""
+    n_h = (harmonics + 1) // 2
+    need = 16.0 * n_r * n_h * n_f * 4 * model.n_beams
+    need += 8.0 * (2 * model.n_dampers * n_h) ** 2 * numba.get_num_threads()
+    if need > MAX_HARMONIC_BYTES:
+        raise ValueError(f"harmonics: H = {harmonics} needs {need / 2**30:.3g} GiB for "
+                         f"this model and grid (limit {MAX_HARMONIC_BYTES / 2**30:.0f} GiB); "
+                         "use fewer harmonics, frequencies or samples per call")
+
+
+def multi_harmonic(model, result, omega, modal_freq_hz, harmonics, n_time, tol, max_iter,
+                   params):
+    """Replace a single-harmonic ``result`` in place by the multi-harmonic solution.
+
+    The single-harmonic slip ratios are the starting points; a point converged there but
+    not here is reported as not converged (status -1), never as the single-harmonic value.
+    """
+    mu0, N0, kc = params
+    orders = harmonic_orders(harmonics)
+    n_h = len(orders)
+    recs = [model.receptances(n * omega, modal_freq_hz) for n in orders]
+    n_r = recs[0].shape[0]
+    rech = np.empty((n_r * n_h,) + recs[0].shape[1:], dtype=np.complex128)
+    for h, r in enumerate(recs):
+        rech[h::n_h] = r
+    a, b = (x.astype(np.int64) for x in model.dampers)
+    force = np.ascontiguousarray(model.force, dtype=np.complex128)
+    s1 = np.ascontiguousarray(result.s)
+    n_s, n_f, n_beams = result.response.shape
+    y = np.empty_like(result.response)
+    y_peak = np.empty((n_s, n_f, n_beams))
+    s = np.empty_like(result.s)
+    status = np.empty_like(result.status)
+    iterations = np.empty_like(result.iterations)
+    residual = np.empty_like(result.residual)
+    _multi_harmonic.sweep_multi_harmonic(
+        rech, force, a, b, orders, np.ascontiguousarray(omega), mu0, N0, kc, int(n_time), s1,
+        float(tol), int(max_iter), y, y_peak, s, status, iterations, residual)
+    result.response, result.s, result.status = y, s, status
+    result.iterations, result.residual = iterations, residual
+    result.harmonics = harmonics
+    result.response_peak = y_peak
     return result
 
 

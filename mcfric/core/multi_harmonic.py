@@ -1,0 +1,286 @@
+"""Multi-harmonic balance of the contact-space equations: Newton on the AFT, ``prange``
+over samples.
+
+Unknowns are the odd harmonics ``Q_jh`` of the relative contact displacement of every
+damper ``j``. The contact-space reduction holds per harmonic, at ``n_h omega``::
+
+    R_jh = Q_jh + sum_l G_jl(n_h omega) F_lh(Q_l) - q0_j(omega) [h = fundamental] = 0,
+
+with ``F_lh`` the harmonics of damper ``l``'s force from :func:`mcfric.core.aft.jenkins` and
+``q0`` nonzero only at the fundamental (the drive is a pure harmonic). Newton works on
+the real and imaginary parts (the force is not complex-analytic in ``Q``) with the exact
+AFT Jacobian, a dense LU of size ``2 nd n_h``, and a halving line search.
+
+Each sample sweeps the frequencies in order. A point starts from the previous frequency's
+solution; if that fails (or at the first frequency), from the single-harmonic solution of
+the same point (passed in as its slip ratios), with zero higher harmonics.
+
+Arguments
+---------
+rech : ndarray of complex128, shape (n_r * n_h, n_f, 4, n_beams)
+    Receptances at ``n_h omega`` (row ``r * n_h + h``), m/N.
+force, a, b, omega, mu0, N0, kc, tol, max_iter
+    As for :mod:`mcfric.core.sweep` (``tol`` relative to the largest fundamental
+    contact displacement).
+orders : ndarray of int64, shape (n_h,)
+    Odd harmonic orders, 1 first.
+n_time : int
+    AFT samples per period (event brackets).
+s1 : ndarray of float64, shape (n_s, n_f, nd)
+    Slip ratios of the single-harmonic solution (NaN where it failed).
+y : ndarray of complex128, shape (n_s, n_f, n_beams)
+    Out: fundamental of the output displacement, m.
+y_peak : ndarray of float64, shape (n_s, n_f, n_beams)
+    Out: largest ``|y(t)|`` over a period (sampled at ``4 n_time`` points), m.
+s : ndarray of float64, shape (n_s, n_f, nd)
+    Out: ``mu0 N0 / (kc |Q_j1|)``, the slip ratio of the fundamental.
+status, iterations, residual
+    Out: 0 from the previous frequency, 1 from the single-harmonic start, -1 not
+    converged (``y``, ``y_peak`` and ``s`` NaN); iterations of all attempts; the final
+    ``max |R| / max_j |Q_j1|``.
+"""
+
+import math
+
+import numpy as np
+from numba import prange
+
+from . import aft
+from ._jit import jit
+from .friction import kappa
+from .linalg import lu_factor, lu_solve
+from .receptance import D21, D23
+from .sweep import _dense_G, _q0
+
+_MAX_HALVINGS = 10
+
+
+@jit
+def _evaluate(Q, orders, G, q0, kc, fs, n_time, F, dF, R, work, nd, n_h):
+    """Force harmonics, their Jacobians and the residual; returns ``(max |R|, ok)``."""
+    ok = True
+    for j in range(nd):
+        if aft.jenkins(Q[j], orders, kc[j], fs[j], n_time, F[j], dF[j], work) < 0:
+            ok = False
+    err = 0.0
+    for j in range(nd):
+        for h in range(n_h):
+            r = Q[j, h]
+            for m in range(nd):
+                r += G[h, j, m] * F[m, h]
+            if h == 0:
+                r -= q0[j]
+            R[j, h] = r
+            err = max(err, abs(r))
+    if not math.isfinite(err):
+        ok = False
+    return err, ok
+
+
+@jit
+def _scale(Q, q0, nd):
+    s = 0.0
+    for j in range(nd):
+        s = max(s, abs(Q[j, 0]), abs(q0[j]))
+    return s if s > 0.0 else 1e-300
+
+
+@jit
+def _newton(Q, orders, G, q0, kc, fs, n_time, tol, max_iter, F, dF, R, J, piv, dx, Qt,
+            work, nd, n_h):
+    """Newton from ``Q`` (updated in place); returns ``(converged, iterations, err)``."""
+    n = 2 * nd * n_h
+    err, ok = _evaluate(Q, orders, G, q0, kc, fs, n_time, F, dF, R, work, nd, n_h)
+    if not ok:
+        return False, 0, math.inf
+    rel = err / _scale(Q, q0, nd)
+    for it in range(1, max_iter + 1):
+        if rel <= 0.1 * tol:
+            return True, it - 1, rel
+        for i in range(n):
+            for k in range(n):
+                J[i, k] = 0.0
+            J[i, i] = 1.0
+        for j in range(nd):
+            for h in range(n_h):
+                r0 = 2 * (j * n_h + h)
+                for l in range(nd):
+                    g = G[h, j, l]
+                    if g == 0.0:
+                        continue
+                    gr = g.real
+                    gi = g.imag
+                    for m in range(n_h):
+                        c0 = 2 * (l * n_h + m)
+                        a11 = dF[l, 2 * h, 2 * m]
+                        a12 = dF[l, 2 * h, 2 * m + 1]
+                        a21 = dF[l, 2 * h + 1, 2 * m]
+                        a22 = dF[l, 2 * h + 1, 2 * m + 1]
+                        J[r0, c0] += gr * a11 - gi * a21
+                        J[r0, c0 + 1] += gr * a12 - gi * a22
+                        J[r0 + 1, c0] += gi * a11 + gr * a21
+                        J[r0 + 1, c0 + 1] += gi * a12 + gr * a22
+        for j in range(nd):
+            for h in range(n_h):
+                dx[2 * (j * n_h + h)] = -R[j, h].real
+                dx[2 * (j * n_h + h) + 1] = -R[j, h].imag
+        if lu_factor(J, piv, n) != 0:
+            return False, it, rel
+        lu_solve(J, piv, dx, n)
+        step = 1.0
+        accepted = False
+        for _ in range(_MAX_HALVINGS):
+            for j in range(nd):
+                for h in range(n_h):
+                    i0 = 2 * (j * n_h + h)
+                    Qt[j, h] = Q[j, h] + step * complex(dx[i0], dx[i0 + 1])
+            err_t, ok = _evaluate(Qt, orders, G, q0, kc, fs, n_time, F, dF, R, work, nd, n_h)
+            if ok and err_t < err:
+                accepted = True
+                break
+            step *= 0.5
+        if not accepted:
+            # no decrease: at the rounding floor if already within tol, else stuck
+            _evaluate(Q, orders, G, q0, kc, fs, n_time, F, dF, R, work, nd, n_h)
+            return rel <= tol, it, rel
+        for j in range(nd):
+            for h in range(n_h):
+                Q[j, h] = Qt[j, h]
+        err = err_t
+        rel = err / _scale(Q, q0, nd)
+    return rel <= tol, max_iter, rel
+
+
+@jit
+def _single_harmonic_start(s1, G, q0, kc, Q, T, piv, nd, n_h):
+    """``Q`` from single-harmonic slip ratios: ``(I + G_1 K) q = q0``; False if unusable."""
+    for j in range(nd):
+        if math.isnan(s1[j]):
+            return False
+    for j in range(nd):
+        for m in range(nd):
+            T[j, m] = G[0, j, m] * kc[m] * kappa(s1[m])
+        T[j, j] += 1.0
+    if lu_factor(T, piv, nd) != 0:
+        return False
+    q = np.empty(nd, dtype=np.complex128)
+    for j in range(nd):
+        q[j] = q0[j]
+    lu_solve(T, piv, q, nd)
+    for j in range(nd):
+        Q[j, 0] = q[j]
+        for h in range(1, n_h):
+            Q[j, h] = 0.0j
+    return True
+
+
+@jit(parallel=True, nogil=True)
+def sweep_multi_harmonic(rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, tol,
+                         max_iter, y, y_peak, s, status, iterations, residual):
+    """Multi-harmonic sweep of every sample (module docstring for the arguments)."""
+    n_s = mu0.shape[0]
+    for i in prange(n_s):
+        _sample(i, rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, tol,
+                max_iter, y, y_peak, s, status, iterations, residual)
+
+
+@jit
+def _sample(i, rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, tol, max_iter,
+            y, y_peak, s, status, iterations, residual):
+    n_h = orders.shape[0]
+    nd = a.shape[0]
+    n_beams = force.shape[0]
+    n_f = omega.shape[0]
+    n = 2 * nd * n_h
+    r_base = 0
+    if rech.shape[0] > n_h:          # per-sample receptances (mistuned rigs)
+        r_base = np.int64(i) * n_h
+    G = np.empty((n_h, nd, nd), dtype=np.complex128)
+    q0 = np.empty(nd, dtype=np.complex128)
+    Q = np.zeros((nd, n_h), dtype=np.complex128)
+    Qp = np.zeros((nd, n_h), dtype=np.complex128)
+    Qt = np.zeros((nd, n_h), dtype=np.complex128)
+    F = np.zeros((nd, n_h), dtype=np.complex128)
+    dF = np.zeros((nd, 2 * n_h, 2 * n_h))
+    R = np.zeros((nd, n_h), dtype=np.complex128)
+    J = np.zeros((n, n))
+    T = np.zeros((nd, nd), dtype=np.complex128)
+    piv = np.zeros(n, dtype=np.int64)
+    dx = np.zeros(n)
+    work = np.zeros(aft.work_size(n_h, n_time))
+    yh = np.zeros((n_h, n_beams), dtype=np.complex128)
+    kci = kc[i]
+    fs = np.empty(nd)
+    for j in range(nd):
+        fs[j] = mu0[i, j] * N0[i, j]
+    have_prev = False
+    n_peak = 4 * n_time
+    # exp(i n_h theta) on the peak samples, once per sample
+    ph = np.empty((n_peak, n_h), dtype=np.complex128)
+    for t in range(n_peak):
+        for h in range(n_h):
+            th = 2.0 * math.pi * orders[h] * t / n_peak
+            ph[t, h] = complex(math.cos(th), math.sin(th))
+    for k in range(n_f):
+        for h in range(n_h):
+            _dense_G(rech, r_base + h, k, a, b, G[h], nd)
+        for j in range(nd):
+            q0[j] = _q0(rech, r_base, k, force, a, b, j)
+        its = 0
+        ok = False
+        st = 0
+        rel = math.inf
+        if have_prev:
+            for j in range(nd):
+                for h in range(n_h):
+                    Q[j, h] = Qp[j, h]
+            ok, it, rel = _newton(Q, orders, G, q0, kci, fs, n_time, tol, max_iter, F, dF,
+                                  R, J, piv, dx, Qt, work, nd, n_h)
+            its += it
+        if not ok:
+            st = 1 if have_prev else 0
+            if _single_harmonic_start(s1[i, k], G, q0, kci, Q, T, piv, nd, n_h):
+                ok, it, rel = _newton(Q, orders, G, q0, kci, fs, n_time, tol, max_iter, F,
+                                      dF, R, J, piv, dx, Qt, work, nd, n_h)
+                its += it
+        iterations[i, k] = min(its, 32767)
+        residual[i, k] = rel
+        if not ok:
+            status[i, k] = -1
+            have_prev = False
+            for bb in range(n_beams):
+                y[i, k, bb] = complex(math.nan, math.nan)
+                y_peak[i, k, bb] = math.nan
+            for j in range(nd):
+                s[i, k, j] = math.nan
+            continue
+        status[i, k] = st
+        have_prev = True
+        for j in range(nd):
+            for h in range(n_h):
+                Qp[j, h] = Q[j, h]
+            amp = abs(Q[j, 0])
+            if fs[j] == 0.0:
+                s[i, k, j] = 0.0
+            elif kci[j] == 0.0 or amp == 0.0:
+                s[i, k, j] = math.inf
+            else:
+                s[i, k, j] = fs[j] / (kci[j] * amp)
+        # output harmonics: y_h = D23 F [h = 1] - D21(n_h omega) B^T F_h
+        for h in range(n_h):
+            for bb in range(n_beams):
+                yh[h, bb] = 0.0j
+            for j in range(nd):
+                yh[h, a[j]] -= rech[r_base + h, k, D21, a[j]] * F[j, h]
+                yh[h, b[j]] += rech[r_base + h, k, D21, b[j]] * F[j, h]
+        for bb in range(n_beams):
+            yh[0, bb] += rech[r_base, k, D23, bb] * force[bb]
+            y[i, k, bb] = yh[0, bb]
+            big = 0.0
+            for t in range(n_peak):
+                v = 0.0
+                for h in range(n_h):
+                    v += (yh[h, bb] * ph[t, h]).real
+                big = max(big, abs(v))
+            y_peak[i, k, bb] = big
+
