@@ -15,6 +15,12 @@
                [--n-freq N] [--k-max N_PER_M] [--F-lim N] [--threads T] [--no-figure]
     mcfric plot FILE [-o FIG.png|pdf] [--quantity Q] [--f-min HZ] [--f-max HZ]
                [--member I] [--measured DATA ...] [--nodes N1,N2,...]
+    mcfric verify [PRESET|CONFIG.toml] --f HZ [HZ ...] [--mu0 X] [--kc N_PER_M] [--N0 N]
+               [--F0 N] [--harmonics H] [--start single|rest] [-o OUT.csv] [--no-figure]
+    mcfric verify FILE.h5 --member I --f HZ [HZ ...] [--harmonics H] ...
+
+``run`` and ``hbm`` also take ``--harmonics H`` (multi-harmonic balance of the odd
+harmonics 1..H) and ``--n-time N`` (AFT samples per period).
 
 Exit codes: 0 done, 1 a run-time failure (e.g. disk full, unreadable file), 2 bad
 configuration or arguments (one line on stderr, nothing written), 130 interrupted (the
@@ -30,7 +36,7 @@ from pathlib import Path
 
 DEFAULT_DIR = Path("mcfric-results")
 EXIT_OK, EXIT_FAIL, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
-COMMANDS = ("run", "config", "info", "hbm", "bounds", "plot")
+COMMANDS = ("run", "config", "info", "hbm", "bounds", "plot", "verify")
 
 
 class UsageError(Exception):
@@ -56,7 +62,8 @@ def _parser():
     p = _Parser(prog="mcfric", description="Friction-damped beam arrays: harmonic balance, "
                 "Monte Carlo ensembles. `mcfric` alone runs the default ensemble.")
     p.add_argument("--version", action="version", version=f"mcfric {__version__}")
-    sub = p.add_subparsers(dest="command", metavar="{run,config,info,hbm,bounds,plot}")
+    sub = p.add_subparsers(dest="command",
+                           metavar="{run,config,info,hbm,bounds,plot,verify}")
 
     r = sub.add_parser("run", help="run (or resume) a Monte Carlo ensemble",
                        description="Run a Monte Carlo ensemble into an HDF5 results file "
@@ -79,6 +86,7 @@ def _parser():
     r.add_argument("--no-peaks", action="store_true",
                    help="do not refine peaks or look for folds")
     _model_flags(r)
+    _harmonic_flags(r)
     r.add_argument("--no-progress", action="store_true", help="no progress bar")
     r.add_argument("--no-figure", action="store_true", help="do not draw the figure")
 
@@ -100,6 +108,7 @@ def _parser():
     h.add_argument("--N0", type=float, default=0.5, metavar="N",
                    help="normal preload, N (default 0.5)")
     _model_flags(h)
+    _harmonic_flags(h)
     h.add_argument("-o", "--output", metavar="OUT.csv",
                    help="CSV file (default: mcfric-results/hbm-<name>.csv); the PNG goes "
                         "next to it")
@@ -143,7 +152,48 @@ def _parser():
     pl.add_argument("--normalise", action="store_true",
                     help="rescale measured data taken at force F_meas to the file's F0 "
                          "(Eq. 11-12; needs the force level in the data)")
+    _verify_parser(sub)
     return p
+
+
+def _verify_parser(sub):
+    v = sub.add_parser("verify", help="time-domain check of harmonic-balance points",
+                       description="Integrate the modal equations with exact Jenkins contacts "
+                       "to a periodic state at each frequency; print and save, per beam, the "
+                       "harmonics, the full-period peak, and the single- and multi-harmonic "
+                       "results at the same point. SOURCE may also be a results file, with "
+                       "--member I taking that member's parameters.")
+    v.add_argument("source", nargs="?", help=_source_help() + ", or a results file "
+                   "(default: eight-beam)")
+    v.add_argument("--f", type=float, nargs="+", required=True, metavar="HZ",
+                   help="drive frequencies, Hz")
+    v.add_argument("--member", type=int, metavar="I",
+                   help="member of a results file (0-based) whose parameters to take")
+    v.add_argument("--mu0", type=float, help="friction coefficient (default 0.5)")
+    v.add_argument("--kc", type=float, metavar="N_PER_M",
+                   help="tangential stiffness, N/m (default 6000)")
+    v.add_argument("--N0", type=float, metavar="N", help="normal preload, N (default 0.5)")
+    v.add_argument("--F0", type=float, metavar="NEWTONS",
+                   help="excitation amplitude of the preset's pattern, N")
+    v.add_argument("--harmonics", type=int, default=9, metavar="H",
+                   help="highest odd harmonic of the multi-harmonic solution compared "
+                        "(default 9)")
+    v.add_argument("--start", choices=("single", "rest"), default="single",
+                   help="initial state: the single-harmonic solution (default) or rest")
+    v.add_argument("--max-periods", type=int, default=20000, metavar="N",
+                   help="periods after which a response counts as not periodic")
+    v.add_argument("-o", "--output", metavar="OUT.csv",
+                   help="CSV file (default: mcfric-results/verify-<name>.csv); the PNG goes "
+                        "next to it")
+    v.add_argument("--no-figure", action="store_true", help="do not draw the figure")
+
+
+def _harmonic_flags(p):
+    p.add_argument("--harmonics", type=int, metavar="H",
+                   help="balance the odd harmonics 1, 3, ..., H (default 1: the "
+                        "single-harmonic describing function)")
+    p.add_argument("--n-time", type=int, metavar="N",
+                   help="AFT samples per period (default max(32, 8 H))")
 
 
 def _model_flags(p):
@@ -167,7 +217,9 @@ def _overrides(args):
                             ("bounds.k_max", "k_max", "--k-max"),
                             ("bounds.F_lim", "F_lim", "--F-lim"),
                             ("peaks.count", "peaks", "--peaks"),
-                            ("peaks.rtol", "peak_rtol", "--peak-rtol")):
+                            ("peaks.rtol", "peak_rtol", "--peak-rtol"),
+                            ("solver.harmonics", "harmonics", "--harmonics"),
+                            ("solver.n_time", "n_time", "--n-time")):
         if hasattr(args, attr):
             o[key] = (getattr(args, attr), flag)
     if getattr(args, "no_peaks", False):
@@ -487,8 +539,13 @@ def cmd_hbm(args):
             raise UsageError(str(e)) from None
     out = _output_path(args, ".csv", prefix="hbm-")
     model, f = spec.model, spec.freq_hz
-    res = hbm.solve(model, f, args.mu0, args.kc, args.N0, tol=spec.solver.tol,
-                    max_iter=spec.solver.max_iter, n_threads=spec.execution.threads)
+    H = spec.solver.harmonics
+    try:
+        res = hbm.solve(model, f, args.mu0, args.kc, args.N0, tol=spec.solver.tol,
+                        max_iter=spec.solver.max_iter, n_threads=spec.execution.threads,
+                        harmonics=H, n_time=spec.solver.n_time)
+    except ValueError as e:
+        raise UsageError(str(e).splitlines()[0]) from None
     q = spec.metric.quantity
     unit = METRIC_UNITS[q]
     amp = np.abs(res.response[0])                       # (n_f, n_beams), m
@@ -500,11 +557,17 @@ def cmd_hbm(args):
               + [f"s{j + 1}" for j in range(model.n_dampers)])
     table = np.column_stack([f, amp, metric, conv.astype(float), s])
     fmt = ["%.10g"] + ["%.10e"] * (model.n_beams + 1) + ["%d"] + ["%.10e"] * model.n_dampers
+    if H > 1:
+        # the fundamental above; the full-period peak (all harmonics) after
+        header += [f"peak_y{b + 1}_m" for b in range(model.n_beams)]
+        table = np.column_stack([table, res.response_peak[0]])
+        fmt += ["%.10e"] * model.n_beams
     np.savetxt(out, table, delimiter=",", header=",".join(header), comments="", fmt=fmt)
     bad = int(np.count_nonzero(~conv))
     print(f"mcfric hbm: {model.name}, mu0 = {args.mu0:g}, kc = {args.kc:g} N/m, "
           f"N0 = {args.N0:g} N, F0 = {model.excitation.F0:g} N; {len(f)} frequencies "
-          f"{f[0]:g}-{f[-1]:g} Hz")
+          f"{f[0]:g}-{f[-1]:g} Hz; " + ("single-harmonic" if H == 1 else
+                                          f"odd harmonics 1..{H} (abs_y: the fundamental)"))
     print(f"not converged: {bad} of {len(f)} points"
           + (f" (at {', '.join(f'{x:.4g}' for x in f[~conv][:10])} Hz"
              f"{', ...' if bad > 10 else ''}; not drawn)" if bad else ""))
@@ -520,6 +583,109 @@ def cmd_hbm(args):
     return EXIT_OK
 
 
+def _verify_source(args):
+    """Model and parameters of ``mcfric verify``: a preset/config and the flags, or a
+    results file's configuration and one member's parameters."""
+    import numpy as np
+
+    from . import config
+    from .validators import InputError, number
+
+    src = args.source
+    if src is not None and src.endswith((".h5", ".h5.partial")):
+        from .store import read, read_attrs
+        if args.member is None:
+            raise UsageError("--member: a results file needs --member I (0-based)")
+        for flag in ("mu0", "kc", "N0", "F0"):
+            if getattr(args, flag) is not None:
+                raise UsageError(f"--{flag}: taken from the results file; not with a FILE")
+        attrs = read_attrs(src)
+        if "config_json" not in attrs:
+            raise UsageError(f"{src}: no configuration stored (not an ensemble file)")
+        try:
+            spec = config.validate(json.loads(attrs["config_json"])).spec
+        except config.ConfigError as e:
+            raise UsageError(f"{src}: stored configuration: {e}") from None
+        if spec.mistuned:
+            raise UsageError(f"{src}: verify does not take mistuned members yet")
+        n = int(attrs.get("samples", 0))
+        if not 0 <= args.member < n:
+            raise UsageError(f"--member: expected an integer in 0..{n - 1}, got {args.member}")
+        params = [read(src, k)[args.member] for k in ("mu0", "kc", "N0")]
+        if not all(np.all(np.isfinite(p)) for p in params):
+            raise UsageError(f"--member: member {args.member} is not in the file (not done)")
+        return spec.model, params, Path(src).stem
+    if args.member is not None:
+        raise UsageError("--member: only with a results file")
+    spec = _load(args).spec
+    params = []
+    for flag, default in (("mu0", 0.5), ("kc", 6000.0), ("N0", 0.5)):
+        v = getattr(args, flag)
+        v = default if v is None else v
+        try:
+            number(lo=0)(v, f"--{flag}")
+        except InputError as e:
+            raise UsageError(str(e)) from None
+        params.append(v)
+    return spec.model, params, None
+
+
+def cmd_verify(args):
+    """``mcfric verify``: time integration against harmonic balance at a few points."""
+    import numpy as np
+
+    from . import plot
+    from .verify import verify
+
+    for flag, v, lo in (("--harmonics", args.harmonics, 1), ("--max-periods",
+                                                              args.max_periods, 1)):
+        if v < lo:
+            raise UsageError(f"{flag}: expected an integer >= {lo}, got {v}")
+    if args.harmonics % 2 == 0:
+        raise UsageError(f"--harmonics: expected an odd integer (the odd harmonics 1, 3, ..., "
+                         f"H are balanced), got {args.harmonics}")
+    model, (mu0, kc, N0), stem = _verify_source(args)
+    if stem is not None and not args.output:
+        out = DEFAULT_DIR / f"verify-{stem}.csv"
+        out.parent.mkdir(parents=True, exist_ok=True)
+    else:
+        out = _output_path(args, ".csv", prefix="verify-")
+    try:
+        vs = verify(model, args.f, mu0, kc, N0, harmonics=args.harmonics, start=args.start,
+                    max_periods=args.max_periods)
+    except ValueError as e:
+        raise UsageError(str(e).splitlines()[0]) from None
+    label = (f"mu0 = {np.ravel(mu0)[0]:g}, kc = {np.ravel(kc)[0]:g} N/m, "
+             f"N0 = {np.ravel(N0)[0]:g} N" if np.size(mu0) == 1 or np.ptp(mu0) == 0 else
+             "member parameters")
+    print(f"mcfric verify: {model.name}, {label}, F0 = {model.excitation.F0:g} N; "
+          f"time integration against harmonic balance (H = 1 and H = {args.harmonics})")
+    rows = []
+    for v in vs:
+        print(v.table())
+        d1, dm, d3 = v.differences()
+        for bb in range(model.n_beams):
+            rows.append([v.freq_hz, bb + 1, int(v.periodic), v.periods,
+                         *np.abs(v.harmonics[:, bb]), v.peak[bb], abs(v.single[bb]),
+                         abs(v.multi[0, bb]), v.multi_peak[bb], d1[bb], dm[bb], d3[bb]])
+    orders = vs[0].orders
+    header = (["frequency_hz", "beam", "periodic", "periods"]
+              + [f"time_abs_y{n}_m" for n in orders]
+              + ["time_peak_m", "h1_abs_y1_m", "mhb_abs_y1_m", "mhb_peak_m",
+                 "diff_h1", "diff_mhb", "diff_mhb_y3"])
+    np.savetxt(out, np.array(rows), delimiter=",", header=",".join(header), comments="",
+               fmt="%.10g")
+    bad = sum(not v.periodic for v in vs)
+    if bad:
+        print(f"not periodic: {bad} of {len(vs)} frequencies (reported, not averaged)")
+    print(f"csv: {out}")
+    if not args.no_figure:
+        png = out.with_suffix(".png")
+        plot.verify_figure(vs, png, title=f"{model.name}: {label}")
+        print(f"figure: {png}")
+    return EXIT_OK
+
+
 def main(argv=None):
     """Entry point of ``mcfric``; returns the exit code."""
     from .store import StoreError
@@ -530,7 +696,8 @@ def main(argv=None):
     try:
         args = _parser().parse_args(argv)
         return {"run": cmd_run, "config": cmd_config, "info": cmd_info, "hbm": cmd_hbm,
-                "bounds": cmd_bounds, "plot": cmd_plot}[args.command](args)
+                "bounds": cmd_bounds, "plot": cmd_plot,
+                "verify": cmd_verify}[args.command](args)
     except UsageError as e:
         print(f"mcfric: error: {e}", file=sys.stderr)
         return EXIT_USAGE

@@ -130,9 +130,17 @@ def auto_chunk(spec):
     per_sample = n_f * (16 * nb + 8 * nd + 1 + 2 + 8 + 8 + 1)   # kernel outputs + metric
     if spec.peaks:
         per_sample += spec.peaks.count * (16 * nb + 8 * 4 + 2)
+    H = spec.solver.harmonics
+    n_h = (H + 1) // 2
+    if H > 1:
+        per_sample += n_f * nb * 8 * (1 + 2 * n_h * spec.keep_harmonics)
     if spec.mistuned:
-        per_sample += n_f * 4 * nb * 16                           # per-sample receptances
+        per_sample += n_f * 4 * nb * 16 * (1 + n_h * (H > 1))       # per-sample receptances
     k = max(1, CHUNK_TARGET_BYTES // per_sample)
+    if H > 1:
+        # a multi-harmonic point costs ~1000x a single-harmonic one: small chunks keep
+        # the progress bar and the checkpoints moving
+        k = min(k, 32)
     return int(min(1 << (k.bit_length() - 1), spec.samples))
 
 
@@ -203,6 +211,18 @@ def layout(spec):
             variables["peak_response"] = ((RECORD, "peak", "beam"), np.complex128, {
                 "units": "m", "long_name": "complex displacement amplitude of every beam "
                 "at each refined peak"})
+    if spec.solver.harmonics > 1 and spec.keep_response:
+        variables["response_peak"] = ((RECORD, "frequency", "beam"), np.float64, {
+            "units": "m", "long_name": "largest |x(t)| over a period at the output position, "
+            "all balanced harmonics together; NaN where not converged"})
+        if spec.keep_harmonics:
+            n_h = (spec.solver.harmonics + 1) // 2
+            coords["harmonic"] = (np.arange(1, 2 * n_h, 2),
+                                  {"long_name": "harmonic order (odd)"})
+            variables["response_harmonics"] = (
+                (RECORD, "frequency", "harmonic", "beam"), np.complex128,
+                {"units": "m", "long_name": "complex amplitude of each odd harmonic at the "
+                 "output position, x(t) = Re{sum_h X_h exp(i h omega t)}"})
     if spec.mistuned:
         n_modes = model.modal_arrays()[0].shape[1]
         coords["mode"] = (np.arange(1, n_modes + 1), {"long_name": "mode number (1-based)"})
@@ -213,6 +233,7 @@ def layout(spec):
         "model_name": model.name,
         "config": spec.config_toml,
         "config_json": spec.config_json,
+        "harmonics": np.int64(spec.solver.harmonics),
         "seed": np.int64(spec.seed),
         "samples": np.int64(spec.samples),
         "sampling_contract": "sample i draws from Generator(PCG64(SeedSequence(seed, "
@@ -459,6 +480,10 @@ def _drive(spec, store, done, not_conv_before, progress, t_start):
                           "converged": conv, "mu0": d.mu0, "kc": d.kc, "N0": d.N0}
                 if spec.keep_response:
                     arrays["response"] = res.response
+                    if res.response_peak is not None:
+                        arrays["response_peak"] = res.response_peak
+                    if res.response_harmonics is not None:
+                        arrays["response_harmonics"] = res.response_harmonics
                 if res.peaks is not None:
                     pk = res.peaks
                     arrays.update({"peak_metric": pk.metric, "peak_frequency": pk.freq_hz,
@@ -499,7 +524,9 @@ def _drive(spec, store, done, not_conv_before, progress, t_start):
             t0 = time.perf_counter()
             res = hbm.solve(model, freq, d.mu0, d.kc, d.N0, modal_freq_hz=d.modal_freq_hz,
                             tol=tol, max_iter=max_iter, n_threads=ex.threads,
-                            peaks=spec.peaks)
+                            peaks=spec.peaks, harmonics=spec.solver.harmonics,
+                            n_time=spec.solver.n_time,
+                            store_harmonics=spec.keep_harmonics and spec.keep_response)
             kernel_s += time.perf_counter() - t0
             _put(q, (a, d, res), w, err)
             del res, d

@@ -59,6 +59,9 @@ class HBMResult:
     response_peak : ndarray, shape (n_s, n_f, n_beams) or None
         With ``harmonics > 1``: the largest ``|x(t)|`` over a period at the output of
         every beam, all harmonics together, m. NaN where not converged.
+    response_harmonics : ndarray of complex, shape (n_s, n_f, n_h, n_beams) or None
+        With ``store_harmonics``: the odd harmonics 1, 3, ..., of the output
+        displacement, m (``response`` is the first of them).
     """
 
     freq_hz: np.ndarray
@@ -73,6 +76,7 @@ class HBMResult:
     peaks: Peaks | None = None
     harmonics: int = 1
     response_peak: np.ndarray | None = None
+    response_harmonics: np.ndarray | None = None
 
     @property
     def converged(self):
@@ -106,7 +110,7 @@ class HBMResult:
 
 def solve(model, freq_hz, mu0, kc, N0=0.5, *, modal_freq_hz=None, tol=TOL,
           max_iter=MAX_ITER, n_threads=None, peaks=None, harmonics=1, n_time=None,
-          aft=False):
+          aft=False, store_harmonics=False):
     """Single-harmonic balance of a friction-coupled array for many parameter sets.
 
     Each sample sweeps the frequencies in the order given (upward for a sorted grid),
@@ -145,6 +149,8 @@ def solve(model, freq_hz, mu0, kc, N0=0.5, *, modal_freq_hz=None, tol=TOL,
     aft : bool
         Solve ``harmonics = 1`` through the multi-harmonic (AFT) kernel as well, to check
         one kernel against the other.
+    store_harmonics : bool
+        Keep every output harmonic in ``response_harmonics`` (multi-harmonic solves).
 
     Returns
     -------
@@ -188,7 +194,7 @@ def solve(model, freq_hz, mu0, kc, N0=0.5, *, modal_freq_hz=None, tol=TOL,
         result = HBMResult(f, *out, mu0=p["mu0"], kc=p["kc"], N0=p["N0"])
         if harmonics > 1 or aft:
             multi_harmonic(model, result, omega, modal_freq_hz, harmonics, n_time, tol,
-                           max_iter, args)
+                           max_iter, args, store_harmonics)
         if peaks is not None:
             mf = model.modal_arrays()[0][None] if modal_freq_hz is None else modal_freq_hz
             result.peaks = refine(model, result, omega, mf, peaks, *args, tol, max_iter)
@@ -232,7 +238,7 @@ def check_harmonic_memory(model, harmonics, n_time, n_f, n_r):
 
 
 def multi_harmonic(model, result, omega, modal_freq_hz, harmonics, n_time, tol, max_iter,
-                   params):
+                   params, store_harmonics=False):
     """Replace a single-harmonic ``result`` in place by the multi-harmonic solution.
 
     The single-harmonic slip ratios are the starting points; a point converged there but
@@ -250,7 +256,7 @@ def multi_harmonic(model, result, omega, modal_freq_hz, harmonics, n_time, tol, 
     force = np.ascontiguousarray(model.force, dtype=np.complex128)
     s1 = np.ascontiguousarray(result.s)
     n_s, n_f, n_beams = result.response.shape
-    y = np.empty_like(result.response)
+    y = np.empty((n_s, n_f, n_h if store_harmonics else 1, n_beams), np.complex128)
     y_peak = np.empty((n_s, n_f, n_beams))
     s = np.empty_like(result.s)
     status = np.empty_like(result.status)
@@ -259,7 +265,9 @@ def multi_harmonic(model, result, omega, modal_freq_hz, harmonics, n_time, tol, 
     _multi_harmonic.sweep_multi_harmonic(
         rech, force, a, b, orders, np.ascontiguousarray(omega), mu0, N0, kc, int(n_time), s1,
         float(tol), int(max_iter), y, y_peak, s, status, iterations, residual)
-    result.response, result.s, result.status = y, s, status
+    result.response = np.ascontiguousarray(y[:, :, 0, :])
+    result.response_harmonics = y if store_harmonics else None
+    result.s, result.status = s, status
     result.iterations, result.residual = iterations, residual
     result.harmonics = harmonics
     result.response_peak = y_peak

@@ -193,3 +193,41 @@ def hbm_figure(freq_hz, amplitude, metric, converged, png_path, title="",
     ax.legend(fontsize=7, ncol=2 if amp.shape[1] > 4 else 1)
     fig.savefig(png_path, dpi=120)
     return png_path
+
+
+def verify_figure(verifications, png_path, title=""):
+    """Time histories over one period, per frequency: the integration, the multi-harmonic
+    and the single-harmonic solutions at the beam with the largest response.
+
+    Parameters
+    ----------
+    verifications : list of mcfric.verify.Verification
+    png_path : str or Path
+    """
+    n = len(verifications)
+    fig = _figure()
+    fig.set_size_inches(7.5, 2.2 * n + 0.8)
+    for k, v in enumerate(verifications):
+        ax = fig.add_subplot(n, 1, k + 1)
+        b = int(np.argmax(v.peak))
+        t = v.time
+        theta = 2 * np.pi * v.freq_hz * t
+        n_h = v.multi.shape[0]
+        orders = np.arange(1, 2 * n_h, 2)
+        multi = np.real(np.exp(1j * np.outer(theta, orders)) @ v.multi[:, b])
+        single = np.real(v.single[b] * np.exp(1j * theta))
+        ax.plot(t * 1e3, v.history[:, b] * 1e6, color="k", lw=2.0,
+                label="time integration" + ("" if v.periodic else " (NOT periodic)"))
+        ax.plot(t * 1e3, multi * 1e6, color="C1", lw=1.2, ls="--",
+                label=f"harmonic balance, H = {orders[-1]}")
+        ax.plot(t * 1e3, single * 1e6, color="C0", lw=1.0, ls=":",
+                label="single harmonic")
+        ax.set_ylabel(f"beam {b + 1} [um]")
+        ax.set_title(f"{v.freq_hz:g} Hz", fontsize=8)
+        ax.grid(True, alpha=0.3)
+        if k == 0:
+            ax.legend(fontsize=7)
+    fig.axes[-1].set_xlabel("time over one period [ms]")
+    fig.suptitle(title, fontsize=9)
+    fig.savefig(png_path, dpi=110)
+    return png_path

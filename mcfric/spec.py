@@ -48,10 +48,16 @@ class SolverSpec:
         Accepted relative friction-force residual (-).
     max_iter : int
         Newton iterations per attempt.
+    harmonics : int
+        Highest odd harmonic balanced (1: single-harmonic).
+    n_time : int or None
+        AFT samples per period (None: the default for ``harmonics``).
     """
 
     tol: float
     max_iter: int
+    harmonics: int = 1
+    n_time: int | None = None
 
 
 @dataclass(frozen=True)
@@ -115,6 +121,8 @@ class RunSpec:
         None when the bounds are not computed with the run.
     keep_response : bool
         Store the complex response per beam (False: the metric only).
+    keep_harmonics : bool
+        With ``solver.harmonics > 1``: store every odd harmonic of the response.
     execution : ExecutionSpec
     config_toml, config_json : str
         The complete configuration, as recorded in a results file.
@@ -135,6 +143,7 @@ class RunSpec:
     config_toml: str
     config_json: str
     identity: dict
+    keep_harmonics: bool = False
 
     @property
     def seed(self):

@@ -92,6 +92,18 @@ def integer(lo=None, hi=None):
     return check
 
 
+def odd_integer(lo, hi):
+    """An odd integer in ``lo..hi``."""
+    what = f"an odd integer in {lo}..{hi}"
+
+    def check(v, key):
+        if not is_int(v) or v < lo or v > hi or v % 2 == 0:
+            raise InputError(key, f"expected {what}, got {show(v)}")
+        return int(v)
+    check.what = what
+    return check
+
+
 def number(lo=None, hi=None, lo_open=False, hi_open=False, allow_inf=False):
     """A real number (finite unless ``allow_inf``) within optional limits; returns a float."""
     parts = []

@@ -58,13 +58,16 @@ class Config:
         metric = MetricSpec(d["metric"]["quantity"],
                             None if beams == "all" else tuple(x - 1 for x in beams))
         pk = d["peaks"]
+        sv = d["solver"]
+        # peak refinement and fold detection are single-harmonic (docs: running)
         peaks = (PeakSettings(count=pk["count"], rtol=pk["rtol"], window=pk["window"],
                               quantity=metric.quantity, beams=metric.beams)
-                 if pk["enabled"] else None)
+                 if pk["enabled"] and sv["harmonics"] == 1 else None)
         return RunSpec(
             model=model, freq_hz=freq, sampler=sampler, samples=s["samples"],
             metric=metric,
-            solver=SolverSpec(d["solver"]["tol"], d["solver"]["max_iter"]), peaks=peaks,
+            solver=SolverSpec(sv["tol"], sv["max_iter"], sv["harmonics"], sv["n_time"] or None),
+            peaks=peaks, keep_harmonics=d["output"]["keep_harmonics"],
             bounds=bounds, keep_response=d["output"]["keep_response"],
             execution=ExecutionSpec(r["threads"] or None, r["chunk"], r["checkpoint_s"]),
             config_toml=self.toml(comments=False), config_json=self.json(),

@@ -25,6 +25,7 @@ from ..validators import (
     matrix,
     number,
     numbers,
+    odd_integer,
     show,
     string,
 )
@@ -61,8 +62,8 @@ def defaults(preset=DEFAULT_PRESET):
                      **{k: sampling.as_dict(d) for k, d in sampling.PAPER.items()}},
         "metric": {"quantity": "displacement", "beams": "all"},
         "peaks": {"enabled": True, "count": t.n_modes, "rtol": 1e-4, "window": 3},
-        "solver": {"tol": 1e-10, "max_iter": 50},
-        "output": {"keep_response": True},
+        "solver": {"tol": 1e-10, "max_iter": 50, "harmonics": 1, "n_time": 0},
+        "output": {"keep_response": True, "keep_harmonics": False},
         "run": {"threads": 0, "chunk": 0, "checkpoint_s": 0.0},
         "bounds": {"enabled": True, "k_max": "auto", "k_max_im": "auto", "F_lim": "auto",
                    "n_starts": 3},
@@ -148,10 +149,17 @@ SPEC = {
         "tol": (number(lo=0, hi=0.1, lo_open=True),
                 "accepted relative friction-force residual"),
         "max_iter": (integer(1, 10000), "Newton iterations per attempt"),
+        "harmonics": (odd_integer(1, 99), "highest odd harmonic balanced (1: the "
+                                          "single-harmonic describing function; 3, 5, ...: "
+                                          "multi-harmonic balance of the odd harmonics)"),
+        "n_time": (integer(0, 65536), "AFT samples per period bracketing the stick-slip "
+                                      "events (0 = auto, max(32, 8 H)); at least 4 H + 4"),
     },
     "output": {
         "keep_response": (boolean(), "store the complex response per beam; false keeps only "
                                      "the metric (for very large runs)"),
+        "keep_harmonics": (boolean(), "with harmonics > 1: also store every odd harmonic "
+                                      "of the response (response_harmonics)"),
     },
     "run": {
         "threads": (integer(0), "numba threads (0 = all); never changes the results"),

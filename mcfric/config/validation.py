@@ -199,6 +199,11 @@ def _cross_checks(c):
                                  f"(n_beams), got {show(beams)}")
     if c["bounds"]["enabled"]:
         bounds_limits(c)      # unbounded distributions need explicit limits
+    sv = c["solver"]
+    if sv["n_time"] and sv["n_time"] < 4 * sv["harmonics"] + 4:
+        raise InputError("solver.n_time", f"expected 0 (auto) or an integer >= "
+                         f"{4 * sv['harmonics'] + 4} (4 H + 4 for harmonics = "
+                         f"{sv['harmonics']}), got {sv['n_time']}")
     import numba
     nt = numba.config.NUMBA_NUM_THREADS
     if c["run"]["threads"] > nt:

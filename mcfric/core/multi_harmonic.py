@@ -28,8 +28,9 @@ n_time : int
     AFT samples per period (event brackets).
 s1 : ndarray of float64, shape (n_s, n_f, nd)
     Slip ratios of the single-harmonic solution (NaN where it failed).
-y : ndarray of complex128, shape (n_s, n_f, n_beams)
-    Out: fundamental of the output displacement, m.
+y : ndarray of complex128, shape (n_s, n_f, n_ho, n_beams)
+    Out: the first ``n_ho`` harmonics of the output displacement (``n_ho`` = 1: the
+    fundamental only), m.
 y_peak : ndarray of float64, shape (n_s, n_f, n_beams)
     Out: largest ``|y(t)|`` over a period (sampled at ``4 n_time`` points), m.
 s : ndarray of float64, shape (n_s, n_f, nd)
@@ -249,7 +250,8 @@ def _sample(i, rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, tol, m
             status[i, k] = -1
             have_prev = False
             for bb in range(n_beams):
-                y[i, k, bb] = complex(math.nan, math.nan)
+                for h in range(y.shape[2]):
+                    y[i, k, h, bb] = complex(math.nan, math.nan)
                 y_peak[i, k, bb] = math.nan
             for j in range(nd):
                 s[i, k, j] = math.nan
@@ -275,7 +277,8 @@ def _sample(i, rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, tol, m
                 yh[h, b[j]] += rech[r_base + h, k, D21, b[j]] * F[j, h]
         for bb in range(n_beams):
             yh[0, bb] += rech[r_base, k, D23, bb] * force[bb]
-            y[i, k, bb] = yh[0, bb]
+            for h in range(y.shape[2]):
+                y[i, k, h, bb] = yh[h, bb]
             big = 0.0
             for t in range(n_peak):
                 v = 0.0

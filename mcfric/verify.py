@@ -1,0 +1,233 @@
+"""Time-domain verification of harmonic-balance points (``mcfric verify``).
+
+For one parameter set and a few frequencies, integrate the modal equations with exact
+Jenkins return mapping (:mod:`mcfric.core.time_integration`) to a periodic steady state,
+project its harmonics, and set them beside the single- and multi-harmonic solutions of the
+same point. A response that does not settle is reported as not periodic, never averaged
+into a number.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .core.aft import harmonic_orders
+from .core.friction import describing_function
+from .core.receptance import contact_space
+from .core.time_integration import integrate
+from .hbm import check_harmonics, solve
+from .model import Model
+from .validators import frequencies as check_frequencies
+from .validators import per_damper as check_parameters
+
+#: Defaults: relative change of the harmonics per period that counts as settled, the
+#: number of consecutive settled periods, and the period limit.
+TOL = 1e-8
+SETTLE = 5
+MAX_PERIODS = 20000
+#: Largest ``omega dt`` of the fastest mode (RK4 is accurate to ~(omega dt)^4 / 120).
+OMEGA_DT = 0.05
+STARTS = ("single", "rest")
+
+
+@dataclass
+class Verification:
+    """One frequency: time integration against harmonic balance.
+
+    Attributes
+    ----------
+    freq_hz : float
+        Drive frequency, Hz.
+    orders : ndarray of int, shape (n_h,)
+        Harmonic orders projected (odd, 1 first).
+    periodic : bool
+        The integration settled to a periodic state.
+    periods : int
+        Periods integrated.
+    change : float
+        Relative change of the harmonics over the last period.
+    time : ndarray, shape (steps,)
+        Time over the last period, s.
+    history : ndarray, shape (steps, n_beams)
+        Output displacement over the last period, m.
+    harmonics : ndarray of complex, shape (n_h, n_beams)
+        Output harmonics of the time integration, m.
+    peak : ndarray, shape (n_beams,)
+        Largest ``|y(t)|`` over the last period, m.
+    single : ndarray of complex, shape (n_beams,)
+        Single-harmonic fundamental at the same point, m (NaN if not converged).
+    multi : ndarray of complex, shape (n_h_mhb, n_beams)
+        Multi-harmonic output harmonics (orders 1, 3, ...), m (NaN if not converged).
+    multi_peak : ndarray, shape (n_beams,)
+        Multi-harmonic full-period peak, m.
+    """
+
+    freq_hz: float
+    orders: np.ndarray
+    periodic: bool
+    periods: int
+    change: float
+    time: np.ndarray
+    history: np.ndarray
+    harmonics: np.ndarray
+    peak: np.ndarray
+    single: np.ndarray
+    multi: np.ndarray
+    multi_peak: np.ndarray
+
+    def differences(self):
+        """Relative differences per beam: (single-harmonic, multi-harmonic) fundamental
+        amplitude against the integration's, and the multi-harmonic 3rd harmonic against
+        the integration's (NaN without a 3rd harmonic)."""
+        td1 = np.abs(self.harmonics[0])
+        d1 = np.abs(self.single) / td1 - 1.0
+        dm = np.abs(self.multi[0]) / td1 - 1.0
+        if self.multi.shape[0] > 1 and len(self.orders) > 1:
+            td3 = np.abs(self.harmonics[1])
+            d3 = np.abs(self.multi[1]) / td3 - 1.0
+        else:
+            d3 = np.full_like(d1, np.nan)
+        return d1, dm, d3
+
+    def table(self):
+        """Text table, one row per beam."""
+        head = (f"f = {self.freq_hz:.6g} Hz: " + (
+            f"periodic after {self.periods} periods" if self.periodic else
+            f"NOT PERIODIC after {self.periods} periods (change {self.change:.2g}); "
+            "the time-domain numbers below are the last period's, not a steady state"))
+        cols = ("beam", "|y1| time", *(f"|y{n}|/|y1|" for n in self.orders[1:]),
+                "peak time", "|y1| H=1", "diff H=1", "|y1| MHB", "diff MHB", "peak MHB")
+        rows = [head, "  ".join(f"{c:>11}" for c in cols)]
+        d1, dm, _ = self.differences()
+        for bb in range(self.history.shape[1]):
+            y1 = abs(self.harmonics[0, bb])
+            vals = [f"{bb + 1:>11d}", f"{y1:11.4e}"]
+            vals += [f"{abs(self.harmonics[h, bb]) / y1:11.3%}"
+                     for h in range(1, len(self.orders))]
+            vals += [f"{self.peak[bb]:11.4e}", f"{abs(self.single[bb]):11.4e}",
+                     f"{d1[bb]:+11.3%}", f"{abs(self.multi[0, bb]):11.4e}",
+                     f"{dm[bb]:+11.3%}", f"{self.multi_peak[bb]:11.4e}"]
+            rows.append("  ".join(vals))
+        return "\n".join(rows)
+
+
+def _steps(model, omega, kc):
+    """Time steps per period: the fastest mode, stiffened by the contacts, at
+    ``omega dt <= OMEGA_DT``; a multiple of 64, at least 1024."""
+    f, _, u = model.modal_arrays()
+    w = 2 * np.pi * f
+    # a stuck contact adds at most kc (uc_a^2 + uc_b^2) to a mode's stiffness per damper
+    extra = 4.0 * float(np.max(kc, initial=0.0)) * float(np.max(u[:, :, 0] ** 2))
+    w_max = math.sqrt(float(np.max(w)) ** 2 + extra)
+    n = math.ceil(2 * math.pi * w_max / (omega * OMEGA_DT))
+    return max(1024, -(-n // 64) * 64)
+
+
+def _single_harmonic_state(model, omega, mu0, kc, N0, s):
+    """Modal state at ``t = 0`` and damper forces of the single-harmonic solution."""
+    a, b = model.dampers
+    rec = model.receptances(np.array([omega]))[0]
+    G, q0, _, _ = contact_space(rec, model.force, a, b)
+    K = np.array([describing_function(np.array([sj]), kcj)[0] for sj, kcj in zip(s, kc)])
+    q = np.linalg.solve(np.eye(len(K)) + G[0] * K[None, :], q0[0])
+    F = K * q
+    f, z, u = model.modal_arrays()
+    w = 2 * np.pi * f
+    contact = np.zeros(model.n_beams, complex)
+    np.add.at(contact, a, F)
+    np.add.at(contact, b, -F)
+    load = u[:, :, 2] * model.force[:, None] - u[:, :, 0] * contact[:, None]
+    eta = load / (w * w - omega * omega + 2j * z * w * omega)
+    fs = mu0 * N0
+    return eta.real.copy(), (1j * omega * eta).real.copy(), np.clip(F.real, -fs, fs)
+
+
+def verify(model, freq_hz, mu0, kc, N0=0.5, *, harmonics=9, start="single", tol=TOL,
+           settle=SETTLE, max_periods=MAX_PERIODS, steps=None):
+    """Integrate to a periodic state at each frequency and compare with harmonic balance.
+
+    Parameters
+    ----------
+    model : Model
+        The array.
+    freq_hz : float or array_like
+        Drive frequencies, Hz.
+    mu0, kc, N0 : float or array_like, shape (nd,)
+        Friction coefficient (-), tangential stiffness (N/m), normal preload (N).
+    harmonics : int
+        Highest odd harmonic of the multi-harmonic solution compared (and projected).
+    start : {"single", "rest"}
+        Initial state: the single-harmonic solution, or rest.
+    tol : float
+        Settled when no harmonic changed by more than ``tol`` (relative to the largest
+        fundamental) over ``settle`` consecutive periods.
+    settle : int
+        Consecutive settled periods needed.
+    max_periods : int
+        Periods after which the response is reported as not periodic.
+    steps : int, optional
+        Time steps per period (default from the fastest mode; at least 64).
+
+    Returns
+    -------
+    list of Verification
+    """
+    if not isinstance(model, Model):
+        raise ValueError(f"model: expected a mcfric Model, got {type(model).__name__}")
+    f = check_frequencies(np.atleast_1d(freq_hz))
+    p = check_parameters(model.n_dampers, mu0=mu0, kc=kc, N0=N0)
+    if p["mu0"].shape[0] != 1:
+        raise ValueError("mu0, kc, N0: verify takes one parameter set (scalars or per damper)")
+    mu0, kc, N0 = (p[k][0] for k in ("mu0", "kc", "N0"))
+    harmonics, _ = check_harmonics(harmonics)
+    if start not in STARTS:
+        raise ValueError(f"start: expected one of {STARTS}, got {start!r}")
+    if not (math.isfinite(tol) and 0 < tol < 1):
+        raise ValueError(f"tol: expected a number in (0, 1), got {tol!r}")
+    for name, v, lo in (("settle", settle, 1), ("max_periods", max_periods, 1)):
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < lo:
+            raise ValueError(f"{name}: expected an integer >= {lo}, got {v!r}")
+    if steps is not None and (isinstance(steps, bool) or not isinstance(steps, (int, np.integer))
+                              or not 64 <= steps <= 10**7):
+        raise ValueError(f"steps: expected an integer in 64..10000000, got {steps!r}")
+    orders = harmonic_orders(max(harmonics, 3))
+    shb = solve(model, f, mu0[None], kc[None], N0[None])
+    mhb = solve(model, f, mu0[None], kc[None], N0[None], harmonics=harmonics,
+                store_harmonics=True) if harmonics > 1 else None
+    fr, z, u = model.modal_arrays()
+    w = 2 * np.pi * fr
+    uc, uo, ud = (np.ascontiguousarray(u[:, :, i]) for i in range(3))
+    a, b = (x.astype(np.int64) for x in model.dampers)
+    force = np.ascontiguousarray(model.force, dtype=np.complex128)
+    out = []
+    for k, fk in enumerate(f):
+        omega = 2 * np.pi * fk
+        n_steps = int(steps) if steps is not None else _steps(model, omega, kc)
+        if start == "single" and shb.converged[0, k]:
+            eta0, vel0, f0 = _single_harmonic_state(model, omega, mu0, kc, N0, shb.s[0, k])
+        else:
+            eta0 = np.zeros_like(w)
+            vel0 = np.zeros_like(w)
+            f0 = np.zeros(model.n_dampers)
+        y_h = np.zeros((len(orders), model.n_beams), complex)
+        q_h = np.zeros((len(orders), model.n_dampers), complex)
+        peak = np.zeros(model.n_beams)
+        hist = np.zeros((n_steps, model.n_beams))
+        periods, change = integrate(w, np.ascontiguousarray(z), uc, uo, ud, force, omega, a, b,
+                                    kc, mu0 * N0, eta0, vel0, f0, orders, n_steps, float(tol),
+                                    int(settle), int(max_periods), y_h, q_h, peak, hist)
+        if mhb is not None:
+            multi = mhb.response_harmonics[0, k]
+            multi_peak = mhb.response_peak[0, k]
+        else:
+            multi = shb.response[0, k][None]
+            multi_peak = np.abs(shb.response[0, k])
+        out.append(Verification(
+            freq_hz=float(fk), orders=orders, periodic=periods > 0, periods=abs(periods),
+            change=float(change), time=np.arange(n_steps) / (n_steps * fk), history=hist,
+            harmonics=y_h, peak=peak, single=shb.response[0, k], multi=multi,
+            multi_peak=multi_peak))
+    return out
