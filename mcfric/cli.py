@@ -454,6 +454,7 @@ def cmd_config(args):
 
 def cmd_info(args):
     """``mcfric info``: a summary of a results file (complete or partial)."""
+    from .indicator import file_report as indicator_report
     from .metric import METRIC_UNITS
     from .peaks import file_report as peak_report
     from .peaks import report_text
@@ -508,6 +509,7 @@ def cmd_info(args):
     report = peak_report(path)
     if report is not None:
         lines += report_text(report, METRIC_UNITS[q])
+    lines += indicator_report(path)
     if a.get("complete") == 1:
         lines.append(f"run time:    {a.get('wall_time_s', float('nan')):.1f} s "
                      f"(kernel {a.get('kernel_time_s', float('nan')):.1f} s) in the session "

@@ -29,6 +29,7 @@ import numpy as np
 
 from . import hbm
 from .config import NOT_IDENTITY, first_difference
+from .indicator import file_report as indicator_report
 from .metric import METRIC_UNITS
 from .peaks import file_report as peak_report
 from .peaks import report_text
@@ -85,6 +86,7 @@ class Summary:
     complete: bool
     already_complete: bool = False
     peaks: list | None = None
+    harmonics: list | None = None
 
     @property
     def points(self):
@@ -103,6 +105,7 @@ class Summary:
             lines.append(f"wall time: {self.wall_s:.2f} s for {self.samples_this_session} "
                          f"samples (kernel {self.kernel_s:.2f} s), {rate:,.0f} points/s")
         lines += list(self.peaks or [])
+        lines += list(self.harmonics or [])
         lines.append(f"results: {self.path}")
         return "\n".join(lines)
 
@@ -211,6 +214,12 @@ def layout(spec):
             variables["peak_response"] = ((RECORD, "peak", "beam"), np.complex128, {
                 "units": "m", "long_name": "complex displacement amplitude of every beam "
                 "at each refined peak"})
+    if spec.solver.harmonics == 1:
+        variables["harmonic_indicator"] = ((RECORD, "frequency"), np.float32, {
+            "units": "1", "long_name": "upper estimate of the 3rd and 5th harmonics at the "
+            "output relative to the fundamental (max over beams); above "
+            f"{hbm.INDICATOR_THRESHOLD:g} one harmonic may not be enough; NaN where not "
+            "converged", "threshold": hbm.INDICATOR_THRESHOLD})
     if spec.solver.harmonics > 1 and spec.keep_response:
         variables["response_peak"] = ((RECORD, "frequency", "beam"), np.float64, {
             "units": "m", "long_name": "largest |x(t)| over a period at the output position, "
@@ -478,6 +487,8 @@ def _drive(spec, store, done, not_conv_before, progress, t_start):
                 conv = res.converged
                 arrays = {"metric": hbm.response_metric(res.response, freq, quantity, beams),
                           "converged": conv, "mu0": d.mu0, "kc": d.kc, "N0": d.N0}
+                if res.harmonic_indicator is not None:
+                    arrays["harmonic_indicator"] = res.harmonic_indicator.astype(np.float32)
                 if spec.keep_response:
                     arrays["response"] = res.response
                     if res.response_peak is not None:
@@ -526,7 +537,8 @@ def _drive(spec, store, done, not_conv_before, progress, t_start):
                             tol=tol, max_iter=max_iter, n_threads=ex.threads,
                             peaks=spec.peaks, harmonics=spec.solver.harmonics,
                             n_time=spec.solver.n_time,
-                            store_harmonics=spec.keep_harmonics and spec.keep_response)
+                            store_harmonics=spec.keep_harmonics and spec.keep_response,
+                            indicator=spec.solver.harmonics == 1)
             kernel_s += time.perf_counter() - t0
             _put(q, (a, d, res), w, err)
             del res, d
@@ -560,7 +572,7 @@ def _drive(spec, store, done, not_conv_before, progress, t_start):
     return Summary(final, spec.samples, n_f, n_done, stats["written"], not_conv,
                    time.perf_counter() - t_start, kernel_s, True,
                    peaks=report_text(report, METRIC_UNITS[spec.metric.quantity])
-                   if report else None)
+                   if report else None, harmonics=indicator_report(final))
 
 
 def summary_of_file(path):

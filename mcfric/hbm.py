@@ -13,10 +13,12 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from .core import harmonic_indicator as _indicator
 from .core import multi_harmonic as _multi_harmonic
 from .core import sweep as _sweep
 from .core.aft import harmonic_orders
 from .core.newton import NOT_CONVERGED
+from .core.receptance import D21
 from .metric import response_metric
 from .model import CONTACT_LAWS, Model
 from .peaks import Peaks, PeakSettings, refine
@@ -28,6 +30,10 @@ from .validators import per_damper as check_parameters
 #: 10x lower and accepts a stall (rounding floor) only within ``tol``.
 TOL = 1e-10
 MAX_ITER = 50
+#: A single-harmonic point whose :attr:`HBMResult.harmonic_indicator` exceeds this is
+#: flagged: one harmonic may not be enough there (docs: theory, "When one harmonic is not
+#: enough", for the measured quality of this choice).
+INDICATOR_THRESHOLD = 0.005
 
 
 @dataclass
@@ -59,6 +65,10 @@ class HBMResult:
     response_peak : ndarray, shape (n_s, n_f, n_beams) or None
         With ``harmonics > 1``: the largest ``|x(t)|`` over a period at the output of
         every beam, all harmonics together, m. NaN where not converged.
+    harmonic_indicator : ndarray, shape (n_s, n_f) or None
+        Single-harmonic solves with ``indicator=True``: an upper estimate of the 3rd and
+        5th harmonics at the output relative to the fundamental (-);
+        above :data:`INDICATOR_THRESHOLD`, rerun the point with ``harmonics >= 3``.
     response_harmonics : ndarray of complex, shape (n_s, n_f, n_h, n_beams) or None
         With ``store_harmonics``: the odd harmonics 1, 3, ..., of the output
         displacement, m (``response`` is the first of them).
@@ -77,6 +87,7 @@ class HBMResult:
     harmonics: int = 1
     response_peak: np.ndarray | None = None
     response_harmonics: np.ndarray | None = None
+    harmonic_indicator: np.ndarray | None = None
 
     @property
     def converged(self):
@@ -110,7 +121,7 @@ class HBMResult:
 
 def solve(model, freq_hz, mu0, kc, N0=0.5, *, modal_freq_hz=None, tol=TOL,
           max_iter=MAX_ITER, n_threads=None, peaks=None, harmonics=1, n_time=None,
-          aft=False, store_harmonics=False):
+          aft=False, store_harmonics=False, indicator=False):
     """Single-harmonic balance of a friction-coupled array for many parameter sets.
 
     Each sample sweeps the frequencies in the order given (upward for a sorted grid),
@@ -151,6 +162,8 @@ def solve(model, freq_hz, mu0, kc, N0=0.5, *, modal_freq_hz=None, tol=TOL,
         one kernel against the other.
     store_harmonics : bool
         Keep every output harmonic in ``response_harmonics`` (multi-harmonic solves).
+    indicator : bool
+        Compute ``harmonic_indicator`` (single-harmonic solves; about a tenth of the kernel time).
 
     Returns
     -------
@@ -192,6 +205,9 @@ def solve(model, freq_hz, mu0, kc, N0=0.5, *, modal_freq_hz=None, tol=TOL,
         out = allocate(n_s, len(f), model.n_beams, nd, numba.get_num_threads())
         args = run_kernel(model, rec, omega, p["mu0"], p["N0"], p["kc"], tol, max_iter, *out)
         result = HBMResult(f, *out, mu0=p["mu0"], kc=p["kc"], N0=p["N0"])
+        if indicator and harmonics == 1 and not aft:
+            result.harmonic_indicator = harmonic_indicator(model, result, omega,
+                                                           modal_freq_hz, args)
         if harmonics > 1 or aft:
             multi_harmonic(model, result, omega, modal_freq_hz, harmonics, n_time, tol,
                            max_iter, args, store_harmonics)
@@ -235,6 +251,18 @@ def check_harmonic_memory(model, harmonics, n_time, n_f, n_r):
         raise ValueError(f"harmonics: H = {harmonics} needs {need / 2**30:.3g} GiB for "
                          f"this model and grid (limit {MAX_HARMONIC_BYTES / 2**30:.0f} GiB); "
                          "use fewer harmonics, frequencies or samples per call")
+
+
+def harmonic_indicator(model, result, omega, modal_freq_hz, params):
+    """The indicator of :mod:`mcfric.core.harmonic_indicator` for a single-harmonic result,
+    shape (n_s, n_f); NaN where not converged."""
+    mu0, N0, kc = params
+    h3, h5 = (np.ascontiguousarray(np.abs(model.receptances(n * omega, modal_freq_hz)[:, :, D21]))
+              for n in (3, 5))
+    a, b = (x.astype(np.int64) for x in model.dampers)
+    out = np.empty(result.status.shape)
+    _indicator.harmonic_indicator(h3, h5, a, b, mu0, N0, kc, result.s, result.response, out)
+    return out
 
 
 def multi_harmonic(model, result, omega, modal_freq_hz, harmonics, n_time, tol, max_iter,

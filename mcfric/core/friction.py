@@ -194,6 +194,50 @@ def kappa_law_logs(x, law):
     return complex(1.0 + e, 0.0), complex(-2.0 * e, 0.0)
 
 
+@inline_jit
+def higher_harmonics(s):
+    """3rd and 5th harmonics of the force of a sinusoidally driven Jenkins element.
+
+    For ``q = A cos(theta)`` and slip ratio ``s = mu0 N0 / (kc A)``, the periodic force's
+    harmonics ``F_n = (1/pi) integral f e^{-i n theta}`` divided by ``kc A``. Closed form
+    of the stick-slip loop (stick from the maximum of ``q`` until
+    ``cos theta* = 1 - 2 s``, then slip): with ``I_p = integral_0^theta* e^{-i p theta}``,
+    ``F_n / (kc A) = (2/pi) ((2 s - 1) I_n + (I_{n-1} + I_{n+1}) / 2 - 2 s / (i n))``.
+    The powers of ``e^{-i theta*} = 1 - 2 s - 2 i sqrt(s (1 - s))`` need no trig call.
+    For ``q = A cos(theta + phi)`` multiply by ``e^{i n phi}``.
+
+    Parameters
+    ----------
+    s : float
+        Slip ratio, dimensionless (>= 1 or <= 0: no higher harmonics).
+
+    Returns
+    -------
+    (complex, complex)
+        ``F_3 / (kc A)`` and ``F_5 / (kc A)``, dimensionless.
+    """
+    if s >= 1.0 or s <= 0.0:
+        return 0.0j, 0.0j
+    e1 = complex(1.0 - 2.0 * s, -2.0 * math.sqrt(s * (1.0 - s)))
+    e2 = e1 * e1
+    e3 = e2 * e1
+    e4 = e2 * e2
+    e5 = e4 * e1
+    e6 = e3 * e3
+    # I_p = (1 - e^{-i p theta*}) / (i p) = -i (1 - e^{-i p theta*}) / p (no complex division)
+    mi = -1.0j
+    i2 = mi * (1.0 - e2) * 0.5
+    i3 = mi * (1.0 - e3) * (1.0 / 3.0)
+    i4 = mi * (1.0 - e4) * 0.25
+    i5 = mi * (1.0 - e5) * 0.2
+    i6 = mi * (1.0 - e6) * (1.0 / 6.0)
+    c = 2.0 * _INV_PI
+    t = 2.0 * s - 1.0
+    f3 = c * (t * i3 + 0.5 * (i2 + i4) + complex(0.0, 2.0 * s / 3.0))
+    f5 = c * (t * i5 + 0.5 * (i4 + i6) + complex(0.0, 2.0 * s / 5.0))
+    return f3, f5
+
+
 @jit
 def describing_function(s, kc):
     """Describing function ``K(s)`` in N/m (complex; Re = stiffness, Im = dissipation).

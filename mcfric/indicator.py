@@ -1,0 +1,64 @@
+"""Where one harmonic is not enough: the indicator's report for a results file.
+
+A single-harmonic run stores ``harmonic_indicator`` per point
+(:mod:`mcfric.core.harmonic_indicator`); points above
+:data:`mcfric.hbm.INDICATOR_THRESHOLD` are flagged. A multi-harmonic run says which
+harmonics it balanced. ``mcfric info`` and the run summary print these lines.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .hbm import INDICATOR_THRESHOLD
+
+#: Flagged points listed by name in the report, the largest indicators first.
+SHOWN = 3
+
+
+def file_report(path):
+    """Lines on the harmonic content of a results file (empty if it has none).
+
+    Parameters
+    ----------
+    path : str or Path
+        A results file, complete or partial.
+
+    Returns
+    -------
+    list of str
+    """
+    from .store import dataset_names, iter_records, read, read_attrs
+
+    attrs = read_attrs(path)
+    H = int(attrs.get("harmonics", 1))
+    if H > 1:
+        return [f"harmonics:   odd harmonics 1..{H} balanced (multi-harmonic); response is "
+                "the fundamental, response_peak the full-period peak"]
+    if "harmonic_indicator" not in dataset_names(path):
+        return []
+    flagged = total = 0
+    worst = []          # (indicator, member, frequency index)
+    for start, arr in iter_records(path, ["harmonic_indicator", "converged"]):
+        ind = np.where(arr["converged"], arr["harmonic_indicator"], np.nan)
+        ok = np.isfinite(ind)
+        total += int(np.count_nonzero(ok))
+        hit = ok & (ind > INDICATOR_THRESHOLD)
+        flagged += int(np.count_nonzero(hit))
+        if hit.any():
+            flat = np.where(hit, ind, -np.inf).ravel()
+            top = np.argsort(flat)[::-1][:SHOWN]
+            worst += [(flat[t], start + t // ind.shape[1], t % ind.shape[1]) for t in top
+                      if np.isfinite(flat[t])]
+    if not total:
+        return []
+    lines = [f"harmonics:   single-harmonic; {flagged:,} of {total:,} converged points "
+             f"({100.0 * flagged / total:.3g} %) have higher harmonics above "
+             f"{INDICATOR_THRESHOLD:g} of the fundamental (harmonic_indicator)"]
+    if flagged and attrs.get("complete") == 1:   # member numbers need every row done
+        freq = read(path, "frequency")
+        worst = sorted(worst, reverse=True)[:SHOWN]
+        pts = ", ".join(f"member {m} at {freq[k]:.4g} Hz ({v:.2g})" for v, m, k in worst)
+        lines.append(f"             largest: {pts}; check one with `mcfric verify FILE "
+                     "--member I --f HZ`, or rerun with --harmonics 9")
+    return lines
