@@ -57,20 +57,24 @@ def work_size(n_h, n_time):
 
 @inline_jit
 def _q_derivs(Q, orders, n_h, th):
-    """``q``, ``q'`` and ``q''`` at ``th``."""
+    """``q``, ``q'`` and ``q''`` at ``th`` (orders 1, 3, 5, ...: one sin/cos, then powers)."""
+    e = complex(math.cos(th), math.sin(th))
+    e2 = e * e
+    p = e
     q = 0.0
     d1 = 0.0
     d2 = 0.0
     for h in range(n_h):
         n = orders[h]
-        c = math.cos(n * th)
-        s = math.sin(n * th)
+        c = p.real
+        s = p.imag
         re = Q[h].real
         im = Q[h].imag
         v = re * c - im * s
         q += v
         d1 += -n * (re * s + im * c)
         d2 += -n * n * v
+        p *= e2
     return q, d1, d2
 
 
@@ -120,13 +124,12 @@ def _integral(p, a, b, ar, ai, br, bi):
     if p == 0:
         return complex(b - a, 0.0)
     m = abs(p)
-    if p > 0:
-        zb = complex(br[m], bi[m])
-        za = complex(ar[m], ai[m])
-    else:
-        zb = complex(br[m], -bi[m])
-        za = complex(ar[m], -ai[m])
-    return (zb - za) / complex(0.0, p)
+    sgn = 1.0 if p > 0 else -1.0
+    dr = br[m] - ar[m]
+    di = sgn * (bi[m] - ai[m])
+    # (dr + i di) / (i p) = (di - i dr) / p
+    inv = 1.0 / p
+    return complex(di * inv, -dr * inv)
 
 
 @jit
@@ -142,6 +145,8 @@ def _segment(Q, orders, n_h, a, b, stick, f_a, q_a, th_a, kc, fs_sign, F, dF, zr
         return
     _powers(a, p_max, zra, zia)
     _powers(b, p_max, zrb, zib)
+    ea = complex(math.cos(th_a), math.sin(th_a))
+    ea2 = ea * ea
     for h in range(n_h):
         n = orders[h]
         e_n = _integral(-n, a, b, zra, zia, zrb, zib)
@@ -149,19 +154,22 @@ def _segment(Q, orders, n_h, a, b, stick, f_a, q_a, th_a, kc, fs_sign, F, dF, zr
             F[h] += _INV_PI * fs_sign * e_n
             continue
         acc = (f_a - kc * q_a) * e_n
+        pa = ea          # exp(i nm th_a), nm = 1, 3, 5, ...
         for m in range(n_h):
             nm = orders[m]
             i1 = _integral(nm - n, a, b, zra, zia, zrb, zib)
             i2 = _integral(-nm - n, a, b, zra, zia, zrb, zib)
-            c_mn = 0.5 * (i1 + i2)                  # integral cos(nm th) e^{-i n th}
-            s_mn = (i1 - i2) / complex(0.0, 2.0)    # integral sin(nm th) e^{-i n th}
+            c_mn = 0.5 * (i1 + i2)                      # integral cos(nm th) e^{-i n th}
+            d = i1 - i2
+            s_mn = complex(0.5 * d.imag, -0.5 * d.real)  # integral sin(nm th) e^{-i n th}
             acc += kc * (Q[m].real * c_mn - Q[m].imag * s_mn)
-            d_re = kc * _INV_PI * (c_mn - math.cos(nm * th_a) * e_n)
-            d_im = kc * _INV_PI * (-s_mn + math.sin(nm * th_a) * e_n)
+            d_re = kc * _INV_PI * (c_mn - pa.real * e_n)
+            d_im = kc * _INV_PI * (-s_mn + pa.imag * e_n)
             dF[2 * h, 2 * m] += d_re.real
             dF[2 * h + 1, 2 * m] += d_re.imag
             dF[2 * h, 2 * m + 1] += d_im.real
             dF[2 * h + 1, 2 * m + 1] += d_im.imag
+            pa *= ea2
         F[h] += _INV_PI * acc
 
 
@@ -174,7 +182,7 @@ def jenkins(Q, orders, kc, fs, n_time, F, dF, work):
     Q : ndarray of complex128, shape (n_h,)
         Harmonics of the relative contact displacement, m.
     orders : ndarray of int64, shape (n_h,)
-        Harmonic orders ``n_h`` (odd, increasing).
+        Harmonic orders: exactly ``1, 3, ..., 2 n_h - 1`` (:func:`harmonic_orders`).
     kc : float
         Spring stiffness, N/m (>= 0).
     fs : float
@@ -192,7 +200,8 @@ def jenkins(Q, orders, kc, fs, n_time, F, dF, work):
     -------
     int
         Number of events on the loop (0: stuck throughout, or no force), or -1 if the
-        extrema of ``q`` could not be bracketed (``n_time`` too small).
+        extrema of ``q`` could not be bracketed (``n_time`` too small) or ``work`` is
+        too short.
     """
     n_h = orders.shape[0]
     for h in range(n_h):
@@ -200,7 +209,19 @@ def jenkins(Q, orders, kc, fs, n_time, F, dF, work):
         for m in range(2 * n_h):
             dF[2 * h, m] = 0.0
             dF[2 * h + 1, m] = 0.0
+    if work.shape[0] < work_size(n_h, n_time) or n_time < 4:
+        return -1
     if not (kc > 0.0) or not (fs > 0.0):
+        return 0
+    # the range of q is at most 2 sum |Q_h|: stuck throughout if even that cannot slip
+    bound = 0.0
+    for h in range(n_h):
+        bound += abs(Q[h])
+    if kc * bound <= fs:
+        for h in range(n_h):
+            F[h] = kc * Q[h]
+            dF[2 * h, 2 * h] = kc
+            dF[2 * h + 1, 2 * h + 1] = kc
         return 0
     p_max = 2 * orders[n_h - 1]
     ext = work[:n_time]                     # extrema angles

@@ -47,7 +47,7 @@ import numpy as np
 from numba import prange
 
 from . import aft
-from ._jit import jit
+from ._jit import inline_jit, jit
 from .friction import kappa
 from .linalg import lu_factor, lu_solve
 from .receptance import D21, D23
@@ -86,9 +86,101 @@ def _scale(Q, q0, nd):
     return s if s > 0.0 else 1e-300
 
 
+@inline_jit
+def _block(G, dF, h, j, l, m, n_h, out, r0, c0):
+    """Add the 2x2 real block ``G_h[j, l] dF_l[h, m]`` at ``out[r0, c0]``."""
+    g = G[h, j, l]
+    gr = g.real
+    gi = g.imag
+    a11 = dF[l, 2 * h, 2 * m]
+    a12 = dF[l, 2 * h, 2 * m + 1]
+    a21 = dF[l, 2 * h + 1, 2 * m]
+    a22 = dF[l, 2 * h + 1, 2 * m + 1]
+    out[r0, c0] += gr * a11 - gi * a21
+    out[r0, c0 + 1] += gr * a12 - gi * a22
+    out[r0 + 1, c0] += gi * a11 + gr * a21
+    out[r0 + 1, c0 + 1] += gi * a12 + gr * a22
+
+
+@jit
+def _assemble(G, dF, J, nd, n_h):
+    """Dense Jacobian ``I + G dF`` (any damper graph)."""
+    n = 2 * nd * n_h
+    for i in range(n):
+        for k in range(n):
+            J[i, k] = 0.0
+        J[i, i] = 1.0
+    for j in range(nd):
+        for h in range(n_h):
+            for l in range(nd):
+                if G[h, j, l] == 0.0:
+                    continue
+                for m in range(n_h):
+                    _block(G, dF, h, j, l, m, n_h, J, 2 * (j * n_h + h), 2 * (l * n_h + m))
+
+
+@jit
+def _chain_step(G, dF, W, piv, x, nd, n_h):
+    """Solve ``(I + G dF) dx = x`` in place for a chain (``G_h`` tridiagonal): block
+    Thomas elimination on blocks of size ``2 n_h``, O(nd) blocks. ``W`` is scratch of at
+    least ``(3 nd + 1) * 2 n_h`` rows and ``2 n_h`` columns. Returns False on a singular
+    block."""
+    m2 = 2 * n_h
+    col = np.empty(m2)
+    for j in range(nd):
+        D = W[3 * j * m2:(3 * j + 1) * m2, :m2]
+        Lo = W[(3 * j + 1) * m2:(3 * j + 2) * m2, :m2]
+        Up = W[(3 * j + 2) * m2:(3 * j + 3) * m2, :m2]
+        for r in range(m2):
+            for c in range(m2):
+                D[r, c] = 0.0
+                Lo[r, c] = 0.0
+                Up[r, c] = 0.0
+            D[r, r] = 1.0
+        for h in range(n_h):
+            for m in range(n_h):
+                _block(G, dF, h, j, j, m, n_h, D, 2 * h, 2 * m)
+                if j > 0:
+                    _block(G, dF, h, j, j - 1, m, n_h, Lo, 2 * h, 2 * m)
+                if j < nd - 1:
+                    _block(G, dF, h, j, j + 1, m, n_h, Up, 2 * h, 2 * m)
+        if j > 0:
+            Xp = W[(3 * (j - 1) + 2) * m2:(3 * (j - 1) + 3) * m2, :m2]
+            # D -= Lo X_{j-1};  x_j -= Lo y_{j-1}
+            for r in range(m2):
+                acc = 0.0
+                for k in range(m2):
+                    lk = Lo[r, k]
+                    if lk != 0.0:
+                        acc += lk * x[(j - 1) * m2 + k]
+                        for c in range(m2):
+                            D[r, c] -= lk * Xp[k, c]
+                x[j * m2 + r] -= acc
+        p = piv[j * m2:(j + 1) * m2]
+        if lu_factor(D, p, m2) != 0:
+            return False
+        xj = x[j * m2:(j + 1) * m2]
+        lu_solve(D, p, xj, m2)
+        if j < nd - 1:
+            for c in range(m2):
+                for r in range(m2):
+                    col[r] = Up[r, c]
+                lu_solve(D, p, col, m2)
+                for r in range(m2):
+                    Up[r, c] = col[r]
+    for j in range(nd - 2, -1, -1):
+        X = W[(3 * j + 2) * m2:(3 * j + 3) * m2, :m2]
+        for r in range(m2):
+            acc = 0.0
+            for c in range(m2):
+                acc += X[r, c] * x[(j + 1) * m2 + c]
+            x[j * m2 + r] -= acc
+    return True
+
+
 @jit
 def _newton(Q, orders, G, q0, kc, fs, n_time, tol, max_iter, F, dF, R, J, piv, dx, Qt,
-            work, nd, n_h):
+            work, nd, n_h, chain):
     """Newton from ``Q`` (updated in place); returns ``(converged, iterations, err)``."""
     n = 2 * nd * n_h
     err, ok = _evaluate(Q, orders, G, q0, kc, fs, n_time, F, dF, R, work, nd, n_h)
@@ -98,36 +190,18 @@ def _newton(Q, orders, G, q0, kc, fs, n_time, tol, max_iter, F, dF, R, J, piv, d
     for it in range(1, max_iter + 1):
         if rel <= 0.1 * tol:
             return True, it - 1, rel
-        for i in range(n):
-            for k in range(n):
-                J[i, k] = 0.0
-            J[i, i] = 1.0
-        for j in range(nd):
-            for h in range(n_h):
-                r0 = 2 * (j * n_h + h)
-                for l in range(nd):
-                    g = G[h, j, l]
-                    if g == 0.0:
-                        continue
-                    gr = g.real
-                    gi = g.imag
-                    for m in range(n_h):
-                        c0 = 2 * (l * n_h + m)
-                        a11 = dF[l, 2 * h, 2 * m]
-                        a12 = dF[l, 2 * h, 2 * m + 1]
-                        a21 = dF[l, 2 * h + 1, 2 * m]
-                        a22 = dF[l, 2 * h + 1, 2 * m + 1]
-                        J[r0, c0] += gr * a11 - gi * a21
-                        J[r0, c0 + 1] += gr * a12 - gi * a22
-                        J[r0 + 1, c0] += gi * a11 + gr * a21
-                        J[r0 + 1, c0 + 1] += gi * a12 + gr * a22
         for j in range(nd):
             for h in range(n_h):
                 dx[2 * (j * n_h + h)] = -R[j, h].real
                 dx[2 * (j * n_h + h) + 1] = -R[j, h].imag
-        if lu_factor(J, piv, n) != 0:
-            return False, it, rel
-        lu_solve(J, piv, dx, n)
+        if chain:
+            if not _chain_step(G, dF, J, piv, dx, nd, n_h):
+                return False, it, rel
+        else:
+            _assemble(G, dF, J, nd, n_h)
+            if lu_factor(J, piv, n) != 0:
+                return False, it, rel
+            lu_solve(J, piv, dx, n)
         step = 1.0
         accepted = False
         for _ in range(_MAX_HALVINGS):
@@ -193,6 +267,10 @@ def _sample(i, rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, tol, m
     n_beams = force.shape[0]
     n_f = omega.shape[0]
     n = 2 * nd * n_h
+    chain = True                     # damper j couples beams j and j + 1: tridiagonal G
+    for j in range(nd):
+        if a[j] != j or b[j] != j + 1:
+            chain = False
     r_base = 0
     if rech.shape[0] > n_h:          # per-sample receptances (mistuned rigs)
         r_base = np.int64(i) * n_h
@@ -204,7 +282,8 @@ def _sample(i, rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, tol, m
     F = np.zeros((nd, n_h), dtype=np.complex128)
     dF = np.zeros((nd, 2 * n_h, 2 * n_h))
     R = np.zeros((nd, n_h), dtype=np.complex128)
-    J = np.zeros((n, n))
+    # dense Jacobian, or the chain's block rows (3 blocks of 2 n_h rows per damper)
+    J = np.zeros((3 * n + 2 * n_h, 2 * n_h)) if chain else np.zeros((n, n))
     T = np.zeros((nd, nd), dtype=np.complex128)
     piv = np.zeros(n, dtype=np.int64)
     dx = np.zeros(n)
@@ -236,13 +315,13 @@ def _sample(i, rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, tol, m
                 for h in range(n_h):
                     Q[j, h] = Qp[j, h]
             ok, it, rel = _newton(Q, orders, G, q0, kci, fs, n_time, tol, max_iter, F, dF,
-                                  R, J, piv, dx, Qt, work, nd, n_h)
+                                  R, J, piv, dx, Qt, work, nd, n_h, chain)
             its += it
         if not ok:
             st = 1 if have_prev else 0
             if _single_harmonic_start(s1[i, k], G, q0, kci, Q, T, piv, nd, n_h):
                 ok, it, rel = _newton(Q, orders, G, q0, kci, fs, n_time, tol, max_iter, F,
-                                      dF, R, J, piv, dx, Qt, work, nd, n_h)
+                                      dF, R, J, piv, dx, Qt, work, nd, n_h, chain)
                 its += it
         iterations[i, k] = min(its, 32767)
         residual[i, k] = rel
