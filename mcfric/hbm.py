@@ -33,7 +33,7 @@ MAX_ITER = 50
 #: A single-harmonic point whose :attr:`HBMResult.harmonic_indicator` exceeds this is
 #: flagged: one harmonic may not be enough there (docs: theory, "When one harmonic is not
 #: enough", for the measured quality of this choice).
-INDICATOR_THRESHOLD = 0.005
+INDICATOR_THRESHOLD = 0.003
 
 
 @dataclass

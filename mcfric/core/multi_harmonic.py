@@ -36,7 +36,8 @@ y_peak : ndarray of float64, shape (n_s, n_f, n_beams)
 s : ndarray of float64, shape (n_s, n_f, nd)
     Out: ``mu0 N0 / (kc |Q_j1|)``, the slip ratio of the fundamental.
 status, iterations, residual
-    Out: 0 from the previous frequency, 1 from the single-harmonic start, -1 not
+    Out: 0 from the previous frequency, 1 from the single-harmonic start, 2 by
+    continuation in the higher harmonics' coupling from the single-harmonic start, -1 not
     converged (``y``, ``y_peak`` and ``s`` NaN); iterations of all attempts; the final
     ``max |R| / max_j |Q_j1|``.
 """
@@ -58,12 +59,14 @@ _MAX_HALVINGS = 10
 
 @jit
 def _evaluate(Q, orders, G, q0, kc, fs, n_time, F, dF, R, work, nd, n_h):
-    """Force harmonics, their Jacobians and the residual; returns ``(max |R|, ok)``."""
+    """Force harmonics, their Jacobians and the residual; returns
+    ``(max |R|, sum |R|^2, ok)``."""
     ok = True
     for j in range(nd):
         if aft.jenkins(Q[j], orders, kc[j], fs[j], n_time, F[j], dF[j], work) < 0:
             ok = False
     err = 0.0
+    ss = 0.0
     for j in range(nd):
         for h in range(n_h):
             r = Q[j, h]
@@ -73,9 +76,10 @@ def _evaluate(Q, orders, G, q0, kc, fs, n_time, F, dF, R, work, nd, n_h):
                 r -= q0[j]
             R[j, h] = r
             err = max(err, abs(r))
+            ss += r.real * r.real + r.imag * r.imag
     if not math.isfinite(err):
         ok = False
-    return err, ok
+    return err, ss, ok
 
 
 @jit
@@ -183,7 +187,7 @@ def _newton(Q, orders, G, q0, kc, fs, n_time, tol, max_iter, F, dF, R, J, piv, d
             work, nd, n_h, chain):
     """Newton from ``Q`` (updated in place); returns ``(converged, iterations, err)``."""
     n = 2 * nd * n_h
-    err, ok = _evaluate(Q, orders, G, q0, kc, fs, n_time, F, dF, R, work, nd, n_h)
+    err, ss, ok = _evaluate(Q, orders, G, q0, kc, fs, n_time, F, dF, R, work, nd, n_h)
     if not ok:
         return False, 0, math.inf
     rel = err / _scale(Q, q0, nd)
@@ -209,8 +213,10 @@ def _newton(Q, orders, G, q0, kc, fs, n_time, tol, max_iter, F, dF, R, J, piv, d
                 for h in range(n_h):
                     i0 = 2 * (j * n_h + h)
                     Qt[j, h] = Q[j, h] + step * complex(dx[i0], dx[i0 + 1])
-            err_t, ok = _evaluate(Qt, orders, G, q0, kc, fs, n_time, F, dF, R, work, nd, n_h)
-            if ok and err_t < err:
+            err_t, ss_t, ok = _evaluate(Qt, orders, G, q0, kc, fs, n_time, F, dF, R, work, nd,
+                                        n_h)
+            # sufficient decrease of the sum of squares (smoother than the max norm)
+            if ok and ss_t < (1.0 - 1e-4 * step) * ss:
                 accepted = True
                 break
             step *= 0.5
@@ -222,6 +228,7 @@ def _newton(Q, orders, G, q0, kc, fs, n_time, tol, max_iter, F, dF, R, J, piv, d
             for h in range(n_h):
                 Q[j, h] = Qt[j, h]
         err = err_t
+        ss = ss_t
         rel = err / _scale(Q, q0, nd)
     return rel <= tol, max_iter, rel
 
@@ -247,6 +254,50 @@ def _single_harmonic_start(s1, G, q0, kc, Q, T, piv, nd, n_h):
         for h in range(1, n_h):
             Q[j, h] = 0.0j
     return True
+
+
+#: Continuation: first step in lambda, smallest step before giving up.
+_LAMBDA_STEP = 0.25
+_LAMBDA_MIN_STEP = 1.0 / 64.0
+
+
+@jit
+def _continuation(Q, Qc, orders, G, Gs, q0, kc, fs, n_time, tol, max_iter, F, dF, R, J, piv,
+                  dx, Qt, work, nd, n_h, chain):
+    """Last resort from the single-harmonic start ``Q``: follow the solution while the
+    higher harmonics' receptances are scaled up from 0 (where ``Q`` solves the equations
+    exactly) to 1, by natural continuation with step halving. Returns like
+    :func:`_newton`; ``Q`` holds the solution on success."""
+    lam = 0.0
+    step = _LAMBDA_STEP
+    total = 0
+    ok = False
+    rel = math.inf
+    for j in range(nd):
+        for h in range(n_h):
+            Qc[j, h] = Q[j, h]
+    while lam < 1.0 and step >= _LAMBDA_MIN_STEP:
+        target = min(1.0, lam + step)
+        for h in range(n_h):
+            scale = 1.0 if h == 0 else target
+            for j in range(nd):
+                for m in range(nd):
+                    Gs[h, j, m] = scale * G[h, j, m]
+        for j in range(nd):
+            for h in range(n_h):
+                Q[j, h] = Qc[j, h]
+        ok, it, rel = _newton(Q, orders, Gs, q0, kc, fs, n_time, tol, max_iter, F, dF, R, J,
+                              piv, dx, Qt, work, nd, n_h, chain)
+        total += it
+        if ok:
+            lam = target
+            for j in range(nd):
+                for h in range(n_h):
+                    Qc[j, h] = Q[j, h]
+            step *= 1.5
+        else:
+            step *= 0.5
+    return ok and lam >= 1.0, total, rel
 
 
 @jit(parallel=True, nogil=True)
@@ -275,6 +326,8 @@ def _sample(i, rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, tol, m
     if rech.shape[0] > n_h:          # per-sample receptances (mistuned rigs)
         r_base = np.int64(i) * n_h
     G = np.empty((n_h, nd, nd), dtype=np.complex128)
+    Gs = np.empty((n_h, nd, nd), dtype=np.complex128)
+    Qc = np.zeros((nd, n_h), dtype=np.complex128)
     q0 = np.empty(nd, dtype=np.complex128)
     Q = np.zeros((nd, n_h), dtype=np.complex128)
     Qp = np.zeros((nd, n_h), dtype=np.complex128)
@@ -323,6 +376,12 @@ def _sample(i, rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, tol, m
                 ok, it, rel = _newton(Q, orders, G, q0, kci, fs, n_time, tol, max_iter, F,
                                       dF, R, J, piv, dx, Qt, work, nd, n_h, chain)
                 its += it
+        if not ok and _single_harmonic_start(s1[i, k], G, q0, kci, Q, T, piv, nd, n_h):
+            st = 2
+            ok, it, rel = _continuation(Q, Qc, orders, G, Gs, q0, kci, fs, n_time, tol,
+                                        max_iter, F, dF, R, J, piv, dx, Qt, work, nd, n_h,
+                                        chain)
+            its += it
         iterations[i, k] = min(its, 32767)
         residual[i, k] = rel
         if not ok:
