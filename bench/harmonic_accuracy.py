@@ -43,7 +43,8 @@ def convergence():
                 Ms.append(float(np.max(np.abs(r.response[0, 0]))))
             rows.append(dict(preset=name, mu0=mu0, kc=kc, f_hz=f, periodic=vs[k].periodic,
                              time=float(td), M=Ms))
-    print("| preset (mu0, kc) | f (Hz) | " + " | ".join(f"H = {h}" for h in HS) + " | time integration |")
+    print("| preset (mu0, kc) | f (Hz) | " + " | ".join(f"H = {h}" for h in HS)
+          + " | time integration |")
     print("|---|---|" + "---|" * (len(HS) + 1))
     for r in rows:
         cells = [f"{(m / r['time'] - 1):+.2%}" for m in r["M"]]

@@ -39,7 +39,10 @@ def file_report(path):
         return []
     flagged = total = 0
     worst = []          # (indicator, member, frequency index)
-    for start, arr in iter_records(path, ["harmonic_indicator", "converged"]):
+    # blocks of ~128 kB of indicator (a few temporaries each): memory stays flat in the
+    # number of members
+    block = max(1, (1 << 15) // max(1, len(read(path, "frequency"))))
+    for start, arr in iter_records(path, ["harmonic_indicator", "converged"], block=block):
         ind = np.where(arr["converged"], arr["harmonic_indicator"], np.nan)
         ok = np.isfinite(ind)
         total += int(np.count_nonzero(ok))

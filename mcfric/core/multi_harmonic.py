@@ -256,6 +256,35 @@ def _single_harmonic_start(s1, G, q0, kc, Q, T, piv, nd, n_h):
     return True
 
 
+@jit
+def _extremum(yh, orders, bb, t, n_peak, v0):
+    """The extremum of ``y(theta) = Re sum_h Y_h e^{i n_h theta}`` next to sample ``t``
+    (value ``v0``): a few Newton steps on ``y'``, kept within one sample spacing."""
+    th0 = 2.0 * math.pi * t / n_peak
+    th = th0
+    best = v0
+    for _ in range(4):
+        d1 = 0.0
+        d2 = 0.0
+        for h in range(orders.shape[0]):
+            n = orders[h]
+            z = yh[h, bb] * complex(math.cos(n * th), math.sin(n * th))
+            d1 -= n * z.imag
+            d2 -= n * n * z.real
+        if d2 == 0.0:
+            break
+        th = th - d1 / d2
+        if abs(th - th0) > 2.0 * math.pi / n_peak:
+            break
+    v = 0.0
+    for h in range(orders.shape[0]):
+        v += (yh[h, bb] * complex(math.cos(orders[h] * th), math.sin(orders[h] * th))).real
+    # keep the sampled value unless the refined point is further out on the same side
+    if (v0 >= 0.0 and v > best) or (v0 < 0.0 and v < best):
+        best = v
+    return best
+
+
 #: Continuation: first step in lambda, smallest step before giving up.
 _LAMBDA_STEP = 0.25
 _LAMBDA_MIN_STEP = 1.0 / 64.0
@@ -417,11 +446,20 @@ def _sample(i, rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, tol, m
             yh[0, bb] += rech[r_base, k, D23, bb] * force[bb]
             for h in range(y.shape[2]):
                 y[i, k, h, bb] = yh[h, bb]
-            big = 0.0
+            hi = -math.inf
+            lo = math.inf
+            t_hi = 0
+            t_lo = 0
             for t in range(n_peak):
                 v = 0.0
                 for h in range(n_h):
                     v += (yh[h, bb] * ph[t, h]).real
-                big = max(big, abs(v))
-            y_peak[i, k, bb] = big
+                if v > hi:
+                    hi = v
+                    t_hi = t
+                if v < lo:
+                    lo = v
+                    t_lo = t
+            y_peak[i, k, bb] = max(_extremum(yh, orders, bb, t_hi, n_peak, hi),
+                                   -_extremum(yh, orders, bb, t_lo, n_peak, lo))
 
