@@ -94,13 +94,17 @@ def _root(Q, orders, n_h, lo, hi, flo, level, deriv):
             lo = th
         else:
             hi = th
-        step = g / dg if dg != 0.0 else 0.0
-        new = th - step
-        if not (lo < new < hi) or dg == 0.0:
-            new = 0.5 * (lo + hi)
-        if abs(new - th) < _THETA_TOL or hi - lo < _THETA_TOL:
-            return new
-        th = new
+        if dg != 0.0:
+            step = g / dg
+            new = th - step
+            if lo <= new <= hi:
+                if abs(step) < _THETA_TOL:
+                    return new
+                th = new
+                continue
+        th = 0.5 * (lo + hi)
+        if hi - lo < _THETA_TOL:
+            return th
     return th
 
 
@@ -272,7 +276,9 @@ def jenkins(Q, orders, kc, fs, n_time, F, dF, work):
             dF[2 * h, 2 * h] = kc
             dF[2 * h + 1, 2 * h + 1] = kc
         return 0
-    # walk one period from the global maximum, piece by monotone piece
+    # walk one period from the global maximum, piece by monotone piece; a stick phase
+    # keeps its anchor across reversals, so it is integrated as one segment from the end
+    # of the last slip to the start of the next
     th0 = ext[i_max]
     th_a = th0
     q_a = q_max
@@ -280,6 +286,7 @@ def jenkins(Q, orders, kc, fs, n_time, F, dF, work):
     n_events = 0
     a = th0
     q_s = q_max
+    stick_from = th0
     for p in range(1, n_ext + 1):
         k = i_max + p
         b = ext[k - n_ext] + _TWO_PI if k >= n_ext else ext[k]
@@ -288,7 +295,7 @@ def jenkins(Q, orders, kc, fs, n_time, F, dF, work):
         level = q_a + ((fs - f_a) / kc if up else -(fs + f_a) / kc)
         if (up and q_b > level) or (not up and q_b < level):
             th_s = _root(Q, orders, n_h, a, b, q_s - level, level, False)
-            _segment(Q, orders, n_h, a, th_s, True, f_a, q_a, th_a, kc, 0.0, F, dF,
+            _segment(Q, orders, n_h, stick_from, th_s, True, f_a, q_a, th_a, kc, 0.0, F, dF,
                      zra, zia, zrb, zib, p_max)
             sgn = fs if up else -fs
             _segment(Q, orders, n_h, th_s, b, False, 0.0, 0.0, 0.0, kc, sgn, F, dF,
@@ -296,12 +303,12 @@ def jenkins(Q, orders, kc, fs, n_time, F, dF, work):
             th_a = b
             q_a = q_b
             f_a = sgn
+            stick_from = b
             n_events += 2
-        else:
-            _segment(Q, orders, n_h, a, b, True, f_a, q_a, th_a, kc, 0.0, F, dF,
-                     zra, zia, zrb, zib, p_max)
         a = b
         q_s = q_b
+    _segment(Q, orders, n_h, stick_from, th0 + _TWO_PI, True, f_a, q_a, th_a, kc, 0.0, F, dF,
+             zra, zia, zrb, zib, p_max)
     return n_events
 
 
