@@ -14,9 +14,10 @@
     mcfric bounds [PRESET|CONFIG.toml] [-o FILE] [--F0 N] [--f-min HZ] [--f-max HZ]
                [--n-freq N] [--k-max N_PER_M] [--F-lim N] [--threads T] [--no-figure]
     mcfric plot FILE [-o FIG.png|pdf] [--quantity Q] [--f-min HZ] [--f-max HZ]
-               [--member I] [--measured DATA ...] [--nodes N1,N2,...]
+               [--member I] [--measured DATA ...] [--nodes N1,N2,...] [--no-indicator]
     mcfric verify [PRESET|CONFIG.toml] --f HZ [HZ ...] [--mu0 X] [--kc N_PER_M] [--N0 N]
                [--F0 N] [--harmonics H] [--start single|rest] [-o OUT.csv] [--no-figure]
+               [--no-progress]
     mcfric verify FILE.h5 --member I --f HZ [HZ ...] [--harmonics H] ...
 
 ``run`` and ``hbm`` also take ``--harmonics H`` (multi-harmonic balance of the odd
@@ -152,6 +153,8 @@ def _parser():
     pl.add_argument("--normalise", action="store_true",
                     help="rescale measured data taken at force F_meas to the file's F0 "
                          "(Eq. 11-12; needs the force level in the data)")
+    pl.add_argument("--no-indicator", action="store_true",
+                    help="do not mark the points flagged by harmonic_indicator")
     _verify_parser(sub)
     return p
 
@@ -186,6 +189,7 @@ def _verify_parser(sub):
                    help="CSV file (default: mcfric-results/verify-<name>.csv); the PNG goes "
                         "next to it")
     v.add_argument("--no-figure", action="store_true", help="do not draw the figure")
+    v.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
 def _harmonic_flags(p):
@@ -384,7 +388,7 @@ def cmd_plot(args):
     try:
         drawn = plot.results_figure(path, out, quantity=args.quantity, f_window=window,
                                     member=None if args.member < 0 else args.member,
-                                    measured=measured)
+                                    measured=measured, indicator=not args.no_indicator)
     except ValueError as e:
         raise UsageError(str(e)) from None
     print(f"figure: {out} ({drawn['n_drawn']} of {drawn['n_members']} members drawn"
@@ -654,7 +658,7 @@ def cmd_verify(args):
         out = _output_path(args, ".csv", prefix="verify-")
     try:
         vs = verify(model, args.f, mu0, kc, N0, harmonics=args.harmonics, start=args.start,
-                    max_periods=args.max_periods)
+                    max_periods=args.max_periods, progress=not args.no_progress)
     except ValueError as e:
         raise UsageError(str(e).splitlines()[0]) from None
     label = (f"mu0 = {np.ravel(mu0)[0]:g}, kc = {np.ravel(kc)[0]:g} N/m, "

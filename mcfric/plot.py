@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .hbm import INDICATOR_THRESHOLD
 from .metric import METRIC_UNITS, omega_power
 from .store import dataset_names, iter_records, read, read_attrs, read_group
 
@@ -29,7 +30,7 @@ def _stored_quantity(attrs):
 
 
 def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lines=400,
-                   measured=(), title=None):
+                   measured=(), title=None, indicator=True):
     """Bounds band over the ensemble cloud, log amplitude vs frequency.
 
     Reads the file in blocks (memory does not grow with the ensemble). The cloud is one
@@ -56,11 +57,17 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
         Drawn in the plotted quantity: stepped-sine points as crosses, sweeps as lines,
         each as its metric (max over the beams measured).
     title : str, optional
+    indicator : bool
+        If the file has a ``harmonic_indicator`` (single-harmonic runs): mark the points
+        where one harmonic may not be enough. The share of converged members flagged at
+        each frequency is drawn on a right-hand axis (0-100 %), and the highlighted
+        member's flagged points are circled.
 
     Returns
     -------
     dict
-        ``n_members``, ``n_drawn`` and ``has_bounds``: what was drawn.
+        ``n_members``, ``n_drawn``, ``has_bounds`` and ``n_flagged`` (flagged points over
+        the whole ensemble, 0 if not marked): what was drawn.
     """
     from matplotlib.collections import LineCollection
 
@@ -83,15 +90,28 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
     ax = fig.add_subplot()
     n = int(attrs.get("samples", 0))
     drawn = 0
-    if "sample" in dataset_names(path):
+    names = dataset_names(path)
+    mark = indicator and "harmonic_indicator" in names
+    flagged_at = np.zeros(len(f))          # flagged members per frequency
+    counted_at = np.zeros(len(f))          # converged members per frequency
+    member_flags = None
+    if "sample" in names:
         step = max(1, n // max_lines)
         segs, highlight = [], None
-        for _, arr in iter_records(path, ["metric", "sample"]):
+        fields = ["metric", "sample"] + (["harmonic_indicator", "converged"] if mark else [])
+        for _, arr in iter_records(path, fields):
             m = arr["metric"][:, win] * scale[win]
             for idx in np.flatnonzero(arr["sample"] % step == 0):
                 segs.append(np.column_stack([fw, np.where(m[idx] > 0, m[idx], np.nan)]))
+            if mark:
+                hit = arr["converged"] & (arr["harmonic_indicator"] > INDICATOR_THRESHOLD)
+                flagged_at += hit.sum(axis=0)
+                counted_at += arr["converged"].sum(axis=0)
             if member is not None and member in arr["sample"]:
-                highlight = m[np.flatnonzero(arr["sample"] == member)[0]]
+                row = np.flatnonzero(arr["sample"] == member)[0]
+                highlight = m[row]
+                if mark:
+                    member_flags = hit[row, win]
         drawn = len(segs)
         if segs:
             lc = LineCollection(segs, colors="0.45", linewidths=0.5, alpha=0.25,
@@ -100,6 +120,11 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
         if highlight is not None:
             ax.plot(fw, np.where(highlight > 0, highlight, np.nan), color="k", lw=1.1,
                     label=f"member {member}")
+            if member_flags is not None and member_flags.any():
+                ax.plot(fw[member_flags], highlight[member_flags], "o", mfc="none",
+                        color="tab:orange", ms=3.5, mew=0.8,
+                        label=f"member {member}: higher harmonics > "
+                              f"{INDICATOR_THRESHOLD:g} (indicator)")
     if "peak_metric" in dataset_names(path):
         # the members' refined peaks (the grid underestimates lightly damped peaks)
         px, py = [], []
@@ -149,9 +174,22 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
         title = f"{name}" + (f", F0 = {F0:g} N" if F0 else "")
     ax.set_title(title, fontsize=10)
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(loc="best", fontsize=8)
+    handles, labels = ax.get_legend_handles_labels()
+    if mark and counted_at.any():
+        # where one harmonic may not be enough: share of members flagged per frequency
+        share = 100.0 * flagged_at / np.maximum(counted_at, 1)
+        ax2 = ax.twinx()
+        ax2.plot(fw, share[win], color="tab:orange", lw=0.9, alpha=0.8)
+        ax2.set_ylim(0, 100)
+        ax2.set_ylabel("members flagged by harmonic_indicator [%]", color="tab:orange",
+                       fontsize=8)
+        ax2.tick_params(axis="y", colors="tab:orange", labelsize=8)
+        handles += ax2.get_lines()
+        labels.append("share flagged (right axis; rerun with --harmonics)")
+    ax.legend(handles, labels, loc="best", fontsize=8)
     fig.savefig(out, dpi=150)
-    return {"n_members": n if drawn else 0, "n_drawn": drawn, "has_bounds": B is not None}
+    return {"n_members": n if drawn else 0, "n_drawn": drawn, "has_bounds": B is not None,
+            "n_flagged": int(flagged_at.sum())}
 
 
 def _config(attrs):

@@ -10,6 +10,7 @@ into a number.
 from __future__ import annotations
 
 import math
+import sys
 from dataclasses import dataclass
 
 import numpy as np
@@ -146,7 +147,7 @@ def _single_harmonic_state(model, omega, mu0, kc, N0, s):
 
 
 def verify(model, freq_hz, mu0, kc, N0=0.5, *, harmonics=9, start="single", tol=TOL,
-           settle=SETTLE, max_periods=MAX_PERIODS, steps=None):
+           settle=SETTLE, max_periods=MAX_PERIODS, steps=None, progress=False):
     """Integrate to a periodic state at each frequency and compare with harmonic balance.
 
     Parameters
@@ -170,6 +171,8 @@ def verify(model, freq_hz, mu0, kc, N0=0.5, *, harmonics=9, start="single", tol=
         Periods after which the response is reported as not periodic.
     steps : int, optional
         Time steps per period (default from the fastest mode; at least 64).
+    progress : bool
+        Show a tqdm bar over the frequencies on stderr (an integration takes seconds).
 
     Returns
     -------
@@ -202,8 +205,11 @@ def verify(model, freq_hz, mu0, kc, N0=0.5, *, harmonics=9, start="single", tol=
     uc, uo, ud = (np.ascontiguousarray(u[:, :, i]) for i in range(3))
     a, b = (x.astype(np.int64) for x in model.dampers)
     force = np.ascontiguousarray(model.force, dtype=np.complex128)
+    from tqdm import tqdm
+
     out = []
-    for k, fk in enumerate(f):
+    for k, fk in enumerate(tqdm(f, unit="frequency", disable=not progress, leave=False,
+                                dynamic_ncols=True, file=sys.stderr)):
         omega = 2 * np.pi * fk
         n_steps = int(steps) if steps is not None else _steps(model, omega, kc)
         if start == "single" and shb.converged[0, k]:

@@ -229,3 +229,23 @@ def test_verify_takes_a_member_of_a_results_file(tmp_path, capsys):
     assert table.shape == (2,) and out.with_suffix(".png").exists()
     rc = cli.main(["verify", str(res), "--member", "9", "--f", "30", "-o", str(out)])
     assert rc == 2
+
+
+def test_plot_marks_the_points_the_indicator_flags(tmp_path, capsys):
+    """The figure's count of flagged points equals a plain count over the file."""
+    import h5py
+
+    from mcfric import plot
+
+    res = tmp_path / "r.h5"
+    assert cli.main(["run", "eight-beam", "--samples", "6", "--n-freq", "40", "-o", str(res),
+                     "--no-progress", "--no-figure"]) == 0
+    with h5py.File(res, "r") as h:
+        plain = int(np.count_nonzero(h["converged"][...]
+                                     & (h["harmonic_indicator"][...] > hbm.INDICATOR_THRESHOLD)))
+    assert plain > 0
+    assert plot.results_figure(res, tmp_path / "a.png")["n_flagged"] == plain
+    assert plot.results_figure(res, tmp_path / "b.png", indicator=False)["n_flagged"] == 0
+    capsys.readouterr()
+    assert cli.main(["plot", str(res), "-o", str(tmp_path / "c.png"), "--no-indicator"]) == 0
+    assert (tmp_path / "c.png").stat().st_size > 0
