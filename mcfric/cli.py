@@ -6,7 +6,7 @@
     mcfric run [PRESET|CONFIG.toml] [-o FILE] [--samples N] [--seed S] [--resume]
                [--force] [--threads T] [--chunk N] [--peaks N] [--peak-rtol X]
                [--no-peaks] [--F0 N] [--f-min HZ] [--f-max HZ] [--n-freq N]
-               [--no-progress] [--no-figure]
+               [--no-progress] [--no-figure] [--skip-space-check]
     mcfric config [PRESET|CONFIG.toml]       # complete, commented TOML on stdout
     mcfric info FILE                         # summary of a results file
     mcfric hbm [PRESET|CONFIG.toml] [--mu0 X] [--kc N_PER_M] [--N0 N] [--F0 N]
@@ -89,6 +89,9 @@ def _parser():
     _model_flags(r)
     _harmonic_flags(r)
     r.add_argument("--no-progress", action="store_true", help="no progress bar")
+    r.add_argument("--skip-space-check", action="store_true",
+                   help="start even if the results file looks too large for the free disk "
+                        "space")
     r.add_argument("--no-figure", action="store_true", help="do not draw the figure")
 
     c = sub.add_parser("config", help="print a complete, commented configuration",
@@ -256,18 +259,65 @@ def _default_output(args, suffix, prefix=""):
     return DEFAULT_DIR / f"{prefix}{stem}{suffix}"
 
 
-def _output_path(args, suffix, prefix=""):
-    """The output path; the default directory is created, a given one must exist."""
-    if args.output:
+def _output_path(args, suffix, prefix="", figure=False):
+    """The output path; the default directory is created, a given one must exist.
+
+    ``figure``: the command also writes ``FILE.png`` next to it; the two must differ.
+    Neither may replace an HDF5 file unless the command writes HDF5 itself (``suffix``
+    ``.h5``, whose own checks decide).
+    """
+    if args.output is not None:
+        if not str(args.output).strip():
+            raise UsageError('-o: expected a file name, got ""')
         out = Path(args.output)
         if not out.parent.is_dir():
             raise UsageError(f"-o: directory {out.parent} does not exist")
         if out.is_dir():
             raise UsageError(f"-o: {out} is a directory")
-        return out
-    out = _default_output(args, suffix, prefix)
-    out.parent.mkdir(parents=True, exist_ok=True)
+    else:
+        out = _default_output(args, suffix, prefix)
+        out.parent.mkdir(parents=True, exist_ok=True)
+    what = "results file" if suffix == ".h5" else f"{suffix[1:].upper()} output"
+    if suffix != ".h5":
+        _not_replacing_hdf5(out, what)
+    if figure:
+        png = out.with_suffix(".png")
+        if png == out:
+            raise UsageError(f"-o: the {what} and its figure would both be {out}; give the "
+                             f"{what} another suffix (e.g. {out.with_suffix(suffix).name})")
+        _not_replacing_hdf5(png, "figure")
     return out
+
+
+def _not_replacing_hdf5(path, what):
+    """No CSV or figure silently replaces a results file (HDF5)."""
+    import h5py
+
+    if path.is_file() and h5py.is_hdf5(path):
+        raise UsageError(f"{path} is an HDF5 file (results?); the {what} would replace it: "
+                         f"choose another -o")
+
+
+def _only_replacing_bounds(out):
+    """``mcfric bounds`` replaces a bounds file of its own, nothing else (an ensemble's
+    results file, its ``.partial``, or a file of another kind)."""
+    from .store import StoreError, partial_path, read_attrs
+
+    part = partial_path(out)
+    if part.exists():
+        raise UsageError(f"{part} exists (an interrupted run?); the bounds would replace "
+                         f"it: choose another -o")
+    if not out.exists():
+        return
+    try:
+        attrs = read_attrs(out)
+    except StoreError:
+        attrs = {}
+    if "layout_version" not in attrs or int(attrs.get("samples", -1)) != 0:
+        kind = "an ensemble's results file" if "layout_version" in attrs else \
+            "not an mcfric bounds file"
+        raise UsageError(f"{out} exists and is {kind}; the bounds would replace it: "
+                         f"choose another -o")
 
 
 def _check_members(path):
@@ -294,7 +344,7 @@ def cmd_run(args):
 
     cfg = _load(args)
     spec = cfg.spec
-    out = _output_path(args, ".h5")
+    out = _output_path(args, ".h5", figure=not args.no_figure)
     # every refusal (bad config, existing files) happens before anything is written
     try:
         model = spec.model
@@ -302,7 +352,8 @@ def cmd_run(args):
               f"frequencies, {model.n_beams} beams, F0 = {model.excitation.F0:g} N, "
               f"seed {spec.seed}", flush=True)
         summary = ensemble.run(cfg, out, resume=args.resume, force=args.force,
-                               progress=not args.no_progress)
+                               progress=not args.no_progress,
+                               space_check=not args.skip_space_check)
     except ensemble.RunError as e:
         raise UsageError(str(e)) from None
     except ensemble.Interrupted as e:
@@ -333,18 +384,28 @@ def cmd_bounds(args):
     import time
 
     from . import bounds, plot
+    from .store.lock import LockError, OutputLock
 
     cfg = _load(args, {"bounds.enabled": True})
     spec = cfg.spec
-    out = _output_path(args, ".h5", prefix="bounds-")
+    out = _output_path(args, ".h5", prefix="bounds-", figure=not args.no_figure)
     model, f, lim = spec.model, spec.freq_hz, spec.bounds
-    print(f"mcfric bounds: {model.name}, {len(f)} frequencies {f[0]:g}-{f[-1]:g} Hz, "
-          f"F0 = {model.excitation.F0:g} N; box 0 <= Re K <= {lim.k_max_re:g} N/m, "
-          f"0 <= Im K <= {lim.k_max_im:g} N/m, F_lim = {lim.F_lim:g} N", flush=True)
-    t = time.perf_counter()
-    B = bounds.from_spec(spec)
-    print(f"{B.summary()} ({time.perf_counter() - t:.1f} s)")
-    bounds.write_bounds_file(out, cfg, B)
+    lock = OutputLock(out, "mcfric bounds")
+    try:
+        lock.acquire()
+    except LockError as e:
+        raise UsageError(str(e)) from None
+    try:
+        _only_replacing_bounds(out)
+        print(f"mcfric bounds: {model.name}, {len(f)} frequencies {f[0]:g}-{f[-1]:g} Hz, "
+              f"F0 = {model.excitation.F0:g} N; box 0 <= Re K <= {lim.k_max_re:g} N/m, "
+              f"0 <= Im K <= {lim.k_max_im:g} N/m, F_lim = {lim.F_lim:g} N", flush=True)
+        t = time.perf_counter()
+        B = bounds.from_spec(spec)
+        print(f"{B.summary()} ({time.perf_counter() - t:.1f} s)")
+        bounds.write_bounds_file(out, cfg, B)
+    finally:
+        lock.release()
     print(f"bounds: {out}")
     if not args.no_figure:
         png = out.with_suffix(".png")
@@ -369,11 +430,14 @@ def cmd_plot(args):
         raise UsageError(f"{path}: not an mcfric results or bounds file")
     if attrs.get("complete") != 1:
         raise UsageError(f"{path}: the run is not complete (continue it with --resume)")
+    if args.output is not None and not str(args.output).strip():
+        raise UsageError('-o: expected a file name, got ""')
     out = Path(args.output) if args.output else path.with_suffix(".png")
     if out.suffix.lower() not in (".png", ".pdf", ".svg"):
         raise UsageError(f"-o: expected a .png, .pdf or .svg file, got {out.name}")
     if not out.parent.is_dir():
         raise UsageError(f"-o: directory {out.parent} does not exist")
+    _not_replacing_hdf5(out, "figure")
     window = None
     if args.f_min is not None or args.f_max is not None:
         from .store import read
@@ -543,7 +607,7 @@ def cmd_hbm(args):
             number(lo=0)(v, flag)
         except InputError as e:
             raise UsageError(str(e)) from None
-    out = _output_path(args, ".csv", prefix="hbm-")
+    out = _output_path(args, ".csv", prefix="hbm-", figure=not args.no_figure)
     model, f = spec.model, spec.freq_hz
     H = spec.solver.harmonics
     try:
@@ -655,7 +719,7 @@ def cmd_verify(args):
         out = DEFAULT_DIR / f"verify-{stem}.csv"
         out.parent.mkdir(parents=True, exist_ok=True)
     else:
-        out = _output_path(args, ".csv", prefix="verify-")
+        out = _output_path(args, ".csv", prefix="verify-", figure=not args.no_figure)
     try:
         vs = verify(model, args.f, mu0, kc, N0, harmonics=args.harmonics, start=args.start,
                     max_periods=args.max_periods, progress=not args.no_progress)
@@ -712,6 +776,10 @@ def main(argv=None):
         return EXIT_INTERRUPTED
     except (OSError, StoreError) as e:   # disk full, unreadable file: one line, no traceback
         print(f"mcfric: error: {e}", file=sys.stderr)
+        return EXIT_FAIL
+    except MemoryError:
+        print("mcfric: error: out of memory (a model or ensemble this large needs more RAM "
+              "than is free: fewer beams, frequencies or samples per chunk)", file=sys.stderr)
         return EXIT_FAIL
 
 

@@ -17,6 +17,7 @@ import hashlib
 import json
 import platform
 import queue
+import shutil
 import sys
 import threading
 import time
@@ -33,7 +34,8 @@ from .indicator import file_report as indicator_report
 from .metric import METRIC_UNITS
 from .peaks import file_report as peak_report
 from .peaks import report_text
-from .store import Store, StoreError, iter_records, partial_path, read_attrs
+from .store import Store, StoreError, allocated_bytes, iter_records, partial_path, read_attrs
+from .store.lock import LockError, OutputLock
 
 RECORD = "sample"
 #: Kernel output per chunk when run.chunk = 0 (auto).
@@ -371,7 +373,8 @@ def _put(q, item, writer, err):
                 raise err[0] if err else RuntimeError("the writer thread stopped")
 
 
-def run(spec, path, *, resume=False, force=False, progress=True, groups="auto"):
+def run(spec, path, *, resume=False, force=False, progress=True, groups="auto",
+        space_check=True):
     """Run (or continue) the Monte Carlo ensemble of ``spec`` into the results file ``path``.
 
     Parameters
@@ -392,6 +395,9 @@ def run(spec, path, *, resume=False, force=False, progress=True, groups="auto"):
         attrs)}`` written with it, so that the file never changes but for its chunks
         afterwards. ``"auto"`` (default): the ``bounds/`` group when the spec has
         bounds (``[bounds] enabled``; computed before the ensemble); None: no groups.
+    space_check : bool
+        Refuse, before any work, a run whose file needs more than the free space of its
+        file system (:func:`check_space`). False skips the check.
 
     Returns
     -------
@@ -406,9 +412,102 @@ def run(spec, path, *, resume=False, force=False, progress=True, groups="auto"):
     """
     t_start = time.perf_counter()
     spec = getattr(spec, "spec", spec)
-    n_f = len(spec.freq_hz)
     final = Path(path)
+    if not final.parent.is_dir():
+        raise RunError(f"{final.parent}: output directory does not exist")
+    # one owner per output, from the first look at the files to the last rename
+    lock = OutputLock(final, "mcfric run")
+    try:
+        lock.acquire()
+    except LockError as e:
+        raise RunError(str(e)) from None
+    try:
+        return _run_locked(spec, final, resume, force, progress, groups, t_start,
+                           space_check)
+    finally:
+        lock.release()
+
+
+def output_bytes(spec):
+    """Bytes of the results file of ``spec`` (its records; metadata is small)."""
+    coords, variables = layout(spec)[:2]
+    n = {d: len(v[0]) for d, v in coords.items()}
+    total = spec.samples * 8 + allocated_bytes((spec.samples,), np.int8)   # sample, done
+    for dims, dtype, _ in variables.values():
+        total += allocated_bytes((spec.samples, *(n[d] for d in dims[1:])), dtype)
+    return int(total)
+
+
+def _human(n):
+    for unit in ("bytes", "kB", "MB", "GB", "TB", "PB"):
+        if n < 1000 or unit == "PB":
+            return f"{n:.3g} {unit}" if unit != "bytes" else f"{n:.0f} bytes"
+        n /= 1000.0
+
+
+def peak_memory_bytes(spec):
+    """A rough upper estimate of a run's peak memory, bytes: three chunks of output (in
+    the kernel, in the queue, in the writer), the receptances, and the bounds' dense
+    contact-space matrices."""
+    nb, nd = spec.model.n_beams, spec.model.n_dampers
+    n_f = len(spec.freq_hz)
+    n_h = (spec.solver.harmonics + 1) // 2
+    chunk = min(spec.samples, spec.execution.chunk or auto_chunk(spec))
+    est = 3 * chunk * (output_bytes(spec) / spec.samples)
+    est += n_f * 4 * nb * 16 * n_h * (chunk if spec.mistuned else 1)
+    if spec.bounds:
+        est += 3 * 8 * nb * nd
+    return int(est)
+
+
+def _available_memory():
+    """MemAvailable of /proc/meminfo, bytes (None where there is no such file)."""
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    return None
+
+
+def check_space(spec, final, resume):
+    """Refuse a run that cannot fit on disk or in memory (before any work).
+
+    A fresh run needs the whole file; a resumed one what its ``.partial`` has not yet
+    written (the chunks are allocated up front but sparse until written). The memory
+    estimate is :func:`peak_memory_bytes` against the available memory.
+    """
+    mem = peak_memory_bytes(spec)
+    avail = _available_memory()
+    if avail is not None and mem > avail:
+        raise RunError(f"the run needs about {_human(mem)} of memory but {_human(avail)} is "
+                       f"available: use fewer beams or frequencies, a smaller [run] chunk, "
+                       f"or --skip-space-check if the estimate is wrong")
+    need = output_bytes(spec)
+    part = partial_path(final)
+    if resume and part.exists():
+        need = max(0, need - part.stat().st_blocks * 512)
+    free = shutil.disk_usage(final.parent).free
+    # 1 % and 64 MB of headroom for metadata and for everything else on the disk
+    if need + need // 100 + (64 << 20) > free:
+        raise RunError(f"the results file needs {_human(need)} but {final.parent} has "
+                       f"{_human(free)} free: use fewer samples or frequencies, "
+                       f"[output] keep_response = false (metric only), another -o, or "
+                       f"--skip-space-check if the estimate is wrong")
+
+
+def _run_locked(spec, final, resume, force, progress, groups, t_start, space_check):
+    n_f = len(spec.freq_hz)
     what, found = prepare(spec, final, resume=resume, force=force)
+    if what != "complete" and space_check:
+        try:
+            check_space(spec, final, what == "resume")
+        except RunError:
+            if what == "resume":
+                found[0].close()
+            raise
     if what == "complete":
         return Summary(final, spec.samples, n_f, spec.samples, 0,
                        int(found.get("n_not_converged", -1)), time.perf_counter() - t_start,

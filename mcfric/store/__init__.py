@@ -22,8 +22,8 @@ from .reader import (
                      read_attrs,
                      read_group,
 )
-from .writer import Store
+from .writer import Store, allocated_bytes
 
 __all__ = ["LAYOUT_VERSION", "StoreError", "partial_path", "add_group", "write_file",
            "dataset_names", "describe", "iter_records", "open_results", "read", "read_attrs",
-           "read_group", "Store"]
+           "read_group", "Store", "allocated_bytes"]

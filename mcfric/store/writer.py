@@ -46,6 +46,15 @@ def _record_chunk(row_bytes, n_records):
     return int(min(k, n_records))
 
 
+def allocated_bytes(shape, dtype):
+    """Bytes a record dataset of ``shape`` takes on disk once created: whole chunks are
+    allocated, so the record count is rounded up to a multiple of the chunk."""
+    dtype = np.dtype(dtype)
+    row = int(np.prod(shape[1:], dtype=np.int64)) * dtype.itemsize
+    k = _record_chunk(row, shape[0])
+    return -(-int(shape[0]) // k) * k * row
+
+
 class Store:
     """A results file being written (created fresh or reopened to resume).
 

@@ -1,0 +1,195 @@
+"""Outputs that never lie: one owner per output, space checked before work, failures that
+leave a resumable ``.partial``, and no command silently replacing another's output.
+
+The adversarial cases are tables (``BAD_RUNS``, ``OVERWRITES``): add a row when a new
+defect is found.
+"""
+
+import errno
+import os
+import subprocess
+import sys
+import textwrap
+
+import h5py
+import numpy as np
+import pytest
+
+from mcfric import cli, ensemble
+from mcfric.store import Store
+from mcfric.store.lock import OutputLock, lock_path
+
+SMALL = ["two-beam", "--samples", "12", "--n-freq", "20", "--no-progress", "--no-figure"]
+
+
+def holder(path):
+    """A separate process that owns ``path`` until killed; returns it once it holds."""
+    code = textwrap.dedent(f"""
+        import time
+        from mcfric.store.lock import OutputLock
+        OutputLock({str(path)!r}, "test holder").acquire()
+        print("holding", flush=True)
+        time.sleep(120)
+    """)
+    p = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True)
+    assert p.stdout.readline().strip() == "holding"
+    return p
+
+
+def stop(p):
+    p.kill()
+    p.wait()
+    p.stdout.close()
+
+
+def snapshot(directory):
+    return {p.name: p.read_bytes() for p in sorted(directory.iterdir()) if p.is_file()}
+
+
+@pytest.mark.parametrize("extra", [["--force"], ["--resume"], []])
+def test_a_second_writer_is_refused_and_changes_nothing(tmp_path, capsys, extra):
+    out = tmp_path / "same.h5"
+    part = tmp_path / "same.h5.partial"
+    part.write_bytes(b"another run's partial file")
+    p = holder(out)
+    try:
+        before = snapshot(tmp_path)
+        rc = cli.main(["run", *SMALL, "-o", str(out), *extra])
+        err = capsys.readouterr().err.strip()
+        assert rc == 2
+        assert f"PID {p.pid}" in err and "test holder" in err and len(err.splitlines()) == 1
+        assert snapshot(tmp_path) == before          # nothing deleted, renamed or written
+        rc = cli.main(["bounds", "two-beam", "--n-freq", "20", "-o", str(out), "--no-figure"])
+        assert rc == 2 and "being written by" in capsys.readouterr().err
+        assert snapshot(tmp_path) == before
+    finally:
+        stop(p)
+
+
+def test_a_stale_lock_of_a_killed_run_blocks_nobody(tmp_path, capsys):
+    out = tmp_path / "r.h5"
+    p = holder(out)
+    stop(p)                                          # SIGKILL
+    assert lock_path(out).exists()                   # left behind by the dead owner
+    assert cli.main(["run", *SMALL, "-o", str(out)]) == 0
+    assert out.exists() and not lock_path(out).exists()
+
+
+def test_the_lock_is_taken_once_per_process_and_released(tmp_path):
+    out = tmp_path / "r.h5"
+    with OutputLock(out, "first"):
+        with pytest.raises(ensemble.RunError, match="being written by"):
+            ensemble.run(cli._load(cli._parser().parse_args(["run", *SMALL])).spec, out)
+    assert not lock_path(out).exists()
+    assert not list(tmp_path.iterdir())
+
+
+def test_no_space_is_refused_before_any_work(tmp_path, capsys, monkeypatch):
+    import shutil
+
+    out = tmp_path / "r.h5"
+    real = shutil.disk_usage
+    monkeypatch.setattr(shutil, "disk_usage",
+                        lambda p: real(p)._replace(free=10 << 20))
+    assert cli.main(["run", *SMALL, "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "needs" in err and "free" in err and "--skip-space-check" in err
+    assert not list(tmp_path.iterdir())
+    assert cli.main(["run", *SMALL, "-o", str(out), "--skip-space-check"]) == 0
+
+
+def test_the_size_estimate_is_the_file_size(tmp_path):
+    """The estimate that the space check uses against the real file (within metadata)."""
+    out = tmp_path / "r.h5"
+    args = cli._parser().parse_args(["run", "two-beam", "--samples", "300", "--n-freq",
+                                     "200"])
+    spec = cli._load(args).spec
+    ensemble.run(spec, out, progress=False)
+    size = out.stat().st_size
+    assert 0.85 * size <= ensemble.output_bytes(spec) <= size
+
+
+def test_a_run_too_large_for_memory_is_refused(tmp_path, capsys):
+    cfg = tmp_path / "big.toml"
+    assert cli.main(["config", "eight-beam"]) == 0
+    text = capsys.readouterr().out.replace("n_beams = 8", "n_beams = 100000", 1)
+    cfg.write_text(text)
+    out = tmp_path / "big.h5"
+    assert cli.main(["run", str(cfg), "--samples", "4", "--n-freq", "4", "-o", str(out),
+                     "--no-figure"]) == 2
+    err = capsys.readouterr().err
+    assert "of memory" in err and len(err.strip().splitlines()) == 1
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["big.toml"]
+
+
+def test_disk_full_mid_run_leaves_a_partial_that_resumes_to_the_same_bits(
+        tmp_path, capsys, monkeypatch):
+    straight = tmp_path / "straight.h5"
+    assert cli.main(["run", *SMALL, "--chunk", "4", "-o", str(straight)]) == 0
+    out = tmp_path / "r.h5"
+    real = Store.write
+    calls = []
+
+    def full(self, *a, **k):
+        calls.append(1)
+        if len(calls) == 2:
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        return real(self, *a, **k)
+
+    monkeypatch.setattr(Store, "write", full)
+    assert cli.main(["run", *SMALL, "--chunk", "4", "-o", str(out)]) == 1
+    err = capsys.readouterr().err.strip()
+    assert "No space left on device" in err and len(err.splitlines()) == 1
+    assert not out.exists() and (tmp_path / "r.h5.partial").exists()
+    assert not lock_path(out).exists()
+    monkeypatch.setattr(Store, "write", real)
+    assert cli.main(["run", *SMALL, "--chunk", "4", "-o", str(out), "--resume"]) == 0
+    with h5py.File(out) as a, h5py.File(straight) as b:
+        for name in ("response", "metric", "converged", "mu0", "kc", "N0"):
+            assert a[name][...].tobytes() == b[name][...].tobytes(), name
+
+
+# -- no command silently replaces another's output ------------------------------------
+
+def _results(tmp_path):
+    res = tmp_path / "results.h5"
+    assert cli.main(["run", *SMALL, "-o", str(res)]) == 0
+    return res
+
+
+OVERWRITES = [
+    # (argv with {res} = an existing results file, {dir} = the directory, message)
+    (["run", *SMALL[:-1], "-o", "{dir}/clash.png"], "both be"),
+    (["hbm", "two-beam", "--n-freq", "10", "-o", "{res}"], "is an HDF5 file"),
+    (["hbm", "two-beam", "--n-freq", "10", "-o", "{dir}/results.csv"], "is an HDF5 file"),
+    (["verify", "two-beam", "--f", "30", "-o", "{res}"], "is an HDF5 file"),
+    (["bounds", "two-beam", "--n-freq", "10", "-o", "{res}", "--no-figure"],
+     "ensemble's results file"),
+    (["plot", "{res}", "-o", "{dir}/other.png"], "is an HDF5 file"),
+    (["run", *SMALL, "-o", ""], 'got ""'),
+    (["hbm", "two-beam", "-o", ""], 'got ""'),
+    (["plot", "{res}", "-o", ""], 'got ""'),
+]
+
+
+@pytest.mark.parametrize("argv, message", OVERWRITES)
+def test_no_output_silently_replaces_another(tmp_path, capsys, argv, message):
+    res = _results(tmp_path)
+    # an HDF5 file where a figure or CSV would go (e.g. from an older `-o results.png`)
+    for name in ("results.png", "other.png", "results.csv"):
+        (tmp_path / name).write_bytes(res.read_bytes())
+    capsys.readouterr()
+    before = snapshot(tmp_path)
+    rc = cli.main([a.format(res=res, dir=tmp_path) for a in argv])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and message in err and len(err.splitlines()) == 1, err
+    assert snapshot(tmp_path) == before
+
+
+def test_bounds_replaces_its_own_bounds_file(tmp_path, capsys):
+    out = tmp_path / "b.h5"
+    argv = ["bounds", "two-beam", "--n-freq", "10", "-o", str(out), "--no-figure"]
+    assert cli.main(argv) == 0
+    assert cli.main(argv) == 0
+    with h5py.File(out) as h:
+        assert np.all(np.isfinite(h["bounds/upper"][...]))
