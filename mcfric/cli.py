@@ -23,15 +23,17 @@
 ``run`` and ``hbm`` also take ``--harmonics H`` (multi-harmonic balance of the odd
 harmonics 1..H) and ``--n-time N`` (AFT samples per period).
 
-Exit codes: 0 done, 1 a run-time failure (e.g. disk full, unreadable file), 2 bad
-configuration or arguments (one line on stderr, nothing written), 130 interrupted (the
-finished chunks are kept; continue with ``--resume``).
+Exit codes: 0 done, 1 a run-time failure (disk full, I/O error, out of memory), 2 bad
+configuration, arguments or input files, or a refused run (one line on stderr, nothing
+written), 130 interrupted by Ctrl-C, SIGTERM or SIGHUP (the finished chunks are kept;
+continue with ``--resume``).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from pathlib import Path
 
@@ -128,8 +130,8 @@ def _parser():
     _model_flags(b)
     b.add_argument("--k-max", type=float, metavar="N_PER_M",
                    help="largest Re K and Im K of a damper, N/m (default: from kc)")
-    b.add_argument("--F-lim", type=float, metavar="N",
-                   help="friction force limit, N (default: 4/pi mu0_max N0_max)")
+    b.add_argument("--F-lim", type=_number_or_none, metavar="N",
+                   help='friction force limit, N, or "none" (default: 4/pi mu0_max N0_max)')
     b.add_argument("--threads", type=int, metavar="T", help="numba threads (0 = all)")
     b.add_argument("--no-figure", action="store_true", help="do not draw the figure")
 
@@ -209,6 +211,16 @@ def _model_flags(p):
     p.add_argument("--f-min", type=float, metavar="HZ", help="lowest frequency, Hz")
     p.add_argument("--f-max", type=float, metavar="HZ", help="highest frequency, Hz")
     p.add_argument("--n-freq", type=int, metavar="N", help="number of frequencies")
+
+
+def _number_or_none(text):
+    """``--F-lim``: a number, or ``none`` as in the configuration file."""
+    if text.strip().lower() == "none":
+        return "none"
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'expected a number or "none", got {text!r}') from None
 
 
 def _overrides(args):
@@ -417,17 +429,16 @@ def cmd_bounds(args):
 def cmd_plot(args):
     """``mcfric plot``: the figure of a results or bounds file, measured data on top."""
     from . import plot
-    from .store import StoreError, read_attrs
+    from .results_check import check_file
+    from .store import StoreError
 
     path = Path(args.file)
     if not path.is_file():
         raise UsageError(f"{path}: no such file")
     try:
-        attrs = read_attrs(path)
+        attrs = check_file(path)[0]
     except StoreError as e:
         raise UsageError(str(e)) from None
-    if "layout_version" not in attrs:
-        raise UsageError(f"{path}: not an mcfric results or bounds file")
     if attrs.get("complete") != 1:
         raise UsageError(f"{path}: the run is not complete (continue it with --resume)")
     if args.output is not None and not str(args.output).strip():
@@ -475,7 +486,9 @@ def _read_measured(args, attrs):
         except ValueError:
             raise UsageError(f"--nodes: expected comma-separated node numbers, got "
                              f"{args.nodes!r}") from None
-    F0 = json.loads(attrs.get("config_json", "{}")).get("excitation", {}).get("F0")
+    cfg = json.loads(attrs.get("config_json", "{}"))
+    F0 = cfg.get("excitation", {}).get("F0")
+    n_beams = cfg.get("model", {}).get("n_beams")
     out = []
     for data in args.measured:
         try:
@@ -483,6 +496,10 @@ def _read_measured(args, attrs):
         except (ValueError, ImportError) as e:
             raise UsageError(str(e).splitlines()[0]) from None
         for m in ms_list:
+            extra = [b for b in m.beams if n_beams and b > n_beams]
+            if extra:
+                raise UsageError(f"{data}: beam {extra[0]} is measured, but the model has "
+                                 f"{n_beams} beams")
             if args.normalise:
                 if m.force_n is None:
                     raise UsageError(f"--normalise: {data} gives no force level (force_n)")
@@ -526,24 +543,25 @@ def cmd_info(args):
     from .metric import METRIC_UNITS
     from .peaks import file_report as peak_report
     from .peaks import report_text
+    from .results_check import check_file
     from .store import StoreError, describe, iter_records, partial_path
 
     path = Path(args.file)
     if not path.exists() and partial_path(path).exists():
         path = partial_path(path)
     try:
+        a, cfg = check_file(path)
         d = describe(path)
-        a = d["attrs"]
-        if "layout_version" not in a:
-            raise UsageError(f"{path}: not an mcfric results file")
-        cfg = json.loads(a["config_json"])
         import numpy as np
-        lo, hi, bad = np.inf, -np.inf, 0
-        for _, arr in iter_records(path, ["metric", "converged"]):
-            m = arr["metric"][arr["converged"]]
-            if m.size:
-                lo, hi = min(lo, m.min()), max(hi, m.max())
-            bad += int(np.count_nonzero(~arr["converged"]))
+        lo, hi, bad, nan = np.inf, -np.inf, 0, 0
+        if int(a.get("samples", 0)):
+            for _, arr in iter_records(path, ["metric", "converged"]):
+                m = arr["metric"][arr["converged"]]
+                ok = np.isfinite(m)
+                nan += int(np.count_nonzero(~ok))
+                if ok.any():
+                    lo, hi = min(lo, m[ok].min()), max(hi, m[ok].max())
+                bad += int(np.count_nonzero(~arr["converged"]))
     except StoreError as e:
         raise UsageError(str(e)) from None
     n = int(a.get("samples", 0))
@@ -571,9 +589,12 @@ def cmd_info(args):
         + (f", mistuning {sa['mistuning']:g} per {sa['mistuning_per']}"
            if sa["mistuning"] else ""),
         f"converged:   {pts - bad:,} of {pts:,} points ({bad:,} not converged)",
-        (f"metric:      {q} {METRIC_UNITS[q]}, {lo:.4g} to {hi:.4g}" if pts - bad
+        (f"metric:      {q} {METRIC_UNITS[q]}, {lo:.4g} to {hi:.4g}" if lo <= hi
          else f"metric:      {q}, no converged points"),
     ]
+    if nan:
+        lines.append(f"WARNING:     {nan:,} points marked converged hold no finite metric "
+                     "(the file was edited or damaged; they are left out above)")
     report = peak_report(path)
     if report is not None:
         lines += report_text(report, METRIC_UNITS[q])
@@ -756,6 +777,26 @@ def cmd_verify(args):
     return EXIT_OK
 
 
+def _stop_signals_interrupt():
+    """SIGTERM and SIGHUP stop a run as Ctrl-C does: the finished chunks are committed, a
+    message says how to resume, exit 130 (main thread only; elsewhere a no-op)."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        return {}
+
+    def handler(signum, frame):
+        raise KeyboardInterrupt(signal.Signals(signum).name)
+
+    previous = {}
+    for name in ("SIGTERM", "SIGHUP"):
+        if hasattr(signal, name):
+            sig = getattr(signal, name)
+            previous[sig] = signal.signal(sig, handler)
+    return previous
+
+
 def main(argv=None):
     """Entry point of ``mcfric``; returns the exit code."""
     from .store import StoreError
@@ -763,17 +804,29 @@ def main(argv=None):
     argv = list(sys.argv[1:] if argv is None else argv)
     if not argv or (argv[0] not in COMMANDS and argv[0] not in ("-h", "--help", "--version")):
         argv = ["run"] + argv        # `mcfric` alone (or `mcfric two-beam`) means `mcfric run`
+    import signal
+
+    previous = _stop_signals_interrupt()
     try:
         args = _parser().parse_args(argv)
-        return {"run": cmd_run, "config": cmd_config, "info": cmd_info, "hbm": cmd_hbm,
-                "bounds": cmd_bounds, "plot": cmd_plot,
-                "verify": cmd_verify}[args.command](args)
+        rc = {"run": cmd_run, "config": cmd_config, "info": cmd_info, "hbm": cmd_hbm,
+              "bounds": cmd_bounds, "plot": cmd_plot,
+              "verify": cmd_verify}[args.command](args)
+        sys.stdout.flush()           # a closed pipe shows here, not at interpreter exit
+        return rc
     except UsageError as e:
         print(f"mcfric: error: {e}", file=sys.stderr)
         return EXIT_USAGE
     except KeyboardInterrupt:
         print("mcfric: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
+    except BrokenPipeError:
+        # the reader of stdout went away (`mcfric info FILE | head -1`): stop quietly
+        try:
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        except (OSError, ValueError):
+            pass
+        return EXIT_OK
     except (OSError, StoreError) as e:   # disk full, unreadable file: one line, no traceback
         print(f"mcfric: error: {e}", file=sys.stderr)
         return EXIT_FAIL
@@ -781,6 +834,9 @@ def main(argv=None):
         print("mcfric: error: out of memory (a model or ensemble this large needs more RAM "
               "than is free: fewer beams, frequencies or samples per chunk)", file=sys.stderr)
         return EXIT_FAIL
+    finally:
+        for sig, h in previous.items():
+            signal.signal(sig, h)
 
 
 if __name__ == "__main__":   # pragma: no cover

@@ -107,7 +107,8 @@ class HBMResult:
         quantity : {"displacement", "velocity", "acceleration"}
             ``M`` in m, m/s or m/s^2 (``omega^k`` times the displacement amplitude).
         beams : sequence of int, optional
-            0-based beams to take the maximum over; default all.
+            Beams to take the maximum over, 0-based (the configuration counts from 1);
+            default all.
         """
         return response_metric(self.response, self.freq_hz, quantity, beams)
 

@@ -49,7 +49,8 @@ def response_metric(response, freq_hz, quantity="displacement", beams=None):
         Frequencies, Hz.
     quantity : {"displacement", "velocity", "acceleration"}
     beams : sequence of int, optional
-        0-based beams to take the maximum over; default all.
+        Beams to take the maximum over, **0-based** like the arrays (the configuration
+        and the command line count beams from 1, like the rig); default all.
 
     Returns
     -------
@@ -57,7 +58,15 @@ def response_metric(response, freq_hz, quantity="displacement", beams=None):
         ``M`` in m, m/s or m/s^2.
     """
     check_quantity(quantity, "quantity")
-    amp = np.abs(response if beams is None else response[..., list(beams)])
+    if beams is not None:
+        nb = response.shape[-1]
+        beams = list(beams)
+        bad = [b for b in beams if isinstance(b, (bool, np.bool_))
+               or not isinstance(b, (int, np.integer)) or not 0 <= b < nb]
+        if bad or not beams:
+            raise ValueError(f"beams: expected 0-based beam indices in 0..{nb - 1} (the "
+                             f"Python API counts from 0), got {bad[0] if bad else beams!r}")
+    amp = np.abs(response if beams is None else response[..., beams])
     # the maximum over beams slice by slice: numpy reduces a short last axis slowly, and
     # np.maximum propagates NaN like ndarray.max
     m = amp[..., 0].copy()

@@ -57,6 +57,9 @@ class ModalTable:
             raise ValueError(f"zeta: expected {len(f)} values (one per mode), got {len(z)}")
         if u.shape[0] != len(f):
             raise ValueError(f"shapes: expected {len(f)} rows (one per mode), got {u.shape[0]}")
+        if not np.any(u != 0):
+            raise ValueError("shapes: all zero: the beam could not move (a modal table with "
+                             "no deflection anywhere)")
         pos = tuple(int(p) for p in self.positions)
         if len(pos) != u.shape[1]:
             raise ValueError(f"positions: expected {u.shape[1]} labels (one per shape column), "

@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import special
 
-from .validators import real
+from .validators import InputError, real
 
 #: Half the spacing of ``Generator.random``: maps its [0, 1) grid onto (0, 1).
 _HALF_ULP = 2.0 ** -54
@@ -149,6 +149,11 @@ class LogNormal:
     def __post_init__(self):
         object.__setattr__(self, "median", real("median", self.median, lo=0, lo_open=True))
         object.__setattr__(self, "sigma", real("sigma", self.sigma, lo=0))
+        # the draws reach ndtri(2^-53) ~ 8.2 standard deviations: they must stay finite
+        if math.log(self.median) + 8.2 * self.sigma > math.log(np.finfo(float).max):
+            raise InputError("sigma", f"median x exp(8.2 sigma) overflows (median "
+                             f"{self.median:g}, sigma {self.sigma:g}): sigma is the standard "
+                             f"deviation of ln(value), e.g. 0.3")
 
     def ppf(self, u):
         """Inverse CDF at the uniforms ``u`` in (0, 1), in the parameter's unit."""

@@ -155,10 +155,13 @@ def choice(*options):
 
 
 def string():
-    """Any text."""
+    """Text without control characters (a NUL or a newline would break files and the
+    one-line outputs)."""
     def check(v, key):
         if not isinstance(v, str):
             raise InputError(key, f"expected a string, got {show(v)}")
+        if any(ord(c) < 32 or ord(c) == 127 for c in v):
+            raise InputError(key, f"expected text without control characters, got {v!r}")
         return v
     return check
 
@@ -239,12 +242,26 @@ def beams_or_all():
 
 # ------------------------------------------------------------------ array checks
 
-def finite_array(name, value, ndim, positive=False, nonnegative=False):
-    """A read-only float array of ``ndim`` dimensions, finite, optionally > 0 or >= 0."""
+def real_array(name, value):
+    """``value`` as a float array, refusing strings, booleans and complex numbers (numpy
+    would convert the first two, and drop the imaginary part with only a warning)."""
     try:
-        arr = np.array(value, dtype=float)
+        raw = np.asarray(value)
     except (TypeError, ValueError):
         raise InputError(name, f"expected numbers, got {value!r}") from None
+    if raw.dtype.kind not in "iuf":
+        raise InputError(name, f"expected real numbers, got {_kind_word(raw.dtype)}")
+    return raw.astype(float)
+
+
+def _kind_word(dtype):
+    return {"b": "booleans", "c": "complex numbers", "U": "text", "S": "bytes",
+            "O": "mixed or non-numeric values"}.get(dtype.kind, f"{dtype} values")
+
+
+def finite_array(name, value, ndim, positive=False, nonnegative=False):
+    """A read-only float array of ``ndim`` dimensions, finite, optionally > 0 or >= 0."""
+    arr = np.array(real_array(name, value))
     if arr.ndim != ndim:
         raise InputError(name, f"expected a {ndim}-d array, got shape {arr.shape}")
     if not np.all(np.isfinite(arr)):
@@ -259,10 +276,7 @@ def finite_array(name, value, ndim, positive=False, nonnegative=False):
 
 def frequencies(freq_hz, name="freq_hz"):
     """Frequencies as a contiguous 1-d float array, Hz: non-empty, finite, > 0."""
-    try:
-        f = np.ascontiguousarray(freq_hz, dtype=float)
-    except (TypeError, ValueError):
-        raise InputError(name, f"expected numbers, got {freq_hz!r}") from None
+    f = np.ascontiguousarray(real_array(name, freq_hz))
     if f.ndim == 0:
         f = f[None]
     if f.ndim != 1 or f.size == 0:
@@ -284,10 +298,7 @@ def per_damper(nd, **params):
     out = {}
     n_s = 1
     for name, value in params.items():
-        try:
-            arr = np.array(value, dtype=float)
-        except (TypeError, ValueError):
-            raise InputError(name, f"expected numbers, got {value!r}") from None
+        arr = real_array(name, value)
         if arr.ndim == 0:
             arr = np.full((1, nd), float(arr))
         elif arr.ndim == 1:

@@ -193,3 +193,156 @@ def test_bounds_replaces_its_own_bounds_file(tmp_path, capsys):
     assert cli.main(argv) == 0
     with h5py.File(out) as h:
         assert np.all(np.isfinite(h["bounds/upper"][...]))
+
+
+# -- bad input: one line, the documented exit code, nothing written --------------------
+
+def _edit(text, old, new):
+    assert old in text, old
+    return text.replace(old, new, 1)
+
+
+def _lognormal_kc(text):
+    i, j = text.index("[sampling.kc]"), text.index("[sampling.N0]")
+    return (text[:i] + '[sampling.kc]\ndist = "lognormal"\nmedian = 6000.0\nsigma = 1000.0\n\n'
+            + text[j:])
+
+
+BAD_RUNS = [
+    # (edit of the two-beam configuration, extra arguments, words of the message)
+    (lambda t: _edit(t, "zeta = [0.0017, 0.0071]", "zeta = [0.0, 0.0]"), [],
+     "model.table.zeta: the bounds need every mode damped"),
+    (lambda t: _edit(t, 'k_max = "auto"', "k_max = 1e308"), [], "bounds.k_max: expected at most"),
+    (_lognormal_kc, [], "sampling.kc.sigma"),
+    (lambda t: _edit(t, 'name = "two-beam"', 'name = "a\\u0000b"'), [],
+     "model.name: expected text without control characters"),
+    (lambda t: 'sampling = "x"\n', ["--samples", "4"], "sampling: expected a table"),
+    (lambda t: _edit(t, "shapes = [[2.55, 0.99, 0.48], [-1.84, 2.18, 1.42]]",
+                     "shapes = [[0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]"), [], "all zero"),
+]
+
+
+@pytest.mark.parametrize("edit, extra, message", BAD_RUNS)
+def test_bad_configurations_give_one_line_and_no_file(tmp_path, capsys, edit, extra, message):
+    assert cli.main(["config", "two-beam"]) == 0
+    cfg = tmp_path / "c.toml"
+    cfg.write_text(edit(capsys.readouterr().out))
+    rc = cli.main(["run", str(cfg), "--n-freq", "10", "-o", str(tmp_path / "r.h5"),
+                   "--no-progress", *extra])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and message in err and len(err.splitlines()) == 1, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["c.toml"]
+
+
+def _damaged(tmp_path, how):
+    res = tmp_path / "r.h5"
+    assert cli.main(["run", *SMALL, "-o", str(res)]) == 0
+    with h5py.File(res, "r+") as h:
+        how(h)
+    return res
+
+
+def _replace(name, fn):
+    def how(h):
+        data = h[name][...]
+        del h[name]
+        h[name] = fn(data)
+    return how
+
+
+DAMAGED = [
+    # (edit of a complete results file, words of the one-line error)
+    (lambda h: h.__delitem__("metric"), "dataset metric is missing"),
+    (lambda h: h.__delitem__("converged"), "dataset converged is missing"),
+    (_replace("metric", lambda d: d[:, :5]), "dataset metric"),
+    (_replace("metric", lambda d: d.astype("S8")), "expected float"),
+    (lambda h: h.attrs.__delitem__("config_json"), "no configuration record"),
+    (lambda h: h.attrs.__setitem__("config_json", "{}"), "lacks"),
+    (lambda h: h.attrs.__setitem__("layout_version", 99), "layout_version 99"),
+]
+
+
+@pytest.mark.parametrize("how, message", DAMAGED)
+def test_edited_results_files_give_one_line_exit_2(tmp_path, capsys, how, message):
+    res = _damaged(tmp_path, how)
+    capsys.readouterr()
+    for argv in (["info", str(res)], ["plot", str(res), "-o", str(tmp_path / "f.png")]):
+        rc = cli.main(argv)
+        err = capsys.readouterr().err.strip()
+        assert rc == 2 and message in err and len(err.splitlines()) == 1, (argv, err)
+    assert not (tmp_path / "f.png").exists()
+
+
+def test_a_nan_metric_marked_converged_is_reported_not_ranged(tmp_path, capsys):
+    def nan(h):
+        m = h["metric"][...]
+        m[0, 0] = np.nan
+        h["metric"][...] = m
+    res = _damaged(tmp_path, nan)
+    capsys.readouterr()
+    assert cli.main(["info", str(res)]) == 0
+    out = capsys.readouterr().out
+    assert "inf" not in out.split("metric:")[1].splitlines()[0]
+    assert "1 points marked converged hold no finite metric" in out
+
+
+def test_a_closed_stdout_is_not_an_error(tmp_path, capsys):
+    res = _damaged(tmp_path, lambda h: None)
+    p = subprocess.Popen([sys.executable, "-m", "mcfric", "info", str(res)],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    p.stdout.close()
+    err = p.stderr.read()
+    p.stderr.close()
+    assert p.wait() == 0 and err == b""
+
+
+def test_sigterm_stops_a_run_resumably(tmp_path):
+    out = tmp_path / "r.h5"
+    argv = [sys.executable, "-m", "mcfric", "run", "eight-beam", "--samples", "4000",
+            "--n-freq", "300", "--chunk", "64", "-o", str(out), "--no-progress",
+            "--no-figure"]
+    p = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    assert "mcfric run:" in p.stdout.readline()
+    import time
+    time.sleep(3)
+    p.send_signal(15)
+    _, err = p.communicate()
+    assert p.returncode == 130, err
+    assert "--resume" in err and (tmp_path / "r.h5.partial").exists()
+    assert not out.exists() and not lock_path(out).exists()
+
+
+def test_F_lim_none_on_the_command_line_as_in_toml(tmp_path, capsys):
+    out = tmp_path / "b.h5"
+    assert cli.main(["bounds", "two-beam", "--n-freq", "10", "--F-lim", "none", "-o",
+                     str(out), "--no-figure"]) == 0
+    assert "F_lim = inf N" in capsys.readouterr().out
+
+
+def test_measured_beams_beyond_the_model_are_refused(tmp_path, capsys):
+    res = _results(tmp_path)
+    csv = tmp_path / "m.csv"
+    csv.write_text("frequency_hz,beam99\n20,1e-5\n30,2e-5\n")
+    capsys.readouterr()
+    rc = cli.main(["plot", str(res), "--measured", str(csv), "-o", str(tmp_path / "f.png")])
+    err = capsys.readouterr().err
+    assert rc == 2 and "beam 99 is measured, but the model has 2 beams" in err
+
+
+API_CASES = [
+    (lambda m: __import__("mcfric").solve(m, [20.0], "0.3", 5000.0), "mu0: expected real"),
+    (lambda m: __import__("mcfric").solve(m, [20.0], True, 5000.0), "got booleans"),
+    (lambda m: __import__("mcfric").solve(m, [20.0], 0.3, 5000.0 + 1j), "got complex"),
+    (lambda m: __import__("mcfric").solve(m, ["20"], 0.3, 5000.0), "freq_hz: expected real"),
+    (lambda m: __import__("mcfric").bounds.force_limit(-1, 0.5), "mu_max"),
+    (lambda m: __import__("mcfric").solve(m, [20.0], 0.3, 5e3).metric(beams=[2]),
+     "0-based beam indices in 0..1"),
+]
+
+
+@pytest.mark.parametrize("call, message", API_CASES)
+def test_the_python_api_refuses_what_it_cannot_use(call, message):
+    import mcfric
+
+    with pytest.raises(ValueError, match=message):
+        call(mcfric.two_beam(0.22))

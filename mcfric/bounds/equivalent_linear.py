@@ -118,8 +118,13 @@ class Bounds:
 
 
 def force_limit(mu_max, N0_max):
-    """``F_lim = (4/pi) mu_max N0_max``: first harmonic of a saturated Coulomb force, N."""
-    return 4.0 / np.pi * float(mu_max) * float(N0_max)
+    """``F_lim = (4/pi) mu_max N0_max``: first harmonic of a saturated Coulomb force, N.
+
+    ``mu_max`` (-) and ``N0_max`` (N) must be finite and >= 0.
+    """
+    mu = real("mu_max", mu_max, lo=0)
+    n0 = real("N0_max", N0_max, lo=0)
+    return 4.0 / np.pi * mu * n0
 
 
 def upper_bound(G, q0, ylin, H, kr, ki, F_lim, starts_max, max_sweeps):

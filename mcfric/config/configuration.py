@@ -20,6 +20,7 @@ from .. import sampling
 from ..model import Excitation, ModalTable, Model
 from ..peaks import PeakSettings
 from ..spec import BoundsSpec, ExecutionSpec, MetricSpec, RunSpec, SolverSpec
+from ..validators import InputError
 from . import loading, rendering, validation  # used at call time (they import Config)
 from .schema import NOT_IDENTITY
 
@@ -52,6 +53,10 @@ class Config:
         freq.setflags(write=False)
         beams = d["metric"]["beams"]
         b = d["bounds"]
+        if b["enabled"] and not np.all(model.modal_arrays()[1] > 0):
+            raise InputError("model.table.zeta", "the bounds need every mode damped (zeta > 0):"
+                             " an undamped mode has an unbounded resonance; give zeta > 0 or "
+                             "set bounds.enabled = false")
         bounds = (BoundsSpec(*validation.bounds_limits(d), n_starts=b["n_starts"])
                   if b["enabled"] else None)
         r = d["run"]

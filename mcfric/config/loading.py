@@ -34,8 +34,13 @@ def _merge(base, top, path=""):
 def set_key(tree, dotted, value):
     """Set ``tree[a][b][c] = value`` for ``dotted = "a.b.c"``, creating tables."""
     *head, last = dotted.split(".")
+    done = []
     for h in head:
+        done.append(h)
         tree = tree.setdefault(h, {})
+        if not isinstance(tree, dict):
+            # e.g. `sampling = "x"` in the file and --samples on the command line
+            raise InputError(".".join(done), f"expected a table, got {show(tree)}")
     tree[last] = value
 
 

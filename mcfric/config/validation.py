@@ -138,6 +138,10 @@ def _validate(raw):
     cfg = configuration.Config(out)
     try:
         cfg.spec            # resolved once, here: the model, sampler and grid are built
+    except InputError as e:
+        if e.key.startswith(("model.", "sampling.", "bounds.")):
+            raise                 # already names its key
+        raise InputError("model", str(e)) from None
     except ValueError as e:   # a rule of the Model itself that the checks above missed
         raise InputError("model", str(e)) from None
     return cfg
@@ -221,6 +225,10 @@ def _dist_max(t):
     return math.inf
 
 
+#: Largest k_max the bounds accept, N/m.
+K_MAX_LIMIT = 1e12
+
+
 def bounds_limits(c):
     """(k_max_re, k_max_im, F_lim) in N/m, N/m, N from ``[bounds]`` and ``[sampling]``."""
     b, s = c["bounds"], c["sampling"]
@@ -234,6 +242,12 @@ def bounds_limits(c):
             raise InputError("bounds.k_max", '"auto" needs kc > 0 somewhere: give k_max '
                              "in N/m or set bounds.enabled = false")
     k_im = k_max if b["k_max_im"] == "auto" else b["k_max_im"]
+    for key, k in (("bounds.k_max", k_max), ("bounds.k_max_im", k_im)):
+        # far stiffer than any contact (a stuck damper); beyond it the search overflows
+        if k > K_MAX_LIMIT:
+            raise InputError(key, f"expected at most {K_MAX_LIMIT:g} N/m (a stuck damper), "
+                             f"got {k:g}" + (" from the kc distribution's upper limit"
+                                             if b[key.split('.')[1]] == "auto" else ""))
     F_lim = b["F_lim"]
     if F_lim == "none":
         F_lim = math.inf

@@ -1,0 +1,107 @@
+"""Is this a results file that mcfric can read? A structural check before reading it.
+
+``mcfric info`` and ``mcfric plot`` read files that may have been edited, truncated by
+hand or written by another tool. :func:`check_file` checks what they rely on: the layout
+version, the configuration record, the required datasets, every dataset's dimensions
+against its coordinates, and the kinds of the known datasets. It reads metadata only
+(cheap for any file size) and raises one :class:`~mcfric.store.StoreError` naming the
+first problem.
+"""
+
+from __future__ import annotations
+
+import json
+
+from .store import LAYOUT_VERSION, StoreError, describe, read_group
+
+#: dtype kinds of the known datasets (numpy ``dtype.kind``): f float, c complex, b bool,
+#: i/u integer.
+KINDS = {
+    "metric": "f", "converged": "b", "response": "c", "mu0": "f", "kc": "f", "N0": "f",
+    "harmonic_indicator": "f", "response_peak": "f", "response_harmonics": "c",
+    "peak_metric": "f", "peak_frequency": "f", "peak_status": "i", "fold": "i",
+    "peak_metric_down": "f", "peak_frequency_down": "f", "peak_response": "c",
+    "modal_freq_hz": "f", "done": "iu", "sample": "iu", "frequency": "f",
+}
+#: What every ensemble file (``samples > 0``) has.
+REQUIRED = ("sample", "frequency", "done", "metric", "converged", "mu0", "kc", "N0")
+#: Sections and keys of ``config_json`` that the readers use.
+CONFIG_KEYS = {"model": ("name", "n_beams", "topology"), "excitation": ("pattern", "F0"),
+               "frequency": ("n", "f_min", "f_max", "spacing"),
+               "sampling": ("seed", "mu0", "kc", "N0"), "metric": ("quantity",)}
+
+
+def check_file(path):
+    """Check the structure of a results or bounds file; returns ``(attrs, config)``.
+
+    Parameters
+    ----------
+    path : str or Path
+        A results file (complete or ``.partial``) or a bounds file.
+
+    Returns
+    -------
+    attrs : dict
+        Root attributes.
+    config : dict
+        The run's configuration (from ``config_json``).
+
+    Raises
+    ------
+    StoreError
+        Not an HDF5 file, not an mcfric file, another layout version, or a dataset that is
+        missing, misshapen or of the wrong type (one line, naming it).
+    """
+    d = describe(path)          # StoreError for a file HDF5 cannot open
+    a, ds = d["attrs"], d["datasets"]
+    if "layout_version" not in a:
+        raise StoreError(f"{path}: not an mcfric results file")
+    if a["layout_version"] != LAYOUT_VERSION:
+        raise StoreError(f"{path}: layout_version {a['layout_version']}, but this mcfric "
+                         f"reads layout {LAYOUT_VERSION} (a newer or older mcfric wrote it)")
+    if "config_json" not in a:
+        raise StoreError(f"{path}: no configuration record (root attribute config_json)")
+    try:
+        cfg = json.loads(a["config_json"])
+        for section, keys in CONFIG_KEYS.items():
+            for k in keys:
+                cfg[section][k]
+    except KeyError as e:
+        raise StoreError(f"{path}: the configuration record (config_json) lacks {e}") from None
+    except (TypeError, ValueError):
+        raise StoreError(f"{path}: the configuration record (config_json) is not "
+                         "readable") from None
+    n = a.get("samples")
+    if not isinstance(n, int) or n < 0:
+        raise StoreError(f"{path}: attribute samples = {n!r} is not a sample count")
+    missing = [k for k in (REQUIRED if n > 0 else ("frequency",)) if k not in ds]
+    if missing:
+        raise StoreError(f"{path}: dataset {missing[0]} is missing")
+    for name, (dims, shape, dtype) in ds.items():
+        want = KINDS.get(name)
+        if want and dtype.kind not in want:
+            raise StoreError(f"{path}: dataset {name} has type {dtype}, expected "
+                             f"{_kind_name(want)}")
+        if len(dims) != len(shape) or "?" in dims:
+            raise StoreError(f"{path}: dataset {name} has no dimension labels")
+        for dim, size in zip(dims, shape):
+            expected = n if dim == "sample" else (ds[dim][1][0] if dim in ds else None)
+            if expected is None:
+                raise StoreError(f"{path}: dataset {name} uses dimension {dim}, which the "
+                                 "file does not define")
+            if size != expected:
+                raise StoreError(f"{path}: dataset {name} has {size} along {dim}, expected "
+                                 f"{expected}")
+    g = read_group(path, "bounds")
+    if g is not None:
+        n_f = ds["frequency"][1][0]
+        for k in ("upper", "lower"):
+            v = g[0].get(k)
+            if v is None or getattr(v, "shape", None) != (n_f,) or v.dtype.kind != "f":
+                raise StoreError(f"{path}: bounds/{k} is missing or not {n_f} numbers")
+    return a, cfg
+
+
+def _kind_name(kinds):
+    return {"f": "float", "c": "complex", "b": "bool", "i": "integer",
+            "iu": "integer"}.get(kinds, kinds)
