@@ -346,3 +346,67 @@ def test_the_python_api_refuses_what_it_cannot_use(call, message):
 
     with pytest.raises(ValueError, match=message):
         call(mcfric.two_beam(0.22))
+
+
+# -- crash-resume soak (slow; CI runs it as a separate step) ---------------------------
+
+SOAK_KILLS = 20
+
+
+@pytest.mark.slow
+def test_soak_twenty_sigkills_then_resume_is_bitwise_identical(tmp_path):
+    """20 `kill -9` of one run at random moments (random progress, then a random delay
+    so that some land mid-chunk), each followed by `--resume`; the finished file equals a
+    straight run in every dataset."""
+    import time
+    from pathlib import Path
+
+    from mcfric import config
+    from mcfric.store import partial_path
+
+    root = Path(__file__).resolve().parents[1]
+    toml = tmp_path / "cfg.toml"
+    toml.write_text('[model]\npreset = "two-beam"\n[frequency]\nn = 200\n'
+                    '[sampling]\nsamples = 4000\nseed = 3\n'
+                    '[run]\nchunk = 4\ncheckpoint_s = 0.0\n')
+    out = tmp_path / "soak.h5"
+    env = dict(os.environ, PYTHONPATH=str(root))
+    cmd = [sys.executable, "-m", "mcfric", "run", str(toml), "-o", str(out), "--resume",
+           "--no-progress", "--no-figure"]
+    rng = np.random.default_rng(2026)
+
+    def done():
+        try:
+            with h5py.File(partial_path(out), "r", locking=False) as h5:
+                return int(h5["done"][...].sum())
+        except (OSError, KeyError):
+            return 0
+
+    killed = []
+    for _ in range(SOAK_KILLS):
+        start = done()
+        target = start + int(rng.integers(4, 120))
+        p = subprocess.Popen(cmd, cwd=tmp_path, env=env, stdout=subprocess.DEVNULL,
+                             stderr=subprocess.PIPE)
+        deadline = time.monotonic() + 600             # allows a numba compile
+        while p.poll() is None and done() < target and time.monotonic() < deadline:
+            time.sleep(0.005)
+        time.sleep(float(rng.uniform(0.0, 0.05)))
+        p.send_signal(9)
+        _, err = p.communicate()
+        assert p.returncode == -9, err.decode()     # killed mid-run, not finished
+        assert not out.exists()
+        killed.append(done())
+    assert killed[-1] < 4000 and len(set(killed)) > SOAK_KILLS // 2
+    r = subprocess.run(cmd, cwd=tmp_path, env=env, capture_output=True, text=True,
+                       timeout=600)
+    assert r.returncode == 0, r.stderr
+    assert not lock_path(out).exists()
+    straight = tmp_path / "straight.h5"
+    ensemble.run(config.load(toml, {"run.chunk": (512, "--chunk")}), straight,
+                 progress=False)
+    with h5py.File(out) as a, h5py.File(straight) as b:
+        names = [k for k in b if isinstance(b[k], h5py.Dataset)]
+        assert "response" in names
+        for k in names:
+            assert a[k][...].tobytes() == b[k][...].tobytes(), k

@@ -105,14 +105,14 @@ SPEC = {
     "excitation": {
         "pattern": (choice(*PATTERNS), '"single": one beam; "mode": F0 cos(m pi (b - 1/2) / n); '
                                        '"travelling": F0 exp(-2 pi i E (b - 1) / n)'),
-        "F0": (number(lo=0, lo_open=True), "force amplitude, N"),
+        "F0": (number(lo=0, lo_open=True, hi=1e6), "force amplitude, N (at most 1e6)"),
         "beam": (integer(1), 'driven beam for "single" (1-based)'),
         "mode": (integer(0), 'chain mode m for "mode"'),
         "engine_order": (integer(), 'engine order E for "travelling"'),
     },
     "frequency": {
-        "f_min": (number(lo=0, lo_open=True), "lowest frequency, Hz"),
-        "f_max": (number(lo=0, lo_open=True), "highest frequency, Hz (> f_min)"),
+        "f_min": (number(lo=0, lo_open=True, hi=1e6), "lowest frequency, Hz"),
+        "f_max": (number(lo=0, lo_open=True, hi=1e6), "highest frequency, Hz (> f_min)"),
         "n": (integer(2, MAX_FREQ), "number of frequencies (each sample sweeps them upward)"),
         "spacing": (choice(*SPACINGS), '"linear" or "log" spacing'),
     },
