@@ -44,46 +44,40 @@ def cfg_for(samples, n_freq, **extra):
     for k, v in extra.items():
         sec, key = k.split("__")
         raw.setdefault(sec, {})[key] = v
-    return config.load(raw)
+    return config.load(raw).spec
 
 
-def kernel_only(cfg, chunk):
-    """Seconds of hbm.solve over the run's chunks (parameters drawn beforehand)."""
-    model, f = cfg.model(), cfg.frequencies()
-    sampler = cfg.sampler(model)
-    draws = [sampler.draw(np.arange(a, min(cfg.samples, a + chunk)))
-             for a in range(0, cfg.samples, chunk)]
+def kernel_only(spec, chunk):
+    """Seconds of the run's solves over its chunks (parameters drawn beforehand)."""
+    draws = [spec.sampler.draw(np.arange(a, min(spec.samples, a + chunk)))
+             for a in range(0, spec.samples, chunk)]
     t = 0.0
     for d in draws:
         t0 = time.perf_counter()
-        r = hbm.solve(model, f, d.mu0, d.kc, d.N0)
+        r = ensemble.solve_chunk(spec, d)
         t += time.perf_counter() - t0
         del r
     return t
 
 
-def end_to_end(cfg, path):
+def end_to_end(spec, path):
     t0 = time.perf_counter()
-    s = ensemble.run(cfg, path, force=True, progress=False)
+    s = ensemble.run(spec, path, force=True, progress=False)
     dt = time.perf_counter() - t0
     assert s.complete
     return dt, s
 
 
-def synchronous(cfg, path, chunk):
+def synchronous(spec, path, chunk):
     """The same work with writes in the main thread (what the writer thread overlaps)."""
-    model, f = cfg.model(), cfg.frequencies()
-    sampler = cfg.sampler(model)
-    coords, variables, attrs, ph = ensemble.layout(cfg, model, f)
+    coords, variables, attrs, ph = ensemble.layout(spec)
     t0 = time.perf_counter()
-    st = Store.create(path, record_dim="sample", n_records=cfg.samples, coords=coords,
+    st = Store.create(path, record_dim="sample", n_records=spec.samples, coords=coords,
                       variables=variables, attrs=attrs, placeholders=ph)
-    for a in range(0, cfg.samples, chunk):
-        d = sampler.draw(np.arange(a, min(cfg.samples, a + chunk)))
-        r = hbm.solve(model, f, d.mu0, d.kc, d.N0)
-        st.write(a, {"response": r.response, "metric": hbm.response_metric(r.response, f),
-                     "converged": r.converged,
-                     "mu0": d.mu0, "kc": d.kc, "N0": d.N0})
+    for a in range(0, spec.samples, chunk):
+        d = spec.sampler.draw(np.arange(a, min(spec.samples, a + chunk)))
+        r = ensemble.solve_chunk(spec, d)
+        st.write(a, ensemble.record_arrays(spec, d, r))
         st.commit([(a, a + len(d.index))])
     st.finish({k: v for k, v in ph.items()})
     return time.perf_counter() - t0
@@ -157,7 +151,8 @@ MEM_SCRIPT = textwrap.dedent("""
     from mcfric import config, ensemble
     samples, n_freq, path = int(sys.argv[1]), int(sys.argv[2]), sys.argv[3]
     cfg = config.load({"model": {"preset": "eight-beam"}, "frequency": {"n": n_freq},
-                       "sampling": {"samples": samples, "seed": 1}})
+                       "sampling": {"samples": samples, "seed": 1},
+                       "bounds": {"enabled": False}})
     t0 = time.perf_counter()
     s = ensemble.run(cfg, path, force=True, progress=False)
     dt = time.perf_counter() - t0
@@ -201,14 +196,14 @@ def run_bench(a, workdir):
     import numba
 
     cfg = cfg_for(a.samples, a.n_freq)
-    model = cfg.model()
-    chunk = ensemble.auto_chunk(cfg, model)
+    model = cfg.model
+    chunk = ensemble.auto_chunk(cfg)
     n_pts = a.samples * a.n_freq
     print(f"mcfric ensemble benchmark: eight-beam, {a.samples} samples x {a.n_freq} "
           f"frequencies x {model.n_beams} beams; {numba.get_num_threads()} threads, "
           f"chunk {chunk} samples (auto), scratch {workdir}")
     print("load average before: %.2f %.2f %.2f (the machine may be shared)" % os.getloadavg())
-    hbm.solve(model, cfg.frequencies()[:8], 0.5, 6000.0, 0.5)     # load / compile kernel
+    hbm.solve(model, cfg.freq_hz[:8], 0.5, 6000.0, 0.5)     # load / compile kernel
     small = cfg_for(16, 16)
     ensemble.run(small, workdir / "warm.h5", force=True, progress=False)
 
@@ -242,8 +237,8 @@ def run_bench(a, workdir):
 
     # 3: storage options on a block of real kernel output
     n_blk = min(a.samples, 256)
-    d = cfg.sampler(model).draw(np.arange(n_blk))
-    r = hbm.solve(model, cfg.frequencies(), d.mu0, d.kc, d.N0)
+    d = cfg.sampler.draw(np.arange(n_blk))
+    r = hbm.solve(model, cfg.freq_hz, d.mu0, d.kc, d.N0)
     y, m = r.response, r.metric()
     opts = storage_options(y, m, workdir, max(1, a.repeat))
     full_bytes = a.samples * a.n_freq * (model.n_beams * 16 + 8)

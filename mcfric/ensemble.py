@@ -490,8 +490,8 @@ def check_space(spec, final, resume):
     if resume and part.exists():
         need = max(0, need - part.stat().st_blocks * 512)
     free = shutil.disk_usage(final.parent).free
-    # 1 % and 64 MB of headroom for metadata and for everything else on the disk
-    if need + need // 100 + (64 << 20) > free:
+    # 1 % and 1 MB of headroom for the metadata and the figure
+    if need + need // 100 + (1 << 20) > free:
         raise RunError(f"the results file needs {_human(need)} but {final.parent} has "
                        f"{_human(free)} free: use fewer samples or frequencies, "
                        f"[output] keep_response = false (metric only), another -o, or "
@@ -555,15 +555,61 @@ def _bounds_groups(spec, verbose):
     return group
 
 
+def solve_chunk(spec, d):
+    """Solve one chunk of drawn members as the run does (peaks, harmonics, indicator).
+
+    Parameters
+    ----------
+    spec : mcfric.spec.RunSpec
+    d : mcfric.sampling.Draw
+        The chunk's parameters.
+
+    Returns
+    -------
+    mcfric.hbm.Result
+    """
+    return hbm.solve(spec.model, spec.freq_hz, d.mu0, d.kc, d.N0,
+                     modal_freq_hz=d.modal_freq_hz, tol=spec.solver.tol,
+                     max_iter=spec.solver.max_iter, n_threads=spec.execution.threads,
+                     peaks=spec.peaks, harmonics=spec.solver.harmonics,
+                     n_time=spec.solver.n_time,
+                     store_harmonics=spec.keep_harmonics and spec.keep_response,
+                     indicator=spec.solver.harmonics == 1)
+
+
+def record_arrays(spec, d, res):
+    """``{variable: array}`` of one solved chunk, as :func:`layout` declares them."""
+    freq, quantity, beams = spec.freq_hz, spec.metric.quantity, spec.metric.beams
+    arrays = {"metric": hbm.response_metric(res.response, freq, quantity, beams),
+              "converged": res.converged, "mu0": d.mu0, "kc": d.kc, "N0": d.N0}
+    if res.harmonic_indicator is not None:
+        arrays["harmonic_indicator"] = res.harmonic_indicator.astype(np.float32)
+    if spec.keep_response:
+        arrays["response"] = res.response
+        if res.response_peak is not None:
+            arrays["response_peak"] = res.response_peak
+        if res.response_harmonics is not None:
+            arrays["response_harmonics"] = res.response_harmonics
+    if res.peaks is not None:
+        pk = res.peaks
+        arrays.update({"peak_metric": pk.metric, "peak_frequency": pk.freq_hz,
+                       "peak_status": pk.status, "fold": pk.fold,
+                       "peak_metric_down": pk.metric_down,
+                       "peak_frequency_down": pk.freq_hz_down})
+        if spec.keep_response:
+            arrays["peak_response"] = pk.response
+    if d.modal_freq_hz is not None:
+        arrays["modal_freq_hz"] = d.modal_freq_hz
+    return arrays
+
+
 def _drive(spec, store, done, not_conv_before, progress, t_start):
     from tqdm import tqdm
 
-    model, freq, sampler = spec.model, spec.freq_hz, spec.sampler
-    n_f = len(freq)
+    sampler = spec.sampler
+    n_f = len(spec.freq_hz)
     ex = spec.execution
     chunk = ex.chunk or auto_chunk(spec)
-    tol, max_iter = spec.solver.tol, spec.solver.max_iter
-    quantity, beams = spec.metric.quantity, spec.metric.beams
     chunks = _pending_chunks(done, chunk)
     n_before = int(np.count_nonzero(done))
 
@@ -584,26 +630,7 @@ def _drive(spec, store, done, not_conv_before, progress, t_start):
                 start, d, res = item
                 n = len(d.index)
                 conv = res.converged
-                arrays = {"metric": hbm.response_metric(res.response, freq, quantity, beams),
-                          "converged": conv, "mu0": d.mu0, "kc": d.kc, "N0": d.N0}
-                if res.harmonic_indicator is not None:
-                    arrays["harmonic_indicator"] = res.harmonic_indicator.astype(np.float32)
-                if spec.keep_response:
-                    arrays["response"] = res.response
-                    if res.response_peak is not None:
-                        arrays["response_peak"] = res.response_peak
-                    if res.response_harmonics is not None:
-                        arrays["response_harmonics"] = res.response_harmonics
-                if res.peaks is not None:
-                    pk = res.peaks
-                    arrays.update({"peak_metric": pk.metric, "peak_frequency": pk.freq_hz,
-                                   "peak_status": pk.status, "fold": pk.fold,
-                                   "peak_metric_down": pk.metric_down,
-                                   "peak_frequency_down": pk.freq_hz_down})
-                    if spec.keep_response:
-                        arrays["peak_response"] = pk.response
-                if d.modal_freq_hz is not None:
-                    arrays["modal_freq_hz"] = d.modal_freq_hz
+                arrays = record_arrays(spec, d, res)
                 store.write(start, arrays)
                 del item, res, arrays
                 pending.append((start, start + n))
@@ -632,12 +659,7 @@ def _drive(spec, store, done, not_conv_before, progress, t_start):
             nxt = (prefetch.submit(sampler.draw, np.arange(*chunks[n + 1]))
                    if n + 1 < len(chunks) else None)
             t0 = time.perf_counter()
-            res = hbm.solve(model, freq, d.mu0, d.kc, d.N0, modal_freq_hz=d.modal_freq_hz,
-                            tol=tol, max_iter=max_iter, n_threads=ex.threads,
-                            peaks=spec.peaks, harmonics=spec.solver.harmonics,
-                            n_time=spec.solver.n_time,
-                            store_harmonics=spec.keep_harmonics and spec.keep_response,
-                            indicator=spec.solver.harmonics == 1)
+            res = solve_chunk(spec, d)
             kernel_s += time.perf_counter() - t0
             _put(q, (a, d, res), w, err)
             del res, d

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from mcfric import cli, ensemble
-from mcfric.store import Store
+from mcfric.store import Store, writer
 from mcfric.store.lock import OutputLock, lock_path
 
 SMALL = ["two-beam", "--samples", "12", "--n-freq", "20", "--no-progress", "--no-figure"]
@@ -90,7 +90,7 @@ def test_no_space_is_refused_before_any_work(tmp_path, capsys, monkeypatch):
     out = tmp_path / "r.h5"
     real = shutil.disk_usage
     monkeypatch.setattr(shutil, "disk_usage",
-                        lambda p: real(p)._replace(free=10 << 20))
+                        lambda p: real(p)._replace(free=1 << 10))
     assert cli.main(["run", *SMALL, "-o", str(out)]) == 2
     err = capsys.readouterr().err
     assert "needs" in err and "free" in err and "--skip-space-check" in err
@@ -410,3 +410,55 @@ def test_soak_twenty_sigkills_then_resume_is_bitwise_identical(tmp_path):
         assert "response" in names
         for k in names:
             assert a[k][...].tobytes() == b[k][...].tobytes(), k
+
+
+@pytest.fixture
+def small_fs(tmp_path):
+    """A 1 MB tmpfs (root only; skipped elsewhere), unmounted afterwards."""
+    mnt = tmp_path / "small"
+    mnt.mkdir()
+    r = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=1m", "tmpfs", str(mnt)],
+                       capture_output=True)
+    if r.returncode != 0:
+        pytest.skip("cannot mount a small tmpfs here (needs root)")
+    try:
+        yield mnt
+    finally:
+        subprocess.run(["umount", "-l", str(mnt)], capture_output=True)
+
+
+BIG = ["two-beam", "--samples", "2000", "--n-freq", "100", "--chunk", "16", "--no-progress",
+       "--no-figure"]
+
+
+def test_a_file_that_cannot_fit_fails_before_any_work(small_fs, capsys):
+    """A real full disk: even past the estimate (--skip-space-check), the blocks are
+    reserved when the file is created, so the run stops there, in one line."""
+    out = small_fs / "r.h5"
+    rc = cli.main(["run", *BIG, "-o", str(out), "--skip-space-check"])
+    err = capsys.readouterr().err.strip()
+    assert rc == 1 and "no space for the results file" in err and len(err.splitlines()) == 1
+    assert not list(small_fs.iterdir())
+
+
+def test_a_disk_that_fills_mid_run_leaves_a_resumable_partial(small_fs, tmp_path, capsys,
+                                                              monkeypatch):
+    """Without the reservation (a file system without fallocate), a real ENOSPC mid-run
+    must still end in one line, exit 1, and a .partial that resumes to the same bits
+    once there is space: the chunk cache is flushed while the error can still raise."""
+    monkeypatch.setattr(writer, "_fallocate", lambda fd, size: None)
+    out = small_fs / "r.h5"
+    rc = cli.main(["run", *BIG, "-o", str(out), "--skip-space-check"])
+    err = capsys.readouterr().err.strip()
+    assert rc == 1 and "No space left on device" in err, err
+    assert len(err.splitlines()) == 1
+    assert not out.exists() and (small_fs / "r.h5.partial").exists()
+    assert not lock_path(out).exists()
+    subprocess.run(["mount", "-o", "remount,size=64m", str(small_fs)], check=True)
+    monkeypatch.undo()
+    assert cli.main(["run", *BIG, "-o", str(out), "--resume"]) == 0
+    straight = tmp_path / "straight.h5"
+    assert cli.main(["run", *BIG, "-o", str(straight)]) == 0
+    with h5py.File(out) as a, h5py.File(straight) as b:
+        for name in ("response", "metric", "converged", "done", "mu0", "kc", "N0"):
+            assert a[name][...].tobytes() == b[name][...].tobytes(), name

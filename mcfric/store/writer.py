@@ -6,11 +6,15 @@ Crash safety
   disk (``os.replace`` is atomic). A file named ``FILE`` is therefore always complete; its
   root attribute ``complete`` is 1. ``FILE.partial`` has ``complete = 0``.
 * Every record dataset is created at the start with all its chunks allocated
-  (``H5D_ALLOC_TIME_EARLY``, no filters) and the file is flushed and fsynced. From then on
-  a run only writes raw bytes at fixed offsets: the HDF5 metadata (object headers, chunk
-  indices, superblock) is never modified until :meth:`Store.finish`. A ``kill -9`` or a
-  power cut in the middle of a write leaves metadata that is exactly as created, so the file
-  always opens.
+  (``H5D_ALLOC_TIME_EARLY``, no filters), its disk blocks reserved (:func:`reserve`), and
+  the file is flushed and fsynced. From then on a run only writes raw bytes at fixed
+  offsets, with ``os.pwrite`` at the byte offsets of the chunks (a chunk holds whole rows,
+  so the rows of a record range are contiguous in it): the HDF5 metadata (object headers,
+  chunk indices, superblock) is never modified until :meth:`Store.finish`. A ``kill -9``
+  or a power cut in the middle of a write leaves metadata that is exactly as created, so
+  the file always opens. A failed write (disk full, I/O error) raises at once; nothing is
+  left dirty in HDF5's caches, where a failure would only show when the file is closed
+  (and could crash the process).
 * Which records hold valid data is recorded in the ``done`` dataset (int8, 1 = valid),
   written by :meth:`Store.commit` only after the data it covers has been flushed and
   ``fsync``-ed. Records with ``done = 0`` may hold garbage and are recomputed on resume.
@@ -25,7 +29,12 @@ performance page).
 
 from __future__ import annotations
 
+import ctypes
+import errno
 import os
+import re
+import shutil
+import sys
 from pathlib import Path
 
 import h5py
@@ -36,8 +45,75 @@ from .groups import write_group
 
 #: Target size of one HDF5 chunk (HDF5 guidance: ~1 MiB).
 CHUNK_BYTES = 1 << 20
-#: Raw-data chunk cache per dataset, so partial-chunk writes do not thrash.
-CACHE_BYTES = 8 << 20
+#: No raw-data chunk cache: records are written with os.pwrite, never through HDF5, so a
+#: cached chunk could only be stale.
+CACHE_BYTES = 0
+
+
+def _reason(e):
+    """One line from an HDF5 error (which spans lines and quotes the system's message)."""
+    m = re.search(r"error message = '([^']*)'", str(e))
+    if m:
+        return m.group(1)
+    return str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+
+
+def _fallocate(fd, size):
+    """Allocate ``size`` bytes of ``fd`` on disk; OSError where that fails.
+
+    On Linux the system call itself (through ctypes): ``posix_fallocate`` falls back, where
+    the file system has no ``fallocate``, to writing one byte per block, which over NFS
+    takes minutes per GB; the system call reports EOPNOTSUPP instead.
+    """
+    fn = _libc_fallocate()
+    if fn is None:
+        os.posix_fallocate(fd, 0, size)
+        return
+    if fn(fd, 0, 0, size) != 0:
+        e = ctypes.get_errno()
+        raise OSError(e, os.strerror(e))
+
+
+def _libc_fallocate():
+    if not sys.platform.startswith("linux"):
+        return None
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        fn = getattr(libc, "fallocate64", None) or libc.fallocate
+    except (OSError, AttributeError):
+        return None
+    fn.argtypes = [ctypes.c_int, ctypes.c_int, ctypes.c_int64, ctypes.c_int64]
+    fn.restype = ctypes.c_int
+    return fn
+
+
+def reserve(path):
+    """Allocate the disk blocks of the whole file now (``fallocate``).
+
+    The chunks are allocated in the HDF5 sense at creation, but the file is sparse: without
+    this, a full disk would show only when a chunk is written, hours into a run. With it,
+    a file that cannot fit fails here, before any work, and later writes cannot run out
+    of space. File systems without ``fallocate`` are left as they are.
+
+    Raises
+    ------
+    StoreError
+        The file system has no room for the file (ENOSPC, EDQUOT).
+    """
+    size = os.stat(path).st_size
+    fd = os.open(path, os.O_RDWR)
+    try:
+        _fallocate(fd, size)
+    except OSError as e:
+        if e.errno in (errno.ENOSPC, errno.EDQUOT):
+            free = shutil.disk_usage(Path(path).resolve().parent).free
+            raise StoreError(f"{path}: no space for the results file ({size / 1e9:.3g} GB "
+                             f"needed, {free / 1e9:.3g} GB free)") from None
+        if e.errno not in (errno.EOPNOTSUPP, errno.EINVAL, errno.ENOSYS):
+            raise
+    finally:
+        os.close(fd)
+
 
 def _record_chunk(row_bytes, n_records):
     """Rows per HDF5 chunk: a power of two giving <= ~1 MiB (at least 1 row)."""
@@ -68,6 +144,15 @@ class Store:
         self.path = partial_path(final_path)
         self.record_dim = record_dim
         self.n_records = h5[record_dim].shape[0]
+        # where each record dataset's chunks sit in the file, for raw writes
+        self._raw = {}
+        for name, ds in h5.items():
+            if (isinstance(ds, h5py.Dataset) and ds.chunks is not None
+                    and ds.shape[0] == self.n_records and ds.dtype in _RAW_KINDS
+                    and ds.compression is None and not ds.shuffle
+                    and ds.chunks[1:] == ds.shape[1:]):
+                self._raw[name] = _chunk_offsets(ds)
+        self._fd = os.open(self.path, os.O_RDWR)
 
     # -- creation ---------------------------------------------------------------------
 
@@ -131,6 +216,7 @@ class Store:
             for k, v in placeholders.items():
                 h5.attrs.create(k, v, dtype=np.asarray(v).dtype)
             h5.flush()
+            reserve(part)
             fsync_path(part)
             fsync_dir(part)
         except BaseException:
@@ -150,6 +236,11 @@ class Store:
         if int(h5.attrs.get("complete", -1)) != 0 or DONE not in h5 or record_dim not in h5:
             h5.close()
             raise StoreError(f"{part}: not a partial results file of this layout")
+        try:
+            reserve(part)
+        except BaseException:
+            h5.close()
+            raise
         return cls(h5, path, record_dim)
 
     # -- writing ----------------------------------------------------------------------
@@ -166,28 +257,44 @@ class Store:
     def write(self, start, arrays):
         """Write records ``start .. start + n`` of each named variable (not yet committed).
 
-        Whole HDF5 chunks go straight to their pre-allocated place (``H5Dwrite_chunk``,
-        no copy, no type conversion: less CPU than a selection write);
-        partial chunks at the edges go through the normal path.
+        The bytes go straight to their pre-allocated place in the file (``os.pwrite``: no
+        copy, no type conversion, nothing cached by HDF5).
+
+        Raises
+        ------
+        StoreError
+            The write failed (disk full, I/O error): one line with the system's reason.
         """
+        try:
+            self._write(start, arrays)
+        except (OSError, RuntimeError) as e:
+            raise StoreError(f"{self.path}: writing failed: {_reason(e)}") from None
+
+    def _write(self, start, arrays):
         for name, arr in arrays.items():
-            ds = self._h5[name]
             arr = np.ascontiguousarray(arr)
-            stop = start + len(arr)
-            k = ds.chunks[0]
-            first = -(-start // k) * k          # first chunk boundary >= start
-            last = (stop // k) * k              # last chunk boundary <= stop
-            if first >= last or not _raw_compatible(ds, arr):
-                ds[start:stop] = arr
+            raw = self._raw.get(name)
+            if raw is not None and arr.dtype == raw[2]:
+                self._pwrite(raw, start, arr)
                 continue
-            if start < first:
-                ds[start:first] = arr[:first - start]
-            zeros = (0,) * (arr.ndim - 1)
-            for c in range(first, last, k):
-                block = arr[c - start:c - start + k]
-                ds.id.write_direct_chunk((c,) + zeros, memoryview(block).cast("B"))
-            if last < stop:
-                ds[last:stop] = arr[last - start:]
+            ds = self._h5[name]            # another dtype: HDF5 converts (not used today)
+            ds[start:start + len(arr)] = arr
+            # write the chunk cache out now: a failure here raises, whereas at the
+            # dataset's close (when `ds` is collected) HDF5 would only print it
+            ds.flush()
+
+    def _pwrite(self, raw, start, arr):
+        """Rows ``start .. start + len(arr)`` as raw bytes at their chunks' offsets."""
+        offsets, k, dtype, row = raw
+        data = memoryview(arr).cast("B")
+        stop = start + len(arr)
+        r = start
+        while r < stop:
+            c = r // k
+            end = min(stop, (c + 1) * k)
+            _pwrite_all(self._fd, data[(r - start) * row:(end - start) * row],
+                        int(offsets[c]) + (r - c * k) * row)
+            r = end
 
     def commit(self, ranges):
         """Make written records durable, then mark them done.
@@ -200,12 +307,13 @@ class Store:
         ranges = list(ranges)
         if not ranges:
             return
-        self._h5.flush()
-        fsync_path(self.path)       # data on disk before the marks that vouch for it
-        d = self._h5[DONE]
-        for a, b in ranges:
-            d[a:b] = 1
-        self._h5.flush()
+        try:
+            self._h5.flush()
+            os.fsync(self._fd)          # data on disk before the marks that vouch for it
+            for a, b in ranges:
+                self._write(a, {DONE: np.ones(b - a, np.int8)})
+        except (OSError, RuntimeError) as e:
+            raise StoreError(f"{self.path}: writing failed: {_reason(e)}") from None
 
     def finish(self, summary):
         """Set the summary attributes, mark complete, fsync and rename to the final path.
@@ -225,26 +333,56 @@ class Store:
         self._h5.attrs.modify("complete", np.int8(1))
         self._h5.flush()
         self._h5.close()
+        os.close(self._fd)
         fsync_path(self.path)
         os.replace(self.path, self.final_path)
         fsync_dir(self.final_path)
         return self.final_path
 
     def close(self):
-        """Close without completing (the ``.partial`` file stays, resumable)."""
+        """Close without completing (the ``.partial`` file stays, resumable).
+
+        Errors while flushing are ignored: whatever did not reach the disk is not marked
+        done (:meth:`commit` marks only what it flushed), so ``--resume`` recomputes it,
+        and the error that stopped the run is the one to report.
+        """
         if self._h5.id.valid:
-            self._h5.flush()
-            self._h5.close()
+            try:
+                self._h5.flush()
+            except (OSError, RuntimeError):
+                pass
+            try:
+                self._h5.close()
+            except (OSError, RuntimeError):
+                pass
+            os.close(self._fd)
 
 
 #: dtypes whose numpy bytes are exactly the HDF5 file type's bytes (as created here)
-_RAW_KINDS = {np.dtype(t) for t in ("<f8", "<c16", "|b1", "|i1", "<i8")}
+_RAW_KINDS = {np.dtype(t) for t in ("<f8", "<f4", "<c16", "|b1", "|i1", "<i8")}
 
 
-def _raw_compatible(ds, arr):
-    """Can ``arr`` be written as raw chunk bytes of ``ds`` (same layout, no filter)?"""
-    return (arr.dtype == ds.dtype and arr.dtype in _RAW_KINDS and ds.compression is None
-            and not ds.shuffle and ds.chunks[1:] == ds.shape[1:] == arr.shape[1:])
+def _chunk_offsets(ds):
+    """``(byte offset of each chunk, rows per chunk, dtype, bytes per row)`` of a record
+    dataset whose chunks are all allocated."""
+    k = ds.chunks[0]
+    n_chunks = -(-ds.shape[0] // k)
+    offsets = np.full(n_chunks, -1, dtype=np.int64)
+    for i in range(ds.id.get_num_chunks()):
+        info = ds.id.get_chunk_info(i)
+        offsets[info.chunk_offset[0] // k] = info.byte_offset
+    if (offsets < 0).any():
+        raise StoreError(f"{ds.file.filename}: dataset {ds.name} has unallocated chunks")
+    row = int(np.prod(ds.shape[1:], dtype=np.int64)) * ds.dtype.itemsize
+    return offsets, k, ds.dtype, row
+
+
+def _pwrite_all(fd, data, offset):
+    """``os.pwrite`` until every byte is written (a regular file may take fewer)."""
+    while len(data):
+        n = os.pwrite(fd, data, offset)
+        data = data[n:]
+        offset += n
 
 
 def _create_allocated(h5, name, shape, dtype, fill):
