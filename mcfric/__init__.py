@@ -7,10 +7,10 @@ gas turbine blades with uncertain friction coupling".
 
 from .hbm import HBMResult, solve
 from .model import TABLE_1, Excitation, ModalTable, Model
-from .presets import eight_beam, preset, two_beam
+from .presets import disk, eight_beam, preset, two_beam
 from .store import open_results
 
 __version__ = "0.1.0"
 
 __all__ = ["HBMResult", "solve", "TABLE_1", "Excitation", "ModalTable", "Model",
-           "eight_beam", "preset", "two_beam", "open_results", "__version__"]
+           "disk", "eight_beam", "preset", "two_beam", "open_results", "__version__"]

@@ -56,7 +56,7 @@ class _Parser(argparse.ArgumentParser):
 
 
 def _source_help():
-    return "a preset (two-beam, eight-beam) or a TOML configuration file"
+    return "a preset (two-beam, eight-beam, disk-24, disk-72) or a TOML configuration file"
 
 
 def _parser():

@@ -181,7 +181,13 @@ def layout(spec):
         "kc": (P, np.float64, {"units": "N/m", "long_name": "tangential contact stiffness"}),
         "N0": (P, np.float64, {"units": "N", "long_name": "normal preload"}),
     }
-    if spec.keep_response:
+    if spec.keep_response and spec.response_format == "amplitude":
+        variables = {"amplitude": ((RECORD, "frequency", "beam"), np.float32,
+                                   {"units": "m", "long_name":
+                                    "displacement amplitude |X| at the output position "
+                                    "(float32); NaN where not converged"}),
+                     **variables}
+    elif spec.keep_response:
         variables = {"response": ((RECORD, "frequency", "beam"), np.complex128,
                                   {"units": "m", "long_name":
                                    "complex displacement amplitude at the output position, "
@@ -223,7 +229,9 @@ def layout(spec):
             f"{hbm.INDICATOR_THRESHOLD:g} one harmonic may not be enough; NaN where not "
             "converged", "threshold": hbm.INDICATOR_THRESHOLD})
     if spec.solver.harmonics > 1 and spec.keep_response:
-        variables["response_peak"] = ((RECORD, "frequency", "beam"), np.float64, {
+        amp = spec.response_format == "amplitude"
+        variables["response_peak"] = ((RECORD, "frequency", "beam"),
+                                      np.float32 if amp else np.float64, {
             "units": "m", "long_name": "largest |x(t)| over a period at the output position, "
             "all balanced harmonics together; NaN where not converged"})
         if spec.keep_harmonics:
@@ -585,9 +593,14 @@ def record_arrays(spec, d, res):
     if res.harmonic_indicator is not None:
         arrays["harmonic_indicator"] = res.harmonic_indicator.astype(np.float32)
     if spec.keep_response:
-        arrays["response"] = res.response
+        amp = spec.response_format == "amplitude"
+        if amp:
+            arrays["amplitude"] = np.abs(res.response).astype(np.float32)
+        else:
+            arrays["response"] = res.response
         if res.response_peak is not None:
-            arrays["response_peak"] = res.response_peak
+            arrays["response_peak"] = (res.response_peak.astype(np.float32) if amp
+                                       else res.response_peak)
         if res.response_harmonics is not None:
             arrays["response_harmonics"] = res.response_harmonics
     if res.peaks is not None:

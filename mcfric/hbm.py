@@ -350,7 +350,7 @@ def run_kernel(model, rec, omega, mu0, N0, kc, tol, max_iter, y, s, status, iter
     args = (np.ascontiguousarray(rec), force, a, b, np.ascontiguousarray(omega), mu0, N0, kc)
     law = CONTACT_LAWS.index(model.contact_law)
     outs = (float(tol), int(max_iter), y, s, status, iterations, residual)
-    if law != 0 or (model.topology != "linear" and model.n_dampers > 1):
+    if law != 0:
         _sweep.sweep_dense(*args, *outs, np.int64(law))
     elif model.n_dampers == 1:
         _sweep.sweep_one_damper(*args, *outs)

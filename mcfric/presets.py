@@ -5,13 +5,19 @@
 * ``eight-beam``: the full linear rig, seven dampers, driven in the pattern of the third
   free-chain first-passband mode (``m = 2``, "approximately engine order 2"),
   F0 = 1.1 N (Fig. 9b).
+* ``disk-24``: a tuned bladed disk, 24 Table-1 blades in a ring (24 dampers), driven by
+  an engine-order 3 travelling wave, F0 = 1.1 N on every blade.
+* ``disk-72``: the same with 72 blades and engine order 8.
 
-Both use Table 1 for every beam, contact at position 1, output at 2, drive at 3.
+All use Table 1 for every beam, contact at position 1, output at 2, drive at 3. The disks
+are the paper's blades joined into rings, not a rig of the paper: their passband is the
+eight-beam rig's (16-73 Hz with the default contact stiffness), and an engine order E
+excites the ring's E-nodal-diameter wave.
 """
 
 from .model import TABLE_1, Excitation, Model
 
-PRESETS = ("two-beam", "eight-beam")
+PRESETS = ("two-beam", "eight-beam", "disk-24", "disk-72")
 
 
 def two_beam(F0=0.22):
@@ -26,9 +32,27 @@ def eight_beam(F0=1.1):
                            topology="linear", name="eight-beam")
 
 
+def disk(n_blades=24, engine_order=3, F0=1.1):
+    """A tuned bladed disk: ``n_blades`` Table-1 blades in a ring, engine-order wave."""
+    return Model.identical(TABLE_1, n_blades,
+                           excitation=Excitation("travelling", F0, engine_order=engine_order),
+                           topology="circular", name=f"disk-{n_blades}")
+
+
+def disk_24(F0=1.1):
+    """24 blades in a ring, engine order 3."""
+    return disk(24, 3, F0)
+
+
+def disk_72(F0=1.1):
+    """72 blades in a ring, engine order 8."""
+    return disk(72, 8, F0)
+
+
 def preset(name, F0=None):
-    """A preset model by name (``two-beam`` or ``eight-beam``), optionally with its F0 in N."""
-    makers = {"two-beam": two_beam, "eight-beam": eight_beam}
+    """A preset model by name (one of ``PRESETS``), optionally with its F0 in N."""
+    makers = {"two-beam": two_beam, "eight-beam": eight_beam, "disk-24": disk_24,
+              "disk-72": disk_72}
     if name not in makers:
         raise ValueError(f"preset: expected one of {PRESETS}, got {name!r}")
     return makers[name]() if F0 is None else makers[name](F0)

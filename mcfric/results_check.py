@@ -17,7 +17,8 @@ from .store import LAYOUT_VERSION, StoreError, describe, read_group
 #: dtype kinds of the known datasets (numpy ``dtype.kind``): f float, c complex, b bool,
 #: i/u integer.
 KINDS = {
-    "metric": "f", "converged": "b", "response": "c", "mu0": "f", "kc": "f", "N0": "f",
+    "metric": "f", "converged": "b", "response": "c", "amplitude": "f", "mu0": "f", "kc": "f",
+    "N0": "f",
     "harmonic_indicator": "f", "response_peak": "f", "response_harmonics": "c",
     "peak_metric": "f", "peak_frequency": "f", "peak_status": "i", "fold": "i",
     "peak_metric_down": "f", "peak_frequency_down": "f", "peak_response": "c",

@@ -123,6 +123,9 @@ class RunSpec:
         Store the complex response per beam (False: the metric only).
     keep_harmonics : bool
         With ``solver.harmonics > 1``: store every odd harmonic of the response.
+    response_format : {"complex", "amplitude"}
+        With ``keep_response``: the complex response per beam (``response``, complex128),
+        or its amplitude (``amplitude``, float32, four times smaller).
     execution : ExecutionSpec
     config_toml, config_json : str
         The complete configuration, as recorded in a results file.
@@ -144,6 +147,7 @@ class RunSpec:
     config_json: str
     identity: dict
     keep_harmonics: bool = False
+    response_format: str = "complex"
 
     @property
     def seed(self):

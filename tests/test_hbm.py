@@ -70,7 +70,7 @@ def test_warm_started_sweeps_match_reference(n_beams):
 
 
 def test_circular_mistuned_array_matches_reference():
-    """Dense path: a ring with per-beam modal data, travelling-wave drive."""
+    """A ring (the bordered chain kernel) with per-beam modal data, travelling-wave drive."""
     rng = np.random.default_rng(3)
     beams = tuple(TABLE_1.with_frequency(1, 16.2 * (1 + 0.02 * rng.standard_normal()))
                   .with_frequency(2, 105.8 * (1 + 0.02 * rng.standard_normal()))

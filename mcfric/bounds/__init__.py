@@ -13,8 +13,9 @@ from .equivalent_linear import (
                                 compute_bounds,
                                 force_limit,
                                 from_spec,
+                                rotation_invariant,
 )
 from .results import read_bounds, to_group, write_bounds_file
 
 __all__ = ["LIMITED_BY", "MAX_SWEEPS", "N_STARTS", "Bounds", "compute_bounds", "force_limit",
-           "from_spec", "read_bounds", "to_group", "write_bounds_file"]
+           "from_spec", "read_bounds", "rotation_invariant", "to_group", "write_bounds_file"]

@@ -22,7 +22,7 @@ from ..peaks import PeakSettings
 from ..spec import BoundsSpec, ExecutionSpec, MetricSpec, RunSpec, SolverSpec
 from ..validators import InputError
 from . import loading, rendering, validation  # used at call time (they import Config)
-from .schema import NOT_IDENTITY
+from .schema import AUTO_COMPLEX_MAX_BEAMS, NOT_IDENTITY
 
 
 @dataclass(frozen=True)
@@ -74,6 +74,7 @@ class Config:
             solver=SolverSpec(sv["tol"], sv["max_iter"], sv["harmonics"], sv["n_time"] or None),
             peaks=peaks, keep_harmonics=d["output"]["keep_harmonics"],
             bounds=bounds, keep_response=d["output"]["keep_response"],
+            response_format=response_format(d["output"]["response"], model.n_beams),
             execution=ExecutionSpec(r["threads"] or None, r["chunk"], r["checkpoint_s"]),
             config_toml=self.toml(comments=False), config_json=self.json(),
             identity=self.identity())
@@ -127,6 +128,13 @@ class Config:
         raw = copy.deepcopy(self.data)
         loading.set_key(raw, dotted, value)
         return validation.validate(raw)
+
+
+def response_format(setting, n_beams):
+    """``output.response`` resolved: ``"complex"`` or ``"amplitude"`` (``"auto"`` by size)."""
+    if setting != "auto":
+        return setting
+    return "complex" if n_beams <= AUTO_COMPLEX_MAX_BEAMS else "amplitude"
 
 
 def _model(d):

@@ -35,6 +35,9 @@ SPACINGS = ("linear", "log")
 #: Sections that do not change the results (ignored when comparing runs for --resume).
 NOT_IDENTITY = ("run", "bounds")
 MAX_SAMPLES = 10 ** 10
+#: ``output.response = "auto"`` stores the complex response up to this many beams and the
+#: float32 amplitude above (docs: results file, "Storage of large rings").
+AUTO_COMPLEX_MAX_BEAMS = 32
 MAX_FREQ = 10 ** 7
 
 
@@ -63,7 +66,7 @@ def defaults(preset=DEFAULT_PRESET):
         "metric": {"quantity": "displacement", "beams": "all"},
         "peaks": {"enabled": True, "count": t.n_modes, "rtol": 1e-4, "window": 3},
         "solver": {"tol": 1e-10, "max_iter": 50, "harmonics": 1, "n_time": 0},
-        "output": {"keep_response": True, "keep_harmonics": False},
+        "output": {"keep_response": True, "response": "auto", "keep_harmonics": False},
         "run": {"threads": 0, "chunk": 0, "checkpoint_s": 0.0},
         "bounds": {"enabled": True, "k_max": "auto", "k_max_im": "auto", "F_lim": "auto",
                    "n_starts": 3},
@@ -158,6 +161,10 @@ SPEC = {
     "output": {
         "keep_response": (boolean(), "store the complex response per beam; false keeps only "
                                      "the metric (for very large runs)"),
+        "response": (choice("auto", "complex", "amplitude"),
+                     'how the response per beam is stored: "complex" (complex128, 16 bytes a '
+                     'point), "amplitude" (|X| in float32, 4 bytes); "auto": complex up to '
+                     f'{AUTO_COMPLEX_MAX_BEAMS} beams, amplitude above'),
         "keep_harmonics": (boolean(), "with harmonics > 1: also store every odd harmonic "
                                       "of the response (response_harmonics)"),
     },

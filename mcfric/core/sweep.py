@@ -13,9 +13,9 @@ Three kernels, one per structure:
 * :func:`sweep_one_damper`: two beams, ``ONE_LANES`` samples per batch: the stuck
   candidate of all lanes in one SIMD loop (the exact solution at most points), scalar
   Newton with a bracketing fallback for the rest;
-* :func:`sweep_chain`: a linear array, ``LANES`` samples in lockstep with O(nd) algebra
-  (:mod:`mcfric.core.chain_newton`);
-* :func:`sweep_dense`: any damper graph (rings), dense LU per sample.
+* :func:`sweep_chain`: a linear array or a ring, ``LANES`` samples in lockstep with O(nd)
+  algebra (:mod:`mcfric.core.chain_newton`);
+* :func:`sweep_dense`: any damper graph and any contact law, dense LU per sample.
 
 The last two fall back per point to Newton restarted from ``s = 1`` and then
 Levenberg-Marquardt, both dense. Outputs are preallocated by the caller; for a point
@@ -28,7 +28,8 @@ rec : ndarray of complex128, shape (n_r, n_f, 4, n_beams)
 force : ndarray of complex128, shape (n_beams,)
     Drive force amplitudes, N.
 a, b : ndarray of int64, shape (nd,)
-    Beams coupled by each damper (``sweep_chain`` requires ``a_j = j, b_j = j + 1``).
+    Beams coupled by each damper (``sweep_chain`` requires ``a_j = j`` and
+    ``b_j = (j + 1) mod n_beams``: a chain, or a ring when ``nd = n_beams``).
 omega : ndarray of float64, shape (n_f,)
     Angular frequencies, rad/s, in sweep order.
 mu0, N0, kc : ndarray of float64, shape (n_s, nd)
@@ -246,7 +247,7 @@ def _write_point(rec, r, k, force, a, b, K, q, f, x, active, s_off, sq, l, ok, s
 @jit(parallel=True, nogil=True)
 def sweep_chain(rec, force, a, b, omega, mu0, N0, kc, tol, max_iter,
                 y, s, status, iterations, residual):
-    """Harmonic balance of a linear array, ``LANES`` samples per batch (see module doc)."""
+    """Harmonic balance of a chain or a ring, ``LANES`` samples per batch (module doc)."""
     n_batches = (mu0.shape[0] + LANES - 1) // LANES
     W = predict_weights(omega)
     for g in prange(n_batches):
@@ -266,6 +267,7 @@ def _chain_batch(g, rec, force, a, b, W, mu0, N0, kc, tol, max_iter,
     n_f = W.shape[1]
     nd = a.shape[0]
     n_beams = force.shape[0]
+    ring = nd == n_beams            # the last damper couples the last beam and the first
     C, R, B, V, M = chain_newton.workspace(nd)
     # the state at the solution, as views made once per batch (a view's reference
     # count is this thread's own: no contention, unlike views of rec)
@@ -313,16 +315,19 @@ def _chain_batch(g, rec, force, a, b, W, mu0, N0, kc, tol, max_iter,
                 continue
             if n_r > 1 or l == 0:   # lane 0 always holds a sample
                 r = rl[l]
-                # damper j couples beams a_j = j and b_j = j + 1: read each beam's d11
-                # and d13 F once (same products as _q0, so the same bits)
+                # damper j couples beams a_j = j and b_j = j + 1 (mod n_beams): read
+                # each beam's d11 and d13 F once (same products as _q0, so the same bits)
                 ua = rec[r, k, D13, 0] * force[0]
                 da = rec[r, k, D11, 0]
                 for j in range(nd):
-                    ub = rec[r, k, D13, j + 1] * force[j + 1]
-                    db = rec[r, k, D11, j + 1]
+                    jb = j + 1 if j + 1 < n_beams else 0
+                    ub = rec[r, k, D13, jb] * force[jb]
+                    db = rec[r, k, D11, jb]
                     q0[j, l] = ua - ub
                     Gd[j, l] = da + db
-                    Gu[j, l] = -db  # dampers j and j+1 share beam j+1 (last one unused)
+                    # dampers j and j + 1 share beam j + 1; on a ring the last and the
+                    # first share beam 0 (on a chain the last entry is unused)
+                    Gu[j, l] = -db
                     ua = ub
                     da = db
                 if n_r == 1:
@@ -340,7 +345,7 @@ def _chain_batch(g, rec, force, a, b, W, mu0, N0, kc, tol, max_iter,
                 for m in range(h):
                     v += W[h, k, m] * xp[m, j, l]
                 x[j, l] = v if math.isfinite(v) else 0.0
-        chain_newton.newton_lanes(tol, max_iter, C, R, B, V, M, nd)
+        chain_newton.newton_lanes(tol, max_iter, C, R, B, V, M, nd, ring)
         for l in range(LANES):
             if not need[l]:
                 continue
@@ -384,8 +389,8 @@ def _chain_batch(g, rec, force, a, b, W, mu0, N0, kc, tol, max_iter,
                 fb[bb] = 0.0j
             for j in range(nd):
                 fj = -K[j, l] * q[j, l]
-                fb[j] += fj             # a_j = j, b_j = j + 1
-                fb[j + 1] -= fj
+                fb[j] += fj             # a_j = j, b_j = j + 1 (mod n_beams)
+                fb[j + 1 if j + 1 < n_beams else 0] -= fj
             if n_r > 1:
                 for bb in range(n_beams):
                     yf[bb] = rec[r, k, D23, bb] * force[bb]

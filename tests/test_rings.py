@@ -1,0 +1,188 @@
+"""Rings (bladed disks) on the O(n_dampers) lockstep kernel.
+
+References: the dense-LU kernel on the same equations (partial pivoting, one sample at a
+time), the physical-space fsolve of naive.py, the closed-form stuck (linear) ring, and the
+travelling-wave symmetry of a tuned ring.
+"""
+
+import numpy as np
+import pytest
+
+import mcfric
+from mcfric.core import sweep as _sweep
+from mcfric.model import TABLE_1, Excitation, Model
+
+from . import naive
+from .conftest import naive_beams, naive_pairs
+
+N0 = 0.5
+
+
+def _ring(n, mistuned, engine_order=1, F0=0.8):
+    rng = np.random.default_rng(100 + n)
+    if mistuned:
+        beams = tuple(TABLE_1.with_frequency(1, 16.2 * (1 + 0.02 * rng.standard_normal()))
+                      .with_frequency(2, 105.8 * (1 + 0.02 * rng.standard_normal()))
+                      for _ in range(n))
+    else:
+        beams = (TABLE_1,) * n
+    return Model(beams, Excitation("travelling", F0, engine_order=engine_order),
+                 topology="circular")
+
+
+def _solve_dense(monkeypatch, model, *args, **kw):
+    """``mcfric.solve`` with the ring sent through the dense-LU kernel instead."""
+    with monkeypatch.context() as m:
+        m.setattr(_sweep, "sweep_chain",
+                  lambda *a: _sweep.sweep_dense(*a, np.int64(0)))
+        return mcfric.solve(model, *args, **kw)
+
+
+@pytest.mark.parametrize("n", [3, 4, 8, 24])
+@pytest.mark.parametrize("mistuned", [False, True], ids=["tuned", "mistuned"])
+def test_ring_kernel_equals_the_dense_kernel(monkeypatch, n, mistuned):
+    """Random friction, warm-started sweeps over the band: every point to 1e-8."""
+    model = _ring(n, mistuned)
+    rng = np.random.default_rng(n + 7 * mistuned)
+    n_s = 11                                # not a multiple of the lane count
+    f = np.linspace(10.0, 150.0, 120)
+    mu0 = rng.uniform(0, 1, (n_s, n))
+    kc = rng.uniform(0, 15000.0, (n_s, n))
+    fast = mcfric.solve(model, f, mu0, kc, N0)
+    dense = _solve_dense(monkeypatch, model, f, mu0, kc, N0)
+    assert fast.n_not_converged == 0 and dense.n_not_converged == 0
+    scale = np.abs(dense.response).max(axis=-1, keepdims=True)
+    assert np.max(np.abs(fast.response - dense.response) / scale) <= 1e-8
+    finite = np.isfinite(dense.s) & (dense.s > 0) & (dense.s < 1e12)
+    assert np.max(np.abs(fast.s - dense.s)[finite] / dense.s[finite]) <= 1e-8
+    # the same damped Newton: a wrong Newton step would still converge (slowly, or in
+    # the fallbacks), so the steps taken and the points needing a fallback must agree too
+    assert abs(fast.iterations.sum() / dense.iterations.sum() - 1.0) <= 0.02
+    assert np.sum(fast.status > 0) <= np.sum(dense.status > 0) + 1
+
+
+@pytest.mark.parametrize("n", [3, 4, 8])
+def test_ring_points_match_the_physical_space_reference(n):
+    """Cold-started single points against fsolve on the full physical-space equations."""
+    model = _ring(n, mistuned=True)
+    rng = np.random.default_rng(30 + n)
+    for _ in range(12):
+        f = rng.uniform(10.0, 150.0)
+        mu0 = rng.uniform(0, 1, n)
+        kc = rng.uniform(0, 15000.0, n)
+        r = mcfric.solve(model, f, mu0, kc, N0)
+        assert r.status[0, 0] >= 0
+        roots = naive.solve_point(2 * np.pi * f, naive_beams(model), naive_pairs(model),
+                                  model.force, mu0, np.full(n, N0), kc,
+                                  starts=[np.ones(n)])
+        assert roots, f"reference found no root at f={f}"
+        err = min(np.max(np.abs(root["y_output"] - r.response[0, 0]))
+                  / np.max(np.abs(root["y_output"])) for root in roots)
+        assert err <= 1e-8, (f, err)
+
+
+@pytest.mark.parametrize("n", [3, 8, 24])
+def test_a_stuck_ring_is_its_linear_solution(n):
+    """mu0 -> inf: every damper sticks and the ring is linear with K = kc."""
+    model = _ring(n, mistuned=True)
+    f = np.linspace(10.0, 150.0, 71)
+    kc = np.linspace(1000.0, 14000.0, n)
+    r = mcfric.solve(model, f, mu0=1e9, kc=kc, N0=N0)
+    assert r.n_not_converged == 0
+    assert np.all(r.s >= 1)
+    for k in range(0, len(f), 5):
+        ref = naive.linear_stuck_response(2 * np.pi * f[k], naive_beams(model),
+                                          naive_pairs(model), model.force, kc)
+        np.testing.assert_allclose(r.response[0, k], ref, rtol=1e-11,
+                                   atol=1e-11 * np.abs(ref).max())
+
+
+@pytest.mark.parametrize("n, engine_order", [(8, 1), (24, 3), (24, 5)])
+def test_a_tuned_ring_responds_as_a_travelling_wave(n, engine_order):
+    """Equal dampers on a tuned ring, engine order E: equal amplitudes on every blade and
+    phase steps of -2 pi E / n from one blade to the next (the drive's own steps)."""
+    model = _ring(n, mistuned=False, engine_order=engine_order)
+    f = np.linspace(10.0, 150.0, 141)
+    r = mcfric.solve(model, f, mu0=0.3, kc=9000.0, N0=N0)
+    assert r.n_not_converged == 0
+    y = r.response[0]                                   # (n_f, n_beams)
+    amp = np.abs(y)
+    np.testing.assert_allclose(amp, amp[:, :1].repeat(n, axis=1), rtol=1e-9)
+    step = y[:, 1:] / y[:, :-1]
+    expected = np.exp(-2j * np.pi * engine_order / n)
+    assert np.max(np.abs(step / expected - 1.0)) <= 1e-9
+    assert np.any(r.s < 1)                              # the dampers did slip
+
+
+def test_turning_a_tuned_ring_turns_its_response():
+    """The symmetry behind one-blade bounds, checked on the plain physical-space solve:
+    the damper values turned by one blade give the response turned by one blade, times
+    the drive's phase step; on a mistuned ring they do not."""
+    rng = np.random.default_rng(11)
+    for mistuned, holds in ((False, True), (True, False)):
+        model = _ring(6, mistuned, engine_order=2)
+        beams, pairs = naive_beams(model), naive_pairs(model)
+        for f in (17.0, 40.0, 95.0):
+            K = rng.uniform(0, 15000.0, 6) + 1j * rng.uniform(0, 15000.0, 6)
+            y = naive.beam_space_response(2 * np.pi * f, beams, pairs, model.force, K)
+            y_turned = naive.beam_space_response(2 * np.pi * f, beams, pairs, model.force,
+                                                 np.roll(K, 1))
+            err = np.max(np.abs(y_turned["y_output"] - np.exp(-2j * np.pi * 2 / 6)
+                                * np.roll(y["y_output"], 1))) / np.abs(y["y_output"]).max()
+            assert (err <= 1e-12) == holds, (mistuned, f, err)
+
+
+def test_a_tuned_ring_has_the_same_upper_bound_on_every_blade():
+    """Each blade's own search (a metric over that blade alone) finds the bound computed
+    once for all blades; the shortcut applies to tuned rings under travelling waves only."""
+    from mcfric.bounds import compute_bounds, force_limit, rotation_invariant
+
+    model = _ring(6, mistuned=False, engine_order=2, F0=0.5)
+    assert rotation_invariant(model)
+    assert not rotation_invariant(_ring(6, mistuned=True))
+    assert not rotation_invariant(mcfric.eight_beam())
+    f = np.linspace(14.0, 60.0, 24)
+    F_lim = force_limit(1.0, N0)
+    every = compute_bounds(model, f, 15000.0, F_lim=F_lim, n_threads=1)
+    for b in range(6):
+        one = compute_bounds(model, f, 15000.0, F_lim=F_lim, beams=[b], n_threads=1,
+                             seed=b)
+        np.testing.assert_allclose(one.upper, every.upper, rtol=1e-6)
+        assert np.all(one.lower <= every.lower * (1 + 1e-9))     # min |y_b| <= min M
+
+
+def test_amplitude_storage_is_the_complex_response_in_float32(tmp_path):
+    """A 40-blade ring stores float32 amplitudes by default (auto), a quarter of the
+    complex bytes, equal to abs(response) of the same run stored complex; both open with
+    mcfric.open_results (xarray) with labelled dimensions."""
+    import h5py
+
+    from mcfric import config, ensemble
+
+    raw = {"model": {"preset": "disk-24", "n_beams": 40}, "frequency": {"n": 30},
+           "sampling": {"samples": 9, "seed": 3}, "bounds": {"enabled": False},
+           "peaks": {"enabled": False}}
+    auto = config.load(raw)
+    assert auto.spec.response_format == "amplitude"
+    full = auto.replace("output.response", "complex")
+    for cfg, name in ((auto, "amp.h5"), (full, "full.h5")):
+        ensemble.run(cfg, tmp_path / name, progress=False)
+    with h5py.File(tmp_path / "amp.h5") as a, h5py.File(tmp_path / "full.h5") as c:
+        assert "response" not in a and "amplitude" not in c
+        amp, resp = a["amplitude"][...], c["response"][...]
+        assert amp.dtype == np.float32 and amp.shape == resp.shape == (9, 30, 40)
+        assert np.array_equal(amp, np.abs(resp).astype(np.float32))
+        assert a["metric"][...].tobytes() == c["metric"][...].tobytes()
+        assert a["amplitude"].id.get_storage_size() * 4 == c["response"].id.get_storage_size()
+    with mcfric.open_results(tmp_path / "amp.h5") as ds:
+        assert ds["amplitude"].dims == ("sample", "frequency", "beam")
+        np.testing.assert_array_equal(ds["amplitude"].values, amp)
+
+
+def test_disk_presets_are_tuned_rings_in_an_engine_order():
+    for name, n, eo in (("disk-24", 24, 3), ("disk-72", 72, 8)):
+        m = mcfric.preset(name)
+        assert (m.n_beams, m.n_dampers, m.topology) == (n, n, "circular")
+        assert m.excitation.pattern == "travelling" and m.excitation.engine_order == eo
+        from mcfric.bounds import rotation_invariant
+        assert rotation_invariant(m)
