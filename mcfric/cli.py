@@ -254,9 +254,13 @@ def _load(args, fixed=None):
     overrides = _overrides(args)
     overrides.update({k: (v, k) for k, v in (fixed or {}).items()})
     try:
-        return config.load(args.source, overrides)
+        cfg = config.load(args.source, overrides)
     except config.ConfigError as e:
         raise UsageError(str(e)) from None
+    if cfg.data["excitation"]["engine_orders"] and args.command != "run":
+        raise UsageError(f"excitation.engine_orders: a sweep of engine orders is for "
+                         f"mcfric run; mcfric {args.command} takes one engine_order")
+    return cfg
 
 
 def _default_output(args, suffix, prefix=""):
@@ -350,13 +354,49 @@ def _check_members(path):
     return outside, total
 
 
+def order_path(out, E):
+    """The results file of engine order ``E`` in a sweep written to ``out``."""
+    return out.with_name(f"{out.stem}-eo{E}{out.suffix}")
+
+
 def cmd_run(args):
-    """``mcfric run``: run (or resume) an ensemble, check it against its bounds, draw it."""
-    from . import ensemble, plot
+    """``mcfric run``: run (or resume) an ensemble, check it against its bounds, draw it;
+    with ``excitation.engine_orders``, one such run and file per engine order."""
+    from . import ensemble
 
     cfg = _load(args)
-    spec = cfg.spec
     out = _output_path(args, ".h5", figure=not args.no_figure)
+    orders = cfg.data["excitation"]["engine_orders"]
+    if not orders:
+        return _run_one(args, cfg, out)
+    runs = [(cfg.replace("excitation.engine_orders", []).replace("excitation.engine_order",
+                                                                   E), order_path(out, E))
+            for E in orders]
+    # the refusals of every order's files before the first order starts (with --resume,
+    # a partial file is checked in its turn, under its lock: finished orders stay done)
+    for c, o in runs:
+        if not args.no_figure:
+            _not_replacing_hdf5(o.with_suffix(".png"), "figure")
+        if not args.resume:
+            try:
+                ensemble.prepare(c.spec, o, force=args.force)
+            except ensemble.RunError as e:
+                raise UsageError(str(e)) from None
+    print(f"mcfric run: engine orders {', '.join(map(str, orders))}: one results file "
+          f"each ({', '.join(o.name for _, o in runs)})", flush=True)
+    for c, o in runs:
+        print(f"== engine order {c.data['excitation']['engine_order']}: {o}", flush=True)
+        rc = _run_one(args, c, o, resume_as=out)
+        if rc != EXIT_OK:
+            return rc
+    return EXIT_OK
+
+
+def _run_one(args, cfg, out, resume_as=None):
+    """One ensemble run into ``out``; ``resume_as``: the -o to give ``--resume``."""
+    from . import ensemble, plot
+
+    spec = cfg.spec
     # every refusal (bad config, existing files) happens before anything is written
     try:
         model = spec.model
@@ -371,7 +411,8 @@ def cmd_run(args):
     except ensemble.Interrupted as e:
         s = e.summary
         print(f"interrupted: {s.samples_done} of {s.samples} samples saved in {s.path}; "
-              f"continue with `mcfric run ... -o {out} --resume`", file=sys.stderr)
+              f"continue with `mcfric run ... -o {resume_as or out} --resume`",
+              file=sys.stderr)
         return EXIT_INTERRUPTED
     if summary.already_complete:
         print(f"{out} already holds this run (same configuration and seed): nothing to do; "

@@ -213,6 +213,17 @@ def integers():
     return check
 
 
+def integer_list(lo=0):
+    """A list of distinct integers >= ``lo``, possibly empty."""
+    def check(v, key):
+        if not isinstance(v, list) or not all(is_int(x) and x >= lo for x in v):
+            raise InputError(key, f"expected a list of integers >= {lo}, got {show(v)}")
+        if len(set(v)) != len(v):
+            raise InputError(key, f"expected distinct integers, got {show(v)}")
+        return [int(x) for x in v]
+    return check
+
+
 def auto_or_number(lo=0, words=("auto",)):
     """``"auto"`` (or another of ``words``) or a number > ``lo``."""
     num = number(lo=lo, lo_open=True)

@@ -186,3 +186,39 @@ def test_disk_presets_are_tuned_rings_in_an_engine_order():
         assert m.excitation.pattern == "travelling" and m.excitation.engine_order == eo
         from mcfric.bounds import rotation_invariant
         assert rotation_invariant(m)
+
+
+def test_an_engine_order_sweep_is_one_run_per_order(tmp_path, capsys):
+    """engine_orders = [1, 2]: one complete file per order, each bitwise the run of that
+    engine_order alone; a conflicting file of the second order refuses the sweep before
+    the first order is written."""
+    import h5py
+
+    from mcfric import cli
+
+    base = ('[model]\npreset = "disk-24"\nn_beams = 6\n[frequency]\nn = 30\n'
+            '[sampling]\nsamples = 9\n[peaks]\nenabled = false\n')
+    (tmp_path / "sweep.toml").write_text(base + "[excitation]\nengine_orders = [1, 2]\n")
+    for E in (1, 2):
+        (tmp_path / f"one{E}.toml").write_text(base + f"[excitation]\nengine_order = {E}\n")
+    args = ["--no-progress", "--no-figure"]
+    clash = tmp_path / "s-eo2.h5"
+    assert cli.main(["run", str(tmp_path / "one1.toml"), "-o", str(clash)] + args) == 0
+    assert cli.main(["run", str(tmp_path / "sweep.toml"), "-o", str(tmp_path / "s.h5")]
+                    + args) == 2
+    assert "s-eo2.h5 exists" in capsys.readouterr().err
+    assert not (tmp_path / "s-eo1.h5").exists()
+    clash.unlink()
+    assert cli.main(["run", str(tmp_path / "sweep.toml"), "-o", str(tmp_path / "s.h5")]
+                    + args) == 0
+    for E in (1, 2):
+        single = tmp_path / f"one{E}.h5"
+        assert cli.main(["run", str(tmp_path / f"one{E}.toml"), "-o", str(single)]
+                        + args) == 0
+        with h5py.File(tmp_path / f"s-eo{E}.h5") as a, h5py.File(single) as b:
+            assert a.attrs["complete"] == 1
+            for name in ("metric", "response", "mu0"):
+                assert a[name][...].tobytes() == b[name][...].tobytes(), (E, name)
+    assert cli.main(["bounds", str(tmp_path / "sweep.toml"), "-o",
+                     str(tmp_path / "b.h5")]) == 2
+    assert "engine_orders" in capsys.readouterr().err

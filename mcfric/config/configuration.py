@@ -147,7 +147,9 @@ def _model(d):
                                           b.get("zeta", t["zeta"]),
                                           b.get("shapes", t["shapes"]),
                                           tuple(t["positions"]))
-    return Model(beams=tuple(beams), excitation=Excitation(**d["excitation"]),
+    # engine_orders is a sweep of runs (mcfric run), each with its own engine_order
+    ex = {k: v for k, v in d["excitation"].items() if k != "engine_orders"}
+    return Model(beams=tuple(beams), excitation=Excitation(**ex),
                  topology=m["topology"], contact=m["contact"], output=m["output"],
                  drive=m["drive"], name=m["name"])
 

@@ -21,6 +21,7 @@ from ..validators import (
     choice,
     choices,
     integer,
+    integer_list,
     integers,
     matrix,
     number,
@@ -59,7 +60,8 @@ def defaults(preset=DEFAULT_PRESET):
             "beam": [],
         },
         "excitation": {"pattern": ex.pattern, "F0": ex.F0, "beam": ex.beam,
-                       "mode": ex.mode, "engine_order": ex.engine_order},
+                       "mode": ex.mode, "engine_order": ex.engine_order,
+                       "engine_orders": []},
         "frequency": {"f_min": 10.0, "f_max": 150.0, "n": 1000, "spacing": "linear"},
         "sampling": {"samples": 2000, "seed": 0, "mistuning": 0.0, "mistuning_per": "beam",
                      **{k: sampling.as_dict(d) for k, d in sampling.PAPER.items()}},
@@ -112,6 +114,9 @@ SPEC = {
         "beam": (integer(1), 'driven beam for "single" (1-based)'),
         "mode": (integer(0), 'chain mode m for "mode"'),
         "engine_order": (integer(), 'engine order E for "travelling"'),
+        "engine_orders": (integer_list(), '"travelling", mcfric run only: one run and '
+                                          'results file per engine order in the list '
+                                          '(FILE-eoE.h5); [] runs engine_order alone'),
     },
     "frequency": {
         "f_min": (number(lo=0, lo_open=True, hi=1e6), "lowest frequency, Hz"),

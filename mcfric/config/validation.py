@@ -186,6 +186,9 @@ def _cross_checks(c):
             raise InputError(f"{key}.shapes", f"expected {len(t['positions'])} columns "
                              f"(model.table.positions), got {len(b['shapes'][0])}")
     ex = c["excitation"]
+    if ex["engine_orders"] and ex["pattern"] != "travelling":
+        raise InputError("excitation.engine_orders", f'a list of engine orders needs '
+                         f'pattern = "travelling", got pattern = "{ex["pattern"]}"')
     if not 1 <= ex["beam"] <= nb:
         raise InputError("excitation.beam", f"expected an integer in 1..{nb} (n_beams), "
                          f"got {ex['beam']}")
