@@ -193,6 +193,11 @@ class Model:
                 t.column(label)
         object.__setattr__(self, "beams", beams)
         self.excitation.force(len(beams))  # validates the driven beam index
+        ex = self.excitation
+        if ex.pattern == "travelling" and not 0 <= ex.engine_order < len(beams):
+            # E and E + n drive the same wave: one name for each
+            raise ValueError(f"engine_order: expected 0..{len(beams) - 1} (n_beams - 1), "
+                             f"got {ex.engine_order}")
 
     @classmethod
     def identical(cls, table, n_beams, **kwargs):

@@ -222,3 +222,46 @@ def test_an_engine_order_sweep_is_one_run_per_order(tmp_path, capsys):
     assert cli.main(["bounds", str(tmp_path / "sweep.toml"), "-o",
                      str(tmp_path / "b.h5")]) == 2
     assert "engine_orders" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("F0", [0.25, 1.1])
+def test_every_member_of_a_24_blade_disk_lies_within_its_bounds(F0):
+    """500 members of the disk-24 preset, the paper's distributions, 141 frequencies."""
+    from mcfric.bounds import compute_bounds, force_limit
+
+    model = mcfric.preset("disk-24", F0)
+    f = np.linspace(10.0, 150.0, 141)
+    rng = np.random.default_rng(24)
+    r = mcfric.solve(model, f, rng.uniform(0, 1, (500, 24)),
+                     rng.uniform(0, 15000.0, (500, 24)), N0)
+    B = compute_bounds(model, f, 15000.0, F_lim=force_limit(1.0, N0))
+    assert B.n_failed == 0 and r.n_not_converged == 0
+    M = r.metric()
+    inside = B.contains(M, rtol=1e-9)
+    assert np.all(inside), (np.count_nonzero(~inside), np.nanmax(M / B.upper),
+                            np.nanmin(M / B.lower))
+    assert np.nanmax(M / B.upper) > 0.3        # the bound is not vacuous
+
+
+def test_bad_ring_input_is_one_line_and_writes_nothing(tmp_path, monkeypatch, capsys):
+    from mcfric import cli
+
+    monkeypatch.chdir(tmp_path)
+    cases = {
+        'model.preset = "disk-24"\nexcitation.engine_order = 24':
+            "excitation.engine_order: expected engine orders in 0..23",
+        'model.preset = "disk-24"\nexcitation.engine_orders = [3, 30]':
+            "excitation.engine_orders: expected engine orders in 0..23",
+        'model.preset = "disk-24"\nmodel.n_beams = 2':
+            'model.topology: "circular" needs n_beams >= 3',
+        'model.preset = "disk-24"\nmetric.beams = [25]':
+            "metric.beams: expected beam numbers in 1..24",
+    }
+    for text, message in cases.items():
+        (tmp_path / "bad.toml").write_text(text + "\n")
+        assert cli.main(["run", "bad.toml", "-o", "out.h5"]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith("mcfric: error: " + message) and err.count("\n") == 1, err
+        assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.toml"]
+    with pytest.raises(ValueError, match="engine_order"):
+        _ring(6, False, engine_order=6)

@@ -189,6 +189,13 @@ def _cross_checks(c):
     if ex["engine_orders"] and ex["pattern"] != "travelling":
         raise InputError("excitation.engine_orders", f'a list of engine orders needs '
                          f'pattern = "travelling", got pattern = "{ex["pattern"]}"')
+    if ex["pattern"] == "travelling":
+        for E in [ex["engine_order"]] + ex["engine_orders"]:
+            if not 0 <= E < nb:
+                key = ("excitation.engine_order" if E == ex["engine_order"]
+                       and E not in ex["engine_orders"] else "excitation.engine_orders")
+                raise InputError(key, f"expected engine orders in 0..{nb - 1} (n_beams - 1; "
+                                 f"E and E + n_beams are the same wave), got {E}")
     if not 1 <= ex["beam"] <= nb:
         raise InputError("excitation.beam", f"expected an integer in 1..{nb} (n_beams), "
                          f"got {ex['beam']}")
