@@ -25,8 +25,9 @@ def members(model, n, seed):
 
 
 @pytest.mark.parametrize("model, n", [(mcfric.eight_beam(1.1), 500),
-                                      (mcfric.two_beam(0.22), 500)],
-                         ids=["eight-beam", "two-beam"])
+                                      (mcfric.two_beam(0.22), 500),
+                                      (mcfric.disk(12, 2, 1.1), 100)],
+                         ids=["eight-beam", "two-beam", "ring-12"])
 def test_refined_peaks_equal_the_peaks_of_a_fine_grid(model, n):
     """Each refined peak of every member equals the nearest local maximum of a 0.0005 Hz
     sweep over +-0.3 Hz around it within 1e-4; the largest refined peak is not below the

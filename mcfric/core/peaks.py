@@ -24,10 +24,11 @@ sweep on a grid underestimates the member's peak. After the sweep, for every mem
    there: the fold is flagged and the downward branch's peak is refined the same way,
    continued from above.
 
-Points are solved by the dense Newton of :mod:`.newton` with its fallbacks, from
-receptances formed here at each new frequency (any damper graph, per-member modal
-frequencies allowed). A point that fails every solver is skipped; a peak whose
-refinement failed keeps its grid value and says so in its status.
+Points are solved from receptances formed here at each new frequency (per-member modal
+frequencies allowed): on a chain or a ring of friction dampers by the O(nd) Newton of
+:mod:`.chain_newton` in one lane, then, as for any other damper graph or contact law, by
+the dense Newton of :mod:`.newton` with its fallbacks. A point that fails every solver is
+skipped; a peak whose refinement failed keeps its grid value and says so in its status.
 """
 
 import math
@@ -35,7 +36,9 @@ import math
 import numpy as np
 from numba import prange
 
+from . import chain_newton as cn
 from ._jit import jit
+from .friction import LAW_COULOMB
 from .newton import levenberg_marquardt, newton, workspace
 from .receptance import CONTACT, D11, D13, D21, D23, DRIVE, OUTPUT
 
@@ -82,11 +85,36 @@ def _receptances_at(omega, r, modal_f, zeta, u, rec1):
 
 
 @jit
+def _lane_newton(x, kc, c, act, G, q0, tol, max_iter, L, ring):
+    """The chain or ring Newton of :mod:`.chain_newton` for one point in lane 0 of the
+    scratch ``L``; on success ``x``, and ``K``, ``q`` in ``L``'s slots. Returns ok."""
+    C, R, B, V, M = L
+    nd = x.shape[0]
+    for l in range(cn.LANES):
+        M[cn.NEED_, l] = l == 0
+    for j in range(nd):
+        C[cn.GD_, j, 0] = G[j, j]
+        C[cn.GU_, j, 0] = G[j, (j + 1) % nd] if ring or j < nd - 1 else 0.0j
+        C[cn.Q0_, j, 0] = q0[j]
+        R[cn.KC_, j, 0] = kc[j]
+        R[cn.CC_, j, 0] = c[j]
+        M[cn.ACT_ + j, 0] = act[j]
+        R[cn.X_, j, 0] = x[j]
+    cn.newton_lanes(tol, max_iter, C, R, B, V, M, nd, ring)
+    if not M[cn.OK_, 0]:
+        return False
+    for j in range(nd):
+        x[j] = R[cn.X_, j, 0]
+    return True
+
+
+@jit
 def _solve_at(omega, r, modal_f, zeta, u, force, a, b, kc, c, act, x, tol, max_iter, w,
-              rec1, G, q0, y, law):
+              rec1, G, q0, y, law, L, lanes):
     """Solve one frequency from the guess ``x`` (log s); fills ``y`` (output amplitudes
-    of every beam, m) and ``x``. Newton, then Newton from ``s = 1``, then
-    Levenberg-Marquardt; returns False if all fail."""
+    of every beam, m) and ``x``. With ``lanes`` (a chain or a ring of friction dampers)
+    the O(nd) Newton first; then Newton, Newton from ``s = 1`` and Levenberg-Marquardt,
+    dense; returns False if all fail."""
     nd = a.shape[0]
     n_beams = force.shape[0]
     _receptances_at(omega, r, modal_f, zeta, u, rec1)
@@ -106,6 +134,18 @@ def _solve_at(omega, r, modal_f, zeta, u, force, a, b, kc, c, act, x, tol, max_i
     for j in range(nd):
         if not math.isfinite(x[j]):
             x[j] = 0.0
+    if lanes:
+        x0 = x.copy()
+        if _lane_newton(x, kc, c, act, G, q0, tol, max_iter, L, nd == n_beams):
+            for bb in range(n_beams):
+                y[bb] = rec1[D23, bb] * force[bb]
+            for j in range(nd):
+                fj = -L[0][cn.K_, j, 0] * L[0][cn.Q_, j, 0]
+                y[a[j]] += rec1[D21, a[j]] * fj
+                y[b[j]] -= rec1[D21, b[j]] * fj
+            return True
+        for j in range(nd):
+            x[j] = x0[j]
     ok, _ = newton(x, kc, c, act, G, q0, tol, max_iter, w, law)
     if not ok:
         for j in range(nd):
@@ -159,14 +199,14 @@ def _add_point(om, src, P, S):
     """Solve at ``om`` (rad/s) from the state ``src`` and store it as the next point of
     ``S = (w, m, x, y, count)``; returns its index, or -1 (not converged, or no room)."""
     (r, modal_f, zeta, u, force, a, b, kc, c, act, tol, max_iter, w, rec1, G, q0, beams,
-     power, xs, ys, law) = P
+     power, xs, ys, law, L, lanes) = P
     if S[4][0] >= S[0].shape[0]:
         return -1
     nd = a.shape[0]
     for j in range(nd):
         xs[j] = src[j]
     if not _solve_at(om, r, modal_f, zeta, u, force, a, b, kc, c, act, xs, tol, max_iter,
-                     w, rec1, G, q0, ys, law):
+                     w, rec1, G, q0, ys, law, L, lanes):
         return -1
     return _seed(om, xs, ys, _metric_of(ys, om, beams, power), S)
 
@@ -371,10 +411,14 @@ def _member(i, omega, modal_f, zeta, u, force, a, b, mu0, N0, kc, tol, max_iter,
         act[j] = mn > 0.0 and kc[i, j] > 0.0
         c1[j] = math.log(mn / kc[i, j]) if act[j] else 0.0
         kc1[j] = kc[i, j]
+    # a chain or a ring of friction dampers: the O(nd) lockstep Newton, one lane
+    lanes = law == LAW_COULOMB and nd >= 2
+    for j in range(nd):
+        lanes = lanes and a[j] == j and b[j] == (j + 1) % n_beams
     P = (r, modal_f, zeta, u, force, a, b, kc1, c1, act, tol, max_iter, workspace(nd),
          np.empty((4, n_beams), np.complex128), np.empty((nd, nd), np.complex128),
          np.empty(nd, np.complex128), beams, power, np.empty(nd),
-         np.empty(n_beams, np.complex128), law)
+         np.empty(n_beams, np.complex128), law, cn.workspace(nd), lanes)
     cap = 2 * N_SUB + 2 * MAX_STEPS + 2 * window + 8
     S = (np.empty(cap), np.empty(cap), np.empty((cap, nd)),
          np.empty((cap, n_beams), np.complex128), np.zeros(1, np.int64))
