@@ -4,8 +4,8 @@
 
     mcfric                                   # = mcfric run: the embedded default
     mcfric run [PRESET|CONFIG.toml] [-o FILE] [--samples N] [--seed S] [--resume]
-               [--force] [--threads T] [--chunk N] [--peaks N] [--peak-rtol X]
-               [--no-peaks] [--F0 N] [--f-min HZ] [--f-max HZ] [--n-freq N]
+               [--force] [--threads T] [--chunk N] [--scheduler ADDRESS] [--peaks N]
+               [--peak-rtol X] [--no-peaks] [--F0 N] [--f-min HZ] [--f-max HZ] [--n-freq N]
                [--no-progress] [--no-figure] [--skip-space-check]
     mcfric config [PRESET|CONFIG.toml]       # complete, commented TOML on stdout
     mcfric info FILE                         # summary of a results file
@@ -82,6 +82,9 @@ def _parser():
                    help="replace an existing FILE or FILE.partial holding another run")
     r.add_argument("--threads", type=int, metavar="T", help="numba threads (0 = all)")
     r.add_argument("--chunk", type=int, metavar="N", help="samples per chunk (0 = auto)")
+    r.add_argument("--scheduler", metavar="ADDRESS",
+                   help='solve the chunks on a Dask cluster: "local:N" (N worker processes '
+                        'on this machine) or "tcp://host:port" (needs mcfric[dask])')
     r.add_argument("--peaks", type=int, metavar="N",
                    help="resolved peaks kept per member (default: one per mode)")
     r.add_argument("--peak-rtol", type=float, metavar="X",
@@ -233,6 +236,7 @@ def _overrides(args):
                             ("sampling.seed", "seed", "--seed"),
                             ("run.threads", "threads", "--threads"),
                             ("run.chunk", "chunk", "--chunk"),
+                            ("run.scheduler", "scheduler", "--scheduler"),
                             ("bounds.k_max", "k_max", "--k-max"),
                             ("bounds.F_lim", "F_lim", "--F-lim"),
                             ("peaks.count", "peaks", "--peaks"),
@@ -395,6 +399,7 @@ def cmd_run(args):
 def _run_one(args, cfg, out, resume_as=None):
     """One ensemble run into ``out``; ``resume_as``: the -o to give ``--resume``."""
     from . import ensemble, plot
+    from .distributed import ClusterError
 
     spec = cfg.spec
     # every refusal (bad config, existing files) happens before anything is written
@@ -414,6 +419,11 @@ def _run_one(args, cfg, out, resume_as=None):
               f"continue with `mcfric run ... -o {resume_as or out} --resume`",
               file=sys.stderr)
         return EXIT_INTERRUPTED
+    except ClusterError as e:
+        # the committed chunks are in the partial file (the writer commits before stopping)
+        print(f"mcfric: error: {e}; the finished chunks are kept: continue with "
+              f"`mcfric run ... -o {resume_as or out} --resume`", file=sys.stderr)
+        return EXIT_FAIL
     if summary.already_complete:
         print(f"{out} already holds this run (same configuration and seed): nothing to do; "
               f"--force recomputes it")

@@ -7,8 +7,11 @@ writes the chunk into the store (:mod:`mcfric.store`) while the kernel already s
 next chunk. A queue of one chunk bounds the memory to about three chunks, whatever the
 number of samples.
 
+With ``[run] scheduler`` the chunks are solved on a Dask cluster instead
+(:mod:`mcfric.distributed`); this process stays the only writer of the file.
+
 Every sample's result depends only on its own parameters, so the results are bitwise
-identical for any thread count, chunk size, interruption and resume.
+identical for any thread count, chunk size, interruption and resume, here or on a cluster.
 """
 
 from __future__ import annotations
@@ -73,8 +76,13 @@ class Summary:
     not_converged : int
         Points (sample, frequency) that did not converge, over all stored samples.
     wall_s, kernel_s : float
-        Time of this call, and of it the time spent in the kernel, s.
+        Time of this call, and of it the time spent in the kernel, s (on a cluster: the
+        workers' time in their chunks, summed).
     complete, already_complete : bool
+    cluster : str
+        The Dask scheduler of this call (``"local:N"`` or an address); "" for none.
+    startup_s : float
+        Of ``wall_s``, the cluster's start-up (connection, workers' kernel load), s.
     """
 
     path: Path
@@ -89,6 +97,8 @@ class Summary:
     already_complete: bool = False
     peaks: list | None = None
     harmonics: list | None = None
+    cluster: str = ""
+    startup_s: float = 0.0
 
     @property
     def points(self):
@@ -106,6 +116,9 @@ class Summary:
         if self.samples_this_session:
             lines.append(f"wall time: {self.wall_s:.2f} s for {self.samples_this_session} "
                          f"samples (kernel {self.kernel_s:.2f} s), {rate:,.0f} points/s")
+            if self.cluster:
+                lines.append(f"cluster:   {self.cluster}; start-up {self.startup_s:.2f} s "
+                             f"of the wall time; kernel time summed over the workers")
         lines += list(self.peaks or [])
         lines += list(self.harmonics or [])
         lines.append(f"results: {self.path}")
@@ -520,6 +533,29 @@ def _run_locked(spec, final, resume, force, progress, groups, t_start, space_che
         return Summary(final, spec.samples, n_f, spec.samples, 0,
                        int(found.get("n_not_converged", -1)), time.perf_counter() - t_start,
                        0.0, True, already_complete=True)
+    cluster = None
+    if spec.execution.scheduler:
+        # connected before anything is written: an unreachable scheduler leaves no file
+        from .distributed import Cluster, ClusterError
+
+        try:
+            cluster = Cluster.connect(spec.execution.scheduler, spec=spec,
+                                      task=solve_records, fingerprint=fingerprint,
+                                      verbose=progress)
+        except (ClusterError, KeyboardInterrupt) as e:
+            if what == "resume":
+                found[0].close()
+            if isinstance(e, KeyboardInterrupt):
+                raise
+            raise RunError(str(e)) from None
+    try:
+        return _run_store(spec, final, what, found, progress, groups, t_start, cluster)
+    finally:
+        if cluster is not None:
+            cluster.close()
+
+
+def _run_store(spec, final, what, found, progress, groups, t_start, cluster):
     if what == "new":
         if groups == "auto":
             groups = _bounds_groups(spec, progress) if spec.bounds else None
@@ -533,7 +569,7 @@ def _run_locked(spec, final, resume, force, progress, groups, t_start, space_che
         store, not_conv_before = found
         done = store.done()
     try:
-        return _drive(spec, store, done, not_conv_before, progress, t_start)
+        return _drive(spec, store, done, not_conv_before, progress, t_start, cluster)
     finally:
         store.close()
 
@@ -585,6 +621,18 @@ def solve_chunk(spec, d):
                      indicator=spec.solver.harmonics == 1)
 
 
+def solve_records(spec, start, stop):
+    """Draw, solve and record samples ``start .. stop - 1``: the task of a cluster run.
+
+    Returns
+    -------
+    dict
+        ``{variable: array}`` as :func:`record_arrays`.
+    """
+    d = spec.sampler.draw(np.arange(start, stop))
+    return record_arrays(spec, d, solve_chunk(spec, d))
+
+
 def record_arrays(spec, d, res):
     """``{variable: array}`` of one solved chunk, as :func:`layout` declares them."""
     freq, quantity, beams = spec.freq_hz, spec.metric.quantity, spec.metric.beams
@@ -616,10 +664,49 @@ def record_arrays(spec, d, res):
     return arrays
 
 
-def _drive(spec, store, done, not_conv_before, progress, t_start):
+def local_chunks(spec, chunks, timing):
+    """Solve ``chunks`` in this process, one after the other.
+
+    Parameters
+    ----------
+    spec : mcfric.spec.RunSpec
+    chunks : list of (start, stop)
+        Sample ranges to solve.
+    timing : dict
+        ``timing["kernel_s"]`` is increased by the kernel time of every chunk, s.
+
+    Yields
+    ------
+    start : int
+        First sample of the chunk.
+    arrays : callable
+        Returns the chunk's ``{variable: array}`` (:func:`record_arrays`); called by the
+        writer thread, so that the metric is computed while the kernel solves the next
+        chunk.
+    """
+    if not chunks:
+        return
+    # the next chunk's parameters are drawn (numpy, GIL) while the kernel runs (no GIL)
+    prefetch = ThreadPoolExecutor(max_workers=1, thread_name_prefix="mcfric-sampler")
+    try:
+        nxt = prefetch.submit(spec.sampler.draw, np.arange(*chunks[0]))
+        for n, (a, b) in enumerate(chunks):
+            d = nxt.result()
+            nxt = (prefetch.submit(spec.sampler.draw, np.arange(*chunks[n + 1]))
+                   if n + 1 < len(chunks) else None)
+            t0 = time.perf_counter()
+            res = solve_chunk(spec, d)
+            timing["kernel_s"] += time.perf_counter() - t0
+            yield a, (lambda d=d, res=res: record_arrays(spec, d, res))
+            del res, d
+    finally:
+        prefetch.shutdown(wait=True, cancel_futures=True)
+
+
+def _drive(spec, store, done, not_conv_before, progress, t_start, cluster=None):
+    """Solve the pending chunks (here, or on ``cluster``), write and commit them."""
     from tqdm import tqdm
 
-    sampler = spec.sampler
     n_f = len(spec.freq_hz)
     ex = spec.execution
     chunk = ex.chunk or auto_chunk(spec)
@@ -640,12 +727,13 @@ def _drive(spec, store, done, not_conv_before, progress, t_start):
                 item = q.get()
                 if item is None:
                     break
-                start, d, res = item
-                n = len(d.index)
-                conv = res.converged
-                arrays = record_arrays(spec, d, res)
+                start, make_arrays = item
+                arrays = make_arrays()
+                del item, make_arrays
+                conv = arrays["converged"]
+                n = len(conv)
                 store.write(start, arrays)
-                del item, res, arrays
+                del arrays
                 pending.append((start, start + n))
                 stats["not_converged"] += int(np.count_nonzero(~conv))
                 if time.monotonic() - last >= ex.checkpoint_s:
@@ -661,25 +749,18 @@ def _drive(spec, store, done, not_conv_before, progress, t_start):
 
     w = threading.Thread(target=writer, name="mcfric-writer", daemon=True)
     w.start()
-    # the next chunk's parameters are drawn (numpy, GIL) while the kernel runs (no GIL)
-    prefetch = ThreadPoolExecutor(max_workers=1, thread_name_prefix="mcfric-sampler")
-    nxt = prefetch.submit(sampler.draw, np.arange(*chunks[0])) if chunks else None
-    kernel_s = 0.0
+    timing = {"kernel_s": 0.0}
+    source = (cluster.chunks(solve_records, spec, chunks, timing) if cluster is not None
+              else local_chunks(spec, chunks, timing))
     interrupted = False
     try:
-        for n, (a, b) in enumerate(chunks):
-            d = nxt.result()
-            nxt = (prefetch.submit(sampler.draw, np.arange(*chunks[n + 1]))
-                   if n + 1 < len(chunks) else None)
-            t0 = time.perf_counter()
-            res = solve_chunk(spec, d)
-            kernel_s += time.perf_counter() - t0
-            _put(q, (a, d, res), w, err)
-            del res, d
+        for item in source:
+            _put(q, item, w, err)
+            del item
     except KeyboardInterrupt:
         interrupted = True
     finally:
-        prefetch.shutdown(wait=True, cancel_futures=True)
+        source.close()
         if w.is_alive():
             try:
                 _put(q, None, w, err)
@@ -687,6 +768,9 @@ def _drive(spec, store, done, not_conv_before, progress, t_start):
                 pass
         w.join()
         bar.close()
+    kernel_s = timing["kernel_s"]
+    on_cluster = ({"cluster": cluster.address, "startup_s": cluster.startup_s}
+                  if cluster is not None else {})
     if err:
         raise err[0]
     n_done = n_before + stats["written"]
@@ -694,7 +778,7 @@ def _drive(spec, store, done, not_conv_before, progress, t_start):
     wall = time.perf_counter() - t_start
     if interrupted or n_done < spec.samples:
         s = Summary(store.path, spec.samples, n_f, n_done, stats["written"], not_conv, wall,
-                    kernel_s, False)
+                    kernel_s, False, **on_cluster)
         if interrupted:
             raise Interrupted(s)
         return s
@@ -706,7 +790,7 @@ def _drive(spec, store, done, not_conv_before, progress, t_start):
     return Summary(final, spec.samples, n_f, n_done, stats["written"], not_conv,
                    time.perf_counter() - t_start, kernel_s, True,
                    peaks=report_text(report, METRIC_UNITS[spec.metric.quantity])
-                   if report else None, harmonics=indicator_report(final))
+                   if report else None, harmonics=indicator_report(final), **on_cluster)
 
 
 def summary_of_file(path):

@@ -92,11 +92,15 @@ class ExecutionSpec:
         Samples per chunk (0: automatic).
     checkpoint_s : float
         Minimum seconds between crash-safe checkpoints (0: after every chunk).
+    scheduler : str
+        ``""``: solve in this process; ``"local:N"`` or ``"tcp://host:port"``: solve the
+        chunks on a Dask cluster (:mod:`mcfric.distributed`).
     """
 
     threads: int | None = None
     chunk: int = 0
     checkpoint_s: float = 0.0
+    scheduler: str = ""
 
 
 @dataclass(frozen=True)

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 
 import numpy as np
 
@@ -163,6 +164,27 @@ def string():
         if any(ord(c) < 32 or ord(c) == 127 for c in v):
             raise InputError(key, f"expected text without control characters, got {v!r}")
         return v
+    return check
+
+
+def scheduler_address():
+    """``""`` (this process), ``"local:N"`` (a local cluster of N worker processes) or a
+    Dask scheduler address ``scheme://host:port``."""
+    what = '"" (run here), "local:N" (N = 1..1024) or a scheduler address "tcp://host:port"'
+
+    def check(v, key):
+        if not isinstance(v, str):
+            raise InputError(key, f"expected {what}, got {show(v)}")
+        v = v.strip()
+        if v == "":
+            return v
+        m = re.fullmatch(r"local:(\d+)", v)
+        if m and 1 <= int(m.group(1)) <= 1024:
+            return v
+        if not m and re.fullmatch(r"[a-z][a-z0-9+.-]*://[^\s/]+(/\S*)?", v):
+            return v
+        raise InputError(key, f"expected {what}, got {show(v)}")
+    check.what = what
     return check
 
 

@@ -75,7 +75,8 @@ class Config:
             peaks=peaks, keep_harmonics=d["output"]["keep_harmonics"],
             bounds=bounds, keep_response=d["output"]["keep_response"],
             response_format=response_format(d["output"]["response"], model.n_beams),
-            execution=ExecutionSpec(r["threads"] or None, r["chunk"], r["checkpoint_s"]),
+            execution=ExecutionSpec(r["threads"] or None, r["chunk"], r["checkpoint_s"],
+                                    r["scheduler"]),
             config_toml=self.toml(comments=False), config_json=self.json(),
             identity=self.identity())
 

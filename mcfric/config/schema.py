@@ -27,6 +27,7 @@ from ..validators import (
     number,
     numbers,
     odd_integer,
+    scheduler_address,
     show,
     string,
 )
@@ -69,7 +70,7 @@ def defaults(preset=DEFAULT_PRESET):
         "peaks": {"enabled": True, "count": t.n_modes, "rtol": 1e-4, "window": 3},
         "solver": {"tol": 1e-10, "max_iter": 50, "harmonics": 1, "n_time": 0},
         "output": {"keep_response": True, "response": "auto", "keep_harmonics": False},
-        "run": {"threads": 0, "chunk": 0, "checkpoint_s": 0.0},
+        "run": {"threads": 0, "chunk": 0, "checkpoint_s": 0.0, "scheduler": ""},
         "bounds": {"enabled": True, "k_max": "auto", "k_max_im": "auto", "F_lim": "auto",
                    "n_starts": 3},
     }
@@ -179,6 +180,9 @@ SPEC = {
                                        "never changes the results"),
         "checkpoint_s": (number(lo=0), "min seconds between crash-safe checkpoints "
                                        "(0 = after every chunk)"),
+        "scheduler": (scheduler_address(), 'run the chunks on Dask: "local:N" (N worker '
+                                           'processes here) or "tcp://host:port" ("" = in '
+                                           'this process); never changes the results'),
     },
     "bounds": {
         "enabled": (boolean(), "compute the equivalent-linear response bounds "

@@ -1,0 +1,281 @@
+"""Ensembles on a Dask cluster: the chunks of a run as ``dask.distributed`` tasks.
+
+:class:`Cluster` connects to a scheduler (``"tcp://host:port"``) or starts a local cluster
+of worker processes (``"local:N"``), checks that every worker computes what this process
+would (the solver fingerprint), loads the kernels on each worker once, and then runs a
+task per chunk. The caller (:func:`mcfric.ensemble.run`) stays the single writer of the
+results file: results come back here, a bounded number at a time, and are placed by their
+sample index, so the file does not depend on where or in which order chunks were solved.
+
+A worker that dies loses only its unfinished chunks: the scheduler runs them again
+elsewhere. Every chunk's numbers depend on its samples' own seeds alone, so the file is
+the same. Dask is an optional dependency (``pip install "mcfric[dask]"``); this module
+imports it only when a cluster is asked for.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import os
+import threading
+import time
+
+#: Seconds to wait for a scheduler to answer.
+CONNECT_TIMEOUT_S = 10.0
+#: Seconds to wait for the first worker of a remote scheduler.
+WORKER_TIMEOUT_S = 60.0
+#: Chunks in flight per worker thread: one solving, one waiting, so none idles while
+#: its last result travels to the client.
+IN_FLIGHT_PER_THREAD = 2
+INSTALL_HINT = 'scheduler needs Dask: pip install "mcfric[dask]"'
+
+# one kernel at a time per worker process: numba's default (workqueue) threading layer
+# must not be entered from two threads at once
+_KERNEL_LOCK = threading.Lock()
+
+
+class ClusterError(Exception):
+    """The cluster cannot be used (unreachable, no workers, other solver) or failed."""
+
+
+def _first_line(e):
+    text = str(e).strip().splitlines()
+    return f"{type(e).__name__}: {text[0]}" if text else type(e).__name__
+
+
+def _worker_threads():
+    """The numba threads of a task on this worker: the worker's thread count, at most the
+    cores numba may use (one kernel runs at a time, see ``_KERNEL_LOCK``)."""
+    import numba
+    from distributed import get_worker
+
+    try:
+        n = get_worker().state.nthreads
+    except (ValueError, AttributeError):     # not on a worker (tests call it directly)
+        n = 1
+    return max(1, min(int(n), numba.config.NUMBA_NUM_THREADS))
+
+
+def run_task(task, spec, start, stop):
+    """Run ``task(spec, start, stop)`` on a worker, with the worker's thread count.
+
+    Parameters
+    ----------
+    task : callable
+        Module-level function (pickled by name) that solves samples ``start..stop`` of
+        ``spec`` and returns their ``{variable: array}``.
+    spec : mcfric.spec.RunSpec
+    start, stop : int
+        The chunk's sample range.
+
+    Returns
+    -------
+    start : int
+    arrays : dict
+    seconds : float
+        Time in ``task``, s.
+    """
+    n = _worker_threads()
+    spec = dataclasses.replace(spec, execution=dataclasses.replace(spec.execution,
+                                                                   threads=n))
+    with _KERNEL_LOCK:
+        t0 = time.perf_counter()
+        arrays = task(spec, start, stop)
+        return start, arrays, time.perf_counter() - t0
+
+
+def _worker_ready(fingerprint, task, spec):
+    """On one worker: its solver fingerprint and pid, after one sample (loads or compiles
+    the kernels, so the first chunk is not slow)."""
+    t0 = time.perf_counter()
+    run_task(task, spec, 0, 1)
+    return fingerprint(), os.getpid(), time.perf_counter() - t0
+
+
+class Cluster:
+    """A connection to a Dask cluster that solves chunks of a run.
+
+    Use :meth:`connect`; :meth:`chunks` yields solved chunks; :meth:`close` ends the
+    connection (and a local cluster).
+
+    Attributes
+    ----------
+    address : str
+        As given: ``"local:N"`` or the scheduler's address.
+    n_workers, n_threads : int
+        Workers at connection, and their threads in all.
+    startup_s : float
+        Seconds to connect (or start the local cluster) and load the kernels on every
+        worker.
+    worker_pids : dict
+        ``{worker address: process id}`` (on the worker's machine).
+    """
+
+    def __init__(self, client, local, address):
+        self.client = client
+        self._local = local
+        self.address = address
+        self.n_workers = 0
+        self.n_threads = 0
+        self.startup_s = 0.0
+        self.worker_pids = {}
+
+    @classmethod
+    def connect(cls, address, *, spec, task, fingerprint, verbose=False):
+        """Connect to ``address`` (or start ``"local:N"``) and make every worker ready.
+
+        Parameters
+        ----------
+        address : str
+            ``"local:N"``: a local cluster of N worker processes with one thread each;
+            otherwise a scheduler address such as ``"tcp://10.0.0.5:8786"``.
+        spec : mcfric.spec.RunSpec
+            The run; each worker solves its sample 0 once to load the kernels.
+        task : callable
+            What a chunk runs (see :func:`run_task`).
+        fingerprint : callable
+            Returns the solver fingerprint; every worker's must equal this process's.
+        verbose : bool
+            Print one line on the cluster when it is ready.
+
+        Raises
+        ------
+        ClusterError
+            Dask is not installed, the scheduler cannot be reached or has no workers, or
+            a worker runs another solver (one line each).
+        """
+        t0 = time.perf_counter()
+        try:
+            import distributed
+        except ImportError:
+            raise ClusterError(f"--scheduler {address}: {INSTALL_HINT}") from None
+        local = None
+        try:
+            if address.startswith("local:"):
+                n = int(address.split(":", 1)[1])
+                local = distributed.LocalCluster(
+                    n_workers=n, threads_per_worker=1, processes=True,
+                    dashboard_address=None, silence_logs=logging.ERROR)
+                client = distributed.Client(local, timeout=CONNECT_TIMEOUT_S)
+            else:
+                client = distributed.Client(address, timeout=CONNECT_TIMEOUT_S)
+        except (OSError, TimeoutError, ValueError) as e:
+            if local is not None:
+                local.close()
+            raise ClusterError(f"cannot reach the Dask scheduler at {address}: "
+                               f"{_first_line(e)}") from None
+        self = cls(client, local, address)
+        try:
+            self._ready(spec, task, fingerprint)
+        except BaseException:
+            self.close()
+            raise
+        self.startup_s = time.perf_counter() - t0
+        if verbose:
+            print(f"cluster: {address}, {self.n_workers} workers, {self.n_threads} "
+                  f"threads; ready in {self.startup_s:.1f} s (start-up and kernel load)",
+                  flush=True)
+        return self
+
+    def _ready(self, spec, task, fingerprint):
+        client = self.client
+        try:
+            client.wait_for_workers(1, timeout=WORKER_TIMEOUT_S)
+        except (TimeoutError, OSError):
+            raise ClusterError(f"the Dask scheduler at {self.address} has no workers after "
+                               f"{WORKER_TIMEOUT_S:.0f} s: start some with `dask worker "
+                               f"{self.address}`") from None
+        workers = client.scheduler_info()["workers"]
+        self.n_workers = len(workers)
+        self.n_threads = sum(int(w.get("nthreads", 1)) for w in workers.values())
+        futures = {w: client.submit(_worker_ready, fingerprint, task, spec, workers=[w],
+                                    allow_other_workers=False, pure=False)
+                   for w in workers}
+        mine = fingerprint()
+        for w, f in futures.items():
+            try:
+                theirs, pid, _ = f.result()
+            except Exception as e:
+                raise ClusterError(f"worker {w} cannot solve this run: "
+                                   f"{_first_line(e)}") from None
+            if theirs != mine:
+                raise ClusterError(f"worker {w} runs another solver (fingerprint {theirs}, "
+                                   f"here {mine}): install the same mcfric, numpy, scipy "
+                                   f"and numba on every worker")
+            self.worker_pids[w] = pid
+
+    def chunks(self, task, spec, chunks, timing):
+        """Solve ``chunks`` on the cluster, yielding each as it completes.
+
+        At most ``IN_FLIGHT_PER_THREAD`` chunks per worker thread are submitted and not
+        yet received, so the client's memory does not grow with the number of samples.
+
+        Parameters
+        ----------
+        task : callable
+            See :func:`run_task`.
+        spec : mcfric.spec.RunSpec
+        chunks : list of (start, stop)
+        timing : dict
+            ``timing["kernel_s"]`` is increased by each chunk's time on its worker, s.
+
+        Yields
+        ------
+        start : int
+        arrays : callable
+            Returns the chunk's ``{variable: array}``.
+
+        Raises
+        ------
+        ClusterError
+            A chunk failed on the cluster (also after Dask's retries on other workers).
+        """
+        from distributed import as_completed
+
+        limit = max(2, IN_FLIGHT_PER_THREAD * max(self.n_threads, 1))
+        todo = iter(chunks)
+        live = {}          # key: (future, range) of every chunk submitted, not yet yielded
+
+        def submit():
+            for a, b in todo:
+                f = self.client.submit(run_task, task, spec, a, b, pure=False, retries=1)
+                live[f.key] = (f, (a, b))
+                return f
+            return None
+
+        first = [f for f in (submit() for _ in range(limit)) if f is not None]
+        if not first:
+            return
+        running = as_completed(first)
+        try:
+            for f in running:
+                a, b = live.pop(f.key)[1]
+                try:
+                    start, arrays, seconds = f.result()
+                except Exception as e:
+                    raise ClusterError(f"samples {a}..{b - 1} failed on the cluster: "
+                                       f"{_first_line(e)}") from None
+                f.release()
+                del f
+                nxt = submit()
+                if nxt is not None:
+                    running.add(nxt)
+                timing["kernel_s"] += seconds
+                yield start, (lambda arrays=arrays: arrays)
+                del arrays
+        finally:
+            # an interrupt or an error: nothing more is computed for this run
+            running.clear()
+            if live:
+                self.client.cancel([f for f, _ in live.values()])
+            live.clear()
+
+    def close(self):
+        """Close the connection, and stop the local cluster if this started one."""
+        try:
+            self.client.close()
+        finally:
+            if self._local is not None:
+                self._local.close()
+
