@@ -15,9 +15,11 @@ imports it only when a cluster is asked for.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import logging
 import os
+import signal
 import threading
 import time
 
@@ -93,6 +95,21 @@ def _worker_ready(fingerprint, task, spec):
     return fingerprint(), os.getpid(), time.perf_counter() - t0
 
 
+@contextlib.contextmanager
+def _workers_ignore_ctrl_c():
+    """Start local worker processes with SIGINT ignored (they inherit it): Ctrl-C in a
+    terminal reaches the whole process group, and only the client should act on it (it
+    commits, then stops the cluster) instead of every worker printing a traceback."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, old)
+
+
 class Cluster:
     """A connection to a Dask cluster that solves chunks of a run.
 
@@ -154,9 +171,10 @@ class Cluster:
         try:
             if address.startswith("local:"):
                 n = int(address.split(":", 1)[1])
-                local = distributed.LocalCluster(
-                    n_workers=n, threads_per_worker=1, processes=True,
-                    dashboard_address=None, silence_logs=logging.ERROR)
+                with _workers_ignore_ctrl_c():
+                    local = distributed.LocalCluster(
+                        n_workers=n, threads_per_worker=1, processes=True,
+                        dashboard_address=None, silence_logs=logging.ERROR)
                 client = distributed.Client(local, timeout=CONNECT_TIMEOUT_S)
             else:
                 client = distributed.Client(address, timeout=CONNECT_TIMEOUT_S)

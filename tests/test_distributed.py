@@ -222,3 +222,45 @@ def test_a_chunk_that_fails_everywhere_stops_resumably(reference, tmp_path, caps
     assert cli.main(["run", str(toml), "-o", str(out), "--resume", "--no-progress",
                      "--no-figure"]) == 0
     assert_same_file(out, ref)
+
+
+def test_a_scheduler_without_workers_gives_one_line_and_no_file(tmp_path, capsys,
+                                                                 monkeypatch):
+    from distributed import LocalCluster
+
+    from mcfric import distributed
+
+    monkeypatch.setattr(distributed, "WORKER_TIMEOUT_S", 1.0)
+    out = tmp_path / "r.h5"
+    with LocalCluster(n_workers=0, processes=False, dashboard_address=None) as cluster:
+        rc = cli.main(["run", "two-beam", "--samples", "4", "--n-freq", "10", "-o",
+                       str(out), "--scheduler", cluster.scheduler_address, "--no-progress"])
+    err = capsys.readouterr().err
+    assert rc == 2 and err.count("\n") == 1 and "has no workers" in err, err
+    assert list(tmp_path.iterdir()) == []
+
+
+def fingerprint_by_side():
+    """A solver fingerprint that differs between the workers and the client."""
+    from distributed import get_worker
+
+    try:
+        get_worker()
+        return "worker-solver"
+    except ValueError:
+        return "client-solver"
+
+
+def test_a_worker_with_another_solver_is_refused(tmp_path, capsys, monkeypatch):
+    from distributed import LocalCluster
+
+    monkeypatch.setattr(ensemble, "fingerprint", fingerprint_by_side)
+    out = tmp_path / "r.h5"
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
+                      dashboard_address=None) as cluster:
+        rc = cli.main(["run", "two-beam", "--samples", "4", "--n-freq", "10", "-o",
+                       str(out), "--scheduler", cluster.scheduler_address, "--no-progress"])
+    err = capsys.readouterr().err
+    assert rc == 2 and err.count("\n") == 1, err
+    assert "runs another solver (fingerprint worker-solver, here client-solver)" in err
+    assert list(tmp_path.iterdir()) == []
