@@ -30,8 +30,13 @@ import textwrap
 import time
 from pathlib import Path
 
-from mcfric import config, ensemble
-from mcfric.distributed import Cluster
+# run as a script, this file's directory comes first on sys.path, where its name would
+# hide the `distributed` package from every import below
+sys.path[:] = [p for p in sys.path
+               if Path(p or ".").resolve() != Path(__file__).resolve().parent]
+
+from mcfric import config, ensemble  # noqa: E402
+from mcfric.distributed import Cluster  # noqa: E402
 
 
 def spec_for(samples, n_freq, keep_response=True, scheduler="", threads=0):
