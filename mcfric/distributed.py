@@ -30,7 +30,7 @@ WORKER_TIMEOUT_S = 60.0
 #: Chunks in flight per worker thread: one solving, one waiting, so none idles while
 #: its last result travels to the client.
 IN_FLIGHT_PER_THREAD = 2
-INSTALL_HINT = 'scheduler needs Dask: pip install "mcfric[dask]"'
+INSTALL_HINT = 'needs Dask, an optional extra: pip install "mcfric[dask]"'
 
 # one kernel at a time per worker process: numba's default (workqueue) threading layer
 # must not be entered from two threads at once
@@ -166,7 +166,7 @@ class Cluster:
         try:
             import distributed
         except ImportError:
-            raise ClusterError(f"--scheduler {address}: {INSTALL_HINT}") from None
+            raise ClusterError(f"scheduler {address!r} {INSTALL_HINT}") from None
         local = None
         try:
             if address.startswith("local:"):
