@@ -41,6 +41,10 @@ class ClusterError(Exception):
     """The cluster cannot be used (unreachable, no workers, other solver) or failed."""
 
 
+def _count(n, word):
+    return f"{n} {word}" + ("" if n == 1 else "s")
+
+
 def _first_line(e):
     text = str(e).strip().splitlines()
     return f"{type(e).__name__}: {text[0]}" if text else type(e).__name__
@@ -191,9 +195,9 @@ class Cluster:
             raise
         self.startup_s = time.perf_counter() - t0
         if verbose:
-            print(f"cluster: {address}, {self.n_workers} workers, {self.n_threads} "
-                  f"threads; ready in {self.startup_s:.1f} s (start-up and kernel load)",
-                  flush=True)
+            print(f"cluster: {address}, {_count(self.n_workers, 'worker')}, "
+                  f"{_count(self.n_threads, 'thread')}; ready in {self.startup_s:.1f} s "
+                  f"(start-up and kernel load)", flush=True)
         return self
 
     def _ready(self, spec, task, fingerprint):
