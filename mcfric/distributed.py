@@ -18,6 +18,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import logging
+import math
 import os
 import signal
 import threading
@@ -30,6 +31,8 @@ WORKER_TIMEOUT_S = 60.0
 #: Chunks in flight per worker thread: one solving, one waiting, so none idles while
 #: its last result travels to the client.
 IN_FLIGHT_PER_THREAD = 2
+#: Seconds between two looks at the cluster's thread count during a run.
+THREADS_REFRESH_S = 1.0
 INSTALL_HINT = 'needs Dask, an optional extra: pip install "mcfric[dask]"'
 
 # one kernel at a time per worker process: numba's default (workqueue) threading layer
@@ -230,8 +233,9 @@ class Cluster:
     def chunks(self, task, spec, chunks, timing):
         """Solve ``chunks`` on the cluster, yielding each as it completes.
 
-        At most ``IN_FLIGHT_PER_THREAD`` chunks per worker thread are submitted and not
-        yet received, so the client's memory does not grow with the number of samples.
+        At most ``IN_FLIGHT_PER_THREAD`` chunks per worker thread (the threads the
+        cluster has now: workers may join or leave) are submitted and not yet received,
+        so the client's memory does not grow with the number of samples.
 
         Parameters
         ----------
@@ -255,22 +259,33 @@ class Cluster:
         """
         from distributed import as_completed
 
-        limit = max(2, IN_FLIGHT_PER_THREAD * max(self.n_threads, 1))
         todo = iter(chunks)
         live = {}          # key: (future, range) of every chunk submitted, not yet yielded
+        running = as_completed(loop=self.client.loop)
+        checked = [-math.inf, self.n_threads]      # when, and the threads seen then
 
-        def submit():
-            for a, b in todo:
-                f = self.client.submit(run_task, task, spec, a, b, pure=False, retries=1)
-                live[f.key] = (f, (a, b))
-                return f
-            return None
+        def fill():
+            # workers may join or leave during a run: their thread count is asked again
+            # at most once a second, so new workers get chunks and the client's memory
+            # stays bounded by the threads there are
+            now = time.monotonic()
+            if now - checked[0] >= THREADS_REFRESH_S:
+                try:
+                    checked[1] = sum(self.client.nthreads().values())
+                except Exception:      # the scheduler is away: keep the last count
+                    pass
+                checked[0] = now
+            limit = max(2, IN_FLIGHT_PER_THREAD * checked[1])
+            while len(live) < limit:
+                ab = next(todo, None)
+                if ab is None:
+                    return
+                f = self.client.submit(run_task, task, spec, *ab, pure=False, retries=1)
+                live[f.key] = (f, ab)
+                running.add(f)
 
-        first = [f for f in (submit() for _ in range(limit)) if f is not None]
-        if not first:
-            return
-        running = as_completed(first)
         try:
+            fill()
             for f in running:
                 a, b = live.pop(f.key)[1]
                 try:
@@ -280,9 +295,7 @@ class Cluster:
                                        f"{_first_line(e)}") from None
                 f.release()
                 del f
-                nxt = submit()
-                if nxt is not None:
-                    running.add(nxt)
+                fill()
                 timing["kernel_s"] += seconds
                 yield start, (lambda arrays=arrays: arrays)
                 del arrays
