@@ -19,7 +19,6 @@ import contextlib
 import dataclasses
 import logging
 import math
-import os
 import signal
 import threading
 import time
@@ -95,11 +94,10 @@ def run_task(task, spec, start, stop):
 
 
 def _worker_ready(fingerprint, task, spec):
-    """On one worker: its solver fingerprint and pid, after one sample (loads or compiles
-    the kernels, so the first chunk is not slow)."""
-    t0 = time.perf_counter()
+    """On one worker: its solver fingerprint, after one sample (loads or compiles the
+    kernels, so the first chunk is not slow)."""
     run_task(task, spec, 0, 1)
-    return fingerprint(), os.getpid(), time.perf_counter() - t0
+    return fingerprint()
 
 
 @contextlib.contextmanager
@@ -132,8 +130,6 @@ class Cluster:
     startup_s : float
         Seconds to connect (or start the local cluster) and load the kernels on every
         worker.
-    worker_pids : dict
-        ``{worker address: process id}`` (on the worker's machine).
     """
 
     def __init__(self, client, local, address):
@@ -143,7 +139,6 @@ class Cluster:
         self.n_workers = 0
         self.n_threads = 0
         self.startup_s = 0.0
-        self.worker_pids = {}
 
     @classmethod
     def connect(cls, address, *, spec, task, fingerprint, verbose=False):
@@ -220,7 +215,7 @@ class Cluster:
         mine = fingerprint()
         for w, f in futures.items():
             try:
-                theirs, pid, _ = f.result()
+                theirs = f.result()
             except Exception as e:
                 raise ClusterError(f"worker {w} cannot solve this run: "
                                    f"{_first_line(e)}") from None
@@ -228,7 +223,6 @@ class Cluster:
                 raise ClusterError(f"worker {w} runs another solver (fingerprint {theirs}, "
                                    f"here {mine}): install the same mcfric, numpy, scipy "
                                    f"and numba on every worker")
-            self.worker_pids[w] = pid
 
     def chunks(self, task, spec, chunks, timing):
         """Solve ``chunks`` on the cluster, yielding each as it completes.
