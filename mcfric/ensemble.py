@@ -522,37 +522,35 @@ def check_space(spec, final, resume):
 def _run_locked(spec, final, resume, force, progress, groups, t_start, space_check):
     n_f = len(spec.freq_hz)
     what, found = prepare(spec, final, resume=resume, force=force)
-    if what != "complete" and space_check:
-        try:
-            check_space(spec, final, what == "resume")
-        except RunError:
-            if what == "resume":
-                found[0].close()
-            raise
     if what == "complete":
         return Summary(final, spec.samples, n_f, spec.samples, 0,
                        int(found.get("n_not_converged", -1)), time.perf_counter() - t_start,
                        0.0, True, already_complete=True)
-    cluster = None
-    if spec.execution.scheduler:
-        # connected before anything is written: an unreachable scheduler leaves no file
-        from .distributed import Cluster, ClusterError
-
-        try:
-            cluster = Cluster.connect(spec.execution.scheduler, spec=spec,
-                                      task=solve_records, fingerprint=fingerprint,
-                                      verbose=progress)
-        except (ClusterError, KeyboardInterrupt) as e:
-            if what == "resume":
-                found[0].close()
-            if isinstance(e, KeyboardInterrupt):
-                raise
-            raise RunError(str(e)) from None
+    # the refusals before anything is written; a resumed store is closed on any of them
+    try:
+        if space_check:
+            check_space(spec, final, what == "resume")
+        cluster = _connect(spec, progress) if spec.execution.scheduler else None
+    except BaseException:
+        if what == "resume":
+            found[0].close()
+        raise
     try:
         return _run_store(spec, final, what, found, progress, groups, t_start, cluster)
     finally:
         if cluster is not None:
             cluster.close()
+
+
+def _connect(spec, verbose):
+    """The Dask cluster of ``[run] scheduler``, every worker ready (RunError if not)."""
+    from .distributed import Cluster, ClusterError
+
+    try:
+        return Cluster.connect(spec.execution.scheduler, spec=spec, task=solve_records,
+                               fingerprint=fingerprint, verbose=verbose)
+    except ClusterError as e:
+        raise RunError(str(e)) from None
 
 
 def _run_store(spec, final, what, found, progress, groups, t_start, cluster):
