@@ -6,13 +6,14 @@
     mcfric run [PRESET|CONFIG.toml] [-o FILE] [--samples N] [--seed S] [--resume]
                [--force] [--threads T] [--chunk N] [--scheduler ADDRESS] [--peaks N]
                [--peak-rtol X] [--no-peaks] [--F0 N] [--f-min HZ] [--f-max HZ] [--n-freq N]
-               [--no-progress] [--no-figure] [--skip-space-check]
+               [--no-certify] [--no-progress] [--no-figure] [--skip-space-check]
     mcfric config [PRESET|CONFIG.toml]       # complete, commented TOML on stdout
     mcfric info FILE                         # summary of a results file
     mcfric hbm [PRESET|CONFIG.toml] [--mu0 X] [--kc N_PER_M] [--N0 N] [--F0 N]
                [--f-min HZ] [--f-max HZ] [--n-freq N] [-o OUT.csv] [--no-figure]
     mcfric bounds [PRESET|CONFIG.toml] [-o FILE] [--F0 N] [--f-min HZ] [--f-max HZ]
-               [--n-freq N] [--k-max N_PER_M] [--F-lim N] [--threads T] [--no-figure]
+               [--n-freq N] [--k-max N_PER_M] [--F-lim N] [--threads T] [--no-certify]
+               [--no-figure]
     mcfric plot FILE [-o FIG.png|pdf] [--quantity Q] [--f-min HZ] [--f-max HZ]
                [--member I] [--measured DATA ...] [--nodes N1,N2,...] [--no-indicator]
     mcfric verify [PRESET|CONFIG.toml] --f HZ [HZ ...] [--mu0 X] [--kc N_PER_M] [--N0 N]
@@ -91,6 +92,8 @@ def _parser():
                    help="relative tolerance of a refined peak (default 1e-4)")
     r.add_argument("--no-peaks", action="store_true",
                    help="do not refine peaks or look for folds")
+    r.add_argument("--no-certify", action="store_true",
+                   help="skip the certification of the bounds (searched bounds only)")
     _model_flags(r)
     _harmonic_flags(r)
     r.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -136,6 +139,9 @@ def _parser():
     b.add_argument("--F-lim", type=_number_or_none, metavar="N",
                    help='friction force limit, N, or "none" (default: 4/pi mu0_max N0_max)')
     b.add_argument("--threads", type=int, metavar="T", help="numba threads (0 = all)")
+    b.add_argument("--no-certify", action="store_true",
+                   help="skip the certification of the bounds (a quick look: the searched "
+                        "bounds alone)")
     b.add_argument("--no-figure", action="store_true", help="do not draw the figure")
 
     pl = sub.add_parser("plot", help="figure of a results or bounds file",
@@ -247,6 +253,8 @@ def _overrides(args):
             o[key] = (getattr(args, attr), flag)
     if getattr(args, "no_peaks", False):
         o["peaks.enabled"] = (False, "--no-peaks")
+    if getattr(args, "no_certify", False):
+        o["bounds.certify"] = (False, "--no-certify")
     return o
 
 
@@ -650,6 +658,10 @@ def cmd_info(args):
     if report is not None:
         lines += report_text(report, METRIC_UNITS[q])
     lines += indicator_report(path)
+    from .bounds import read_bounds
+    B = read_bounds(path)
+    if B is not None and B.certificate is not None:
+        lines.append(f"bounds:      {B.certificate.summary()}")
     if a.get("complete") == 1:
         lines.append(f"run time:    {a.get('wall_time_s', float('nan')):.1f} s "
                      f"(kernel {a.get('kernel_time_s', float('nan')):.1f} s) in the session "

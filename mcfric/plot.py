@@ -146,6 +146,17 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
                         lw=0)
         ax.plot(fw, up, color="tab:blue", lw=2.0, label="upper bound")
         ax.plot(fw, np.where(lo > 0, lo, np.nan), color="tab:red", lw=2.0, label="lower bound")
+        C = B.certificate
+        if C is not None:
+            cu = C.upper[win] * scale[win]
+            cl = C.lower[win] * scale[win]
+            # the certified band, drawn where it differs visibly from the searched one
+            if np.any(np.abs(cu / up - 1) > 0.01) or np.any(np.abs(cl / np.where(lo > 0, lo, 1)
+                                                                 - 1) > 0.01):
+                ax.plot(fw, np.where(np.isfinite(cu), cu, np.nan), color="tab:blue", lw=1.0,
+                        ls="--", label="certified upper bound")
+                ax.plot(fw, np.where(cl > 0, cl, np.nan), color="tab:red", lw=1.0, ls="--",
+                        label="certified lower bound")
         g = read_group(path, "bounds")[1]
         if "peak_upper" in g and lo_f <= g["peak_upper_frequency"] <= hi_f:
             fb = g["peak_upper_frequency"]

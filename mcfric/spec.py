@@ -72,12 +72,18 @@ class BoundsSpec:
         Friction force limit of the first harmonic, N (``inf``: no force constraint).
     n_starts : int
         Starts of the box search per frequency.
+    certify : bool
+        Whether the bounds are also certified (branch and bound).
+    budget : int
+        Enclosures per frequency and bound of the certification.
     """
 
     k_max_re: float
     k_max_im: float
     F_lim: float
     n_starts: int
+    certify: bool = True
+    budget: int = 400
 
 
 @dataclass(frozen=True)

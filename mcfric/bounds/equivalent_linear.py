@@ -43,6 +43,7 @@ from ..model import Model
 from ..threads import threads
 from ..validators import frequencies as check_frequencies
 from ..validators import real
+from .certified import BUDGET, Certificate, certify
 from .search import box_extreme, starts
 
 #: ``limited_by`` codes: which constraint sets the upper bound.
@@ -83,6 +84,9 @@ class Bounds:
     quantity : str
     beams : tuple of int
         0-based beams the metric takes the maximum over.
+    certificate : Certificate or None
+        The certified bounds over the admissible set and their witnesses
+        (:mod:`.certified`); None where certification was skipped.
     """
 
     freq_hz: np.ndarray
@@ -98,6 +102,7 @@ class Bounds:
     F_lim: float
     quantity: str = "displacement"
     beams: tuple = field(default_factory=tuple)
+    certificate: Certificate | None = None
 
     @property
     def n_failed(self):
@@ -105,10 +110,13 @@ class Bounds:
         return int(np.count_nonzero(~np.isfinite(self.upper) | ~np.isfinite(self.lower)))
 
     def summary(self):
-        """One line: what sets the upper bound where, and the failures."""
+        """What sets the upper bound where, the failures, and the certificate's gaps."""
         force = np.count_nonzero(self.limited_by == 1)
-        return (f"bounds at {len(self.freq_hz)} frequencies: upper set by the force limit at "
+        text = (f"bounds at {len(self.freq_hz)} frequencies: upper set by the force limit at "
                 f"{force}, by the box at {len(self.freq_hz) - force}; failed: {self.n_failed}")
+        if self.certificate is not None:
+            text += "\n" + self.certificate.summary()
+        return text
 
     def contains(self, metric, rtol=1e-9):
         """Boolean mask ``lower (1 - rtol) <= metric <= upper (1 + rtol)`` (NaN -> False)."""
@@ -175,7 +183,8 @@ def rotation_invariant(model):
 
 
 def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity="displacement",
-                   beams=None, n_starts=N_STARTS, max_sweeps=MAX_SWEEPS, seed=0, n_threads=None):
+                   beams=None, n_starts=N_STARTS, max_sweeps=MAX_SWEEPS, seed=0, n_threads=None,
+                   certified=True, budget=BUDGET):
     """Equivalent-linear bounds on the response metric of ``model``.
 
     Parameters
@@ -205,6 +214,11 @@ def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity
     seed : int
         Seed of the random starts (the bounds are deterministic for a given seed).
     n_threads : int, optional
+    certified : bool
+        Also certify the bounds over the admissible set (:mod:`.certified`, the
+        ``certificate`` attribute); False for a quick look.
+    budget : int
+        Enclosures per frequency and bound of the certification.
 
     Returns
     -------
@@ -223,6 +237,8 @@ def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity
         raise ValueError(f"beams: expected 0-based beam indices in 0..{model.n_beams - 1}")
     if not (isinstance(n_starts, (int, np.integer)) and n_starts >= 1):
         raise ValueError(f"n_starts: expected an integer >= 1, got {n_starts!r}")
+    if not (isinstance(budget, (int, np.integer)) and budget >= 1):
+        raise ValueError(f"budget: expected an integer >= 1, got {budget!r}")
 
     omega = 2 * np.pi * f
     rec = model.receptances(omega)[0]
@@ -247,10 +263,12 @@ def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity
             max(1, round(MAX_SWEEPS_FRACTION_MAX * int(max_sweeps))))
         lower, K_lower = box_extreme(G, q0, ylin, H, kr, ki, starts_min, False,
                                      max_sweeps=int(max_sweeps))
-    lower, K_lower = lower[0], K_lower[0]
-    scale = omega ** QUANTITIES.index(quantity)
+        lower, K_lower = lower[0], K_lower[0]
+        scale = omega ** QUANTITIES.index(quantity)
+        cert = (certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget)
+                if certified else None)
     return Bounds(f, upper * scale, lower * scale, upper_box * scale, upper_force * scale,
-                  limited_by, K_upper, K_lower, kr, ki, F_lim, quantity, beams)
+                  limited_by, K_upper, K_lower, kr, ki, F_lim, quantity, beams, cert)
 
 
 def from_spec(spec, n_threads=None):
@@ -264,5 +282,5 @@ def from_spec(spec, n_threads=None):
     return compute_bounds(spec.model, spec.freq_hz, b.k_max_re, k_max_im=b.k_max_im,
                           F_lim=None if np.isinf(b.F_lim) else b.F_lim,
                           quantity=spec.metric.quantity, beams=spec.metric.beams,
-                          n_starts=b.n_starts,
+                          n_starts=b.n_starts, certified=b.certify, budget=b.budget,
                           n_threads=spec.execution.threads if n_threads is None else n_threads)

@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..metric import METRIC_UNITS
+from .certified import Certificate
 from .equivalent_linear import Bounds
 
 
@@ -36,11 +37,46 @@ def to_group(B):
     }
     attrs = {"k_max_re": B.k_max_re, "k_max_im": B.k_max_im, "F_lim": B.F_lim,
              "quantity": B.quantity, "beams": np.asarray(B.beams, dtype=np.int64) + 1,
-             "method": "equivalent-linear bounds (paper Section 3; docs: bounds): extremes "
-                       "found by a search, not certified: coordinate search exact per "
+             "method": "equivalent-linear bounds (paper Section 3; docs: bounds): upper and "
+                       "lower are extremes found by a search, not certified (the "
+                       "certified ones, where computed: upper_certified, lower_certified): "
+                       "coordinate search exact per "
                        "damper, multistart, continuation along frequency, projected "
                        "gradient and minimax search for the minimum (mcfric.bounds)",
              "n_failed": np.int64(B.n_failed)}
+    C = B.certificate
+    if C is not None:
+        variables.update({
+            "upper_certified": (("frequency",), C.upper, {
+                "units": unit, "long_name": "certified upper bound: >= M for every admissible "
+                                            "set of describing functions (box and force "
+                                            "limit together); inf where not proved"}),
+            "lower_certified": (("frequency",), C.lower, {
+                "units": unit, "long_name": "certified lower bound: <= M for every admissible "
+                                            "set of describing functions"}),
+            "upper_witness": (("frequency",), C.upper_witness, {
+                "units": unit, "long_name": "M at an admissible point (K_upper_witness): "
+                                            "the largest M lies in [upper_witness, "
+                                            "upper_certified]"}),
+            "lower_witness": (("frequency",), C.lower_witness, {
+                "units": unit, "long_name": "M at an admissible point (K_lower_witness)"}),
+            "upper_gap": (("frequency",), C.upper_gap, {
+                "units": "1", "long_name": "upper_certified / upper_witness - 1"}),
+            "lower_gap": (("frequency",), C.lower_gap, {
+                "units": "1", "long_name": "1 - lower_certified / lower_witness"}),
+            "K_upper_witness": (("frequency", "damper"), C.K_upper, {
+                "units": "N/m", "long_name": "describing functions of the upper witness"}),
+            "K_lower_witness": (("frequency", "damper"), C.K_lower, {
+                "units": "N/m", "long_name": "describing functions of the lower witness"}),
+            "certified_converged": (("frequency",), (C.converged[0] + 2 * C.converged[1]
+                                                     ).astype(np.int8), {
+                "long_name": "certification met its tolerance within the budget",
+                "flag_masks": [1, 2], "flag_meanings": "upper lower"}),
+        })
+        for row, name in enumerate(("upper", "lower")):
+            variables[f"{name}_evaluations"] = (("frequency",), C.evaluations[row], {
+                "long_name": f"enclosures evaluated by the certification of the {name} bound"})
+        attrs["certify_budget"] = np.int64(C.budget)
     return variables, attrs
 
 
@@ -52,10 +88,19 @@ def read_bounds(path):
     if found is None:
         return None
     g, a = found
+    cert = None
+    if "upper_certified" in g:
+        conv = np.asarray(g["certified_converged"])
+        cert = Certificate(g["upper_certified"], g["lower_certified"], g["upper_witness"],
+                           g["lower_witness"], g["K_upper_witness"], g["K_lower_witness"],
+                           np.stack([(conv & 1) > 0, (conv & 2) > 0]),
+                           np.stack([g["upper_evaluations"], g["lower_evaluations"]]),
+                           int(a["certify_budget"]))
     return Bounds(read(path, "frequency"), g["upper"], g["lower"], g["upper_box"],
                   g["upper_force"], g["limited_by"], g["K_upper"], g["K_lower"],
                   float(a["k_max_re"]), float(a["k_max_im"]), float(a["F_lim"]),
-                  str(a["quantity"]), tuple(int(b) - 1 for b in np.atleast_1d(a["beams"])))
+                  str(a["quantity"]), tuple(int(b) - 1 for b in np.atleast_1d(a["beams"])),
+                  cert)
 
 
 def write_bounds_file(path, cfg, B):

@@ -57,7 +57,8 @@ class Config:
             raise InputError("model.table.zeta", "the bounds need every mode damped (zeta > 0):"
                              " an undamped mode has an unbounded resonance; give zeta > 0 or "
                              "set bounds.enabled = false")
-        bounds = (BoundsSpec(*validation.bounds_limits(d), n_starts=b["n_starts"])
+        bounds = (BoundsSpec(*validation.bounds_limits(d), n_starts=b["n_starts"],
+                             certify=b["certify"], budget=b["certify_budget"])
                   if b["enabled"] else None)
         r = d["run"]
         metric = MetricSpec(d["metric"]["quantity"],

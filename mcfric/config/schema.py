@@ -72,7 +72,7 @@ def defaults(preset=DEFAULT_PRESET):
         "output": {"keep_response": True, "response": "auto", "keep_harmonics": False},
         "run": {"threads": 0, "chunk": 0, "checkpoint_s": 0.0, "scheduler": ""},
         "bounds": {"enabled": True, "k_max": "auto", "k_max_im": "auto", "F_lim": "auto",
-                   "n_starts": 3},
+                   "n_starts": 3, "certify": True, "certify_budget": 400},
     }
 
 
@@ -194,6 +194,11 @@ SPEC = {
                   'friction force limit (first harmonic), N; "auto": 4/pi mu0_max N0_max '
                   'from the sampling; "none": no force constraint'),
         "n_starts": (integer(1, 10000), "starts of the box search per frequency"),
+        "certify": (boolean(), "also certify the bounds over the admissible set by branch "
+                               "and bound (bounds/upper_certified, lower_certified); false "
+                               "for a quick look"),
+        "certify_budget": (integer(1, 1000000), "enclosures per frequency and bound of the "
+                                                "certification at most"),
     },
 }
 SECTION_DOC = {

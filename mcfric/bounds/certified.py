@@ -1,0 +1,154 @@
+"""Certified bounds: an enclosure of the metric's extremes over the admissible set.
+
+The searched bounds (:mod:`.equivalent_linear`) are the extremes a search found. Here a
+branch and bound (:mod:`mcfric.core.branch_bound`) proves, at every frequency, a value
+``upper_certified >=`` the largest ``M`` over the admissible set (every damper in its box
+*and* at or below the force limit) and ``lower_certified <=`` the smallest, each beside a
+witness: an admissible set of describing functions that attains it. Rounding cannot
+break the guarantee (the argument: :mod:`mcfric.core.enclosure`, and the docs' bounds
+page). Where the budget of enclosures runs out first the certified values are still
+valid, only looser; the upper one is never above the force bound (paper Eq. 10, itself a
+proof) and the lower one never below 0.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..core.branch_bound import certify_frequencies
+from ..threads import in_threads
+from .search import _chunks
+
+#: Enclosures per frequency and bound at most (the branch and bound's budget).
+BUDGET = 400
+#: Stop where the best open bound is within this of the witness (relative) ...
+RTOL = 5e-3
+#: ... or, for the minimum, within this fraction of the certified upper bound (absolute).
+ATOL_FRACTION = 1e-3
+#: Relative margin on the force bound (a sum of non-negative products: (nd + 2) u).
+_FORCE_MARGIN = 1e-12
+
+
+@dataclass
+class Certificate:
+    """Certified bounds over frequency, in the metric's unit, and their witnesses.
+
+    Attributes
+    ----------
+    upper, lower : ndarray, shape (n_f,)
+        ``upper >= max M`` and ``lower <= min M`` over the admissible set.
+    upper_witness, lower_witness : ndarray, shape (n_f,)
+        ``M`` at the witnesses: admissible points, so the true extremes lie between
+        witness and certified value.
+    K_upper, K_lower : ndarray of complex, shape (n_f, nd)
+        The witnesses' describing functions, N/m.
+    converged : ndarray of bool, shape (2, n_f)
+        Whether the upper (row 0) and lower (row 1) bound met the tolerance within the
+        budget.
+    evaluations : ndarray of int, shape (2, n_f)
+        Enclosures evaluated.
+    budget : int
+    """
+
+    upper: np.ndarray
+    lower: np.ndarray
+    upper_witness: np.ndarray
+    lower_witness: np.ndarray
+    K_upper: np.ndarray
+    K_lower: np.ndarray
+    converged: np.ndarray
+    evaluations: np.ndarray
+    budget: int
+
+    @property
+    def upper_gap(self):
+        """``upper / upper_witness - 1`` per frequency (inf where not certified)."""
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return self.upper / self.upper_witness - 1.0
+
+    @property
+    def lower_gap(self):
+        """``1 - lower / lower_witness`` per frequency (1 where only 0 is proved)."""
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.where(self.lower_witness > 0, 1.0 - self.lower / self.lower_witness, 0.0)
+
+    @property
+    def lower_tight(self):
+        """Where the lower bound is within 1 % of its witness or within ``ATOL_FRACTION``
+        of the certified upper bound (absolute: deep valleys of the minimum)."""
+        with np.errstate(invalid="ignore"):
+            return ((self.lower_gap <= 0.01)
+                    | (self.lower_witness - self.lower <= ATOL_FRACTION * self.upper))
+
+    def summary(self):
+        """Where the certificate is within 1 % of its witness, and the largest gaps."""
+        n = len(self.upper)
+        up = self.upper_gap
+        loose = ~self.lower_tight
+        worst = np.max(self.lower_gap[loose]) if loose.any() else 0.0
+        return (f"certified: upper within 1 % of its witness at {np.count_nonzero(up <= 0.01)} "
+                f"of {n} frequencies (largest gap {_pct(np.max(up))}); lower within 1 % or "
+                f"{ATOL_FRACTION:g} x upper at {n - np.count_nonzero(loose)} (largest gap "
+                f"elsewhere {_pct(worst)})")
+
+
+def _pct(x):
+    return "unbounded" if not np.isfinite(x) else f"{100 * x:.3g} %"
+
+
+def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=BUDGET,
+            rtol=RTOL):
+    """Certified bounds from contact-space arrays (all beams of the metric).
+
+    Parameters
+    ----------
+    G, q0, ylin, H : ndarray of complex
+        Contact-space arrays over frequency (:func:`mcfric.core.receptance.contact_space`),
+        ``ylin`` and ``H`` restricted to the beams of the metric.
+    kr, ki, F_lim : float
+        The admissible region (N/m, N/m, N; ``F_lim = inf``: box only).
+    K_upper, K_lower : ndarray of complex, shape (n_f, nd)
+        A search's optima, N/m: candidate witnesses (used where admissible).
+    scale : ndarray, shape (n_f,)
+        ``omega ** k`` from displacement to the metric's quantity.
+    budget : int
+        Enclosures per frequency and bound.
+    rtol : float
+        Relative tolerance of the branch and bound.
+
+    Returns
+    -------
+    Certificate
+    """
+    n_f, nd = q0.shape
+    uniform = np.array([0.0, kr, kr + 1j * ki, 1j * ki, 0.5 * (kr + 1j * ki)])
+    corners = np.broadcast_to(uniform[None, :, None], (n_f, len(uniform), nd))
+    init_up = np.ascontiguousarray(np.concatenate([K_upper[:, None], corners], axis=1))
+    init_lo = np.ascontiguousarray(np.concatenate([K_lower[:, None], corners], axis=1))
+    args = [np.ascontiguousarray(a) for a in (G, q0, ylin, H)]
+    out = {}
+    force = (np.abs(ylin) + (F_lim * np.abs(H).sum(axis=2) if np.isfinite(F_lim) else np.inf)
+             ).max(axis=1) * (1 + _FORCE_MARGIN)
+    for want_max, init, atol in ((True, init_up, np.zeros(n_f)), (False, init_lo, None)):
+        if atol is None:
+            atol = ATOL_FRACTION * out[True][0]
+            atol = np.where(np.isfinite(atol), atol, 0.0)
+        cert = np.empty(n_f)
+        wit = np.empty(n_f)
+        K = np.zeros((n_f, nd), complex)
+        ev = np.zeros(n_f, np.int64)
+        ok = np.zeros(n_f, np.bool_)
+        in_threads(lambda freqs, w=want_max, i=init, a=atol, c=cert, x=wit, k=K, e=ev, o=ok:
+                   certify_frequencies(*args, kr, ki, F_lim, w, i, int(budget), rtol, a,
+                                       np.asarray(freqs, np.int64), c, x, k, e, o),
+                   _chunks(n_f))
+        if want_max:
+            cert = np.maximum(np.fmin(cert, force), wit)
+        else:
+            cert = np.clip(cert, 0.0, wit)
+        out[want_max] = (cert, wit, K, ev, ok)
+    (up, wu, Ku, eu, ou), (lo, wl, Kl, el, ol) = out[True], out[False]
+    return Certificate(up * scale, lo * scale, wu * scale, wl * scale, Ku, Kl,
+                       np.stack([ou, ol]), np.stack([eu, el]), int(budget))

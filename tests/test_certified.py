@@ -1,0 +1,161 @@
+"""Soundness and tightness of the certified bounds (branch and bound over the dampers).
+
+References are independent of mcfric's contact-space code: exhaustive grids of the
+admissible set solved in physical space (a batched version of tests/naive.py's solve),
+harmonic-balance ensembles and random admissible points.
+"""
+
+import numpy as np
+import pytest
+
+import mcfric
+from mcfric.bounds import compute_bounds, force_limit, read_bounds, to_group
+from mcfric.model import Excitation, Model
+from mcfric.presets import TABLE_1
+
+from . import naive
+from .conftest import naive_beams, naive_pairs
+
+K_MAX = 15000.0
+N0 = 0.5
+F_LIM = force_limit(1.0, N0)
+
+
+def physical_grid(model, freq_hz, K):
+    """M and the largest ``|K_j q_j| / F_LIM`` at every row of ``K`` (P, nd), solved in
+    physical space: ``(I - D Kphys) Y = D Fext`` batched over the rows."""
+    D, Fext, index = naive._assemble(2 * np.pi * freq_hz, naive_beams(model), model.force,
+                                     0, 1, 2)
+    pairs = naive_pairs(model)
+    n = D.shape[0]
+    Kphys = np.zeros((len(K), n, n), complex)
+    for j, (a, b) in enumerate(pairs):
+        ia, ib = index[(a, 0)], index[(b, 0)]
+        Kphys[:, ia, ia] -= K[:, j]
+        Kphys[:, ia, ib] += K[:, j]
+        Kphys[:, ib, ia] += K[:, j]
+        Kphys[:, ib, ib] -= K[:, j]
+    Y = np.linalg.solve(np.eye(n) - D @ Kphys, np.broadcast_to(D @ Fext, (len(K), n))[..., None])
+    Y = Y[..., 0]
+    out = [index[(b, 1)] for b in range(model.n_beams)]
+    M = np.abs(Y[:, out]).max(axis=1)
+    q = np.stack([Y[:, index[(a, 0)]] - Y[:, index[(b, 0)]] for a, b in pairs], axis=1)
+    return M, (np.abs(K * q) / F_LIM).max(axis=1)
+
+
+def grid_points(nd, n):
+    """Every combination of an ``n x n`` grid of each damper's rectangle, (n^(2 nd), nd)."""
+    g = np.linspace(0, K_MAX, n)
+    one = (g[:, None] + 1j * g[None, :]).ravel()
+    mesh = np.meshgrid(*([one] * nd), indexing="ij")
+    return np.stack([m.ravel() for m in mesh], axis=1)
+
+
+def chain(n_beams, F0):
+    return Model.identical(TABLE_1, n_beams, excitation=Excitation("single", F0, beam=1),
+                           topology="linear", name=f"chain-{n_beams}")
+
+
+def edge_points(n):
+    """One damper: its rectangle's edges, finely (sharp resonance ridges run along them)."""
+    e = np.linspace(0, K_MAX, n)
+    return np.concatenate([e, e + 1j * K_MAX, 1j * e, K_MAX + 1j * e])[:, None]
+
+
+def check_encloses(B, model, f, n_grid, tight=None, n_edge=0):
+    """The certified bounds enclose every admissible grid point; ``tight``: and the upper
+    one lies within that of the grid's maximum where the certification converged."""
+    C = B.certificate
+    assert np.all(C.upper >= C.upper_witness) and np.all(C.lower <= C.lower_witness)
+    K = grid_points(model.n_dampers, n_grid)
+    if n_edge:
+        K = np.concatenate([K, edge_points(n_edge)])
+    for k, fk in enumerate(f):
+        M, force = physical_grid(model, fk, K)
+        M = M[force <= B.F_lim / F_LIM]
+        assert M.max() <= C.upper[k] * (1 + 1e-9), (fk, M.max(), C.upper[k])
+        assert M.min() >= C.lower[k] * (1 - 1e-9), (fk, M.min(), C.lower[k])
+        if tight is not None and C.converged[0, k]:
+            assert C.upper[k] <= M.max() * (1 + tight), (fk, C.upper[k], M.max())
+    return C
+
+
+@pytest.mark.parametrize("F_lim", [None, F_LIM])
+@pytest.mark.parametrize("F0", [0.22, 1.1])
+def test_one_damper_encloses_a_dense_grid_and_is_tight(F0, F_lim):
+    """Box only: within 0.6 % of the grid (fine edges: the box maximum lies on them). With
+    the force limit the maximum may lie on the limit's curve inside the box, which a grid
+    resolves less well: enclosure only there (tightness against the witness is checked by
+    the witness test)."""
+    model = mcfric.two_beam(F0)
+    f = np.array([12.0, 17.0, 30.0, 40.0, 55.0, 64.0, 90.0, 112.0, 140.0])
+    B = compute_bounds(model, f, K_MAX, F_lim=F_lim, budget=4000)
+    C = check_encloses(B, model, f, 301, tight=0.006 if F_lim is None else None,
+                       n_edge=100001)
+    assert C.converged.all()
+
+
+@pytest.mark.parametrize("n_beams, n_grid", [(3, 15), (4, 7)])
+def test_two_and_three_dampers_enclose_an_exhaustive_grid(n_beams, n_grid):
+    model = chain(n_beams, 0.5)
+    f = np.array([15.0, 17.0, 40.0, 70.0, 108.0])
+    B = compute_bounds(model, f, K_MAX, F_lim=F_LIM, budget=2000)
+    check_encloses(B, model, f, n_grid)
+
+
+@pytest.mark.parametrize("F0", [0.25, 1.1])
+def test_eight_beams_enclose_every_member_and_random_admissible_points(F0):
+    model = mcfric.eight_beam(F0)
+    f = np.linspace(10, 150, 29)
+    rng = np.random.default_rng(5)
+    nd = model.n_dampers
+    r = mcfric.solve(model, f, rng.uniform(0, 1, (500, nd)), rng.uniform(0, K_MAX, (500, nd)),
+                     N0)
+    B = compute_bounds(model, f, K_MAX, F_lim=F_LIM, budget=200)
+    C = B.certificate
+    M = r.metric()
+    ok = r.converged
+    assert np.all((M <= C.upper * (1 + 1e-9))[ok]) and np.all((M >= C.lower * (1 - 1e-9))[ok])
+    assert np.all(C.upper >= C.upper_witness) and np.all(C.lower <= C.lower_witness)
+    K = rng.uniform(0, K_MAX, (3000, nd)) + 1j * rng.uniform(0, K_MAX, (3000, nd))
+    for k in range(0, len(f), 4):
+        Mk, force = physical_grid(model, f[k], K)
+        Mk = Mk[force <= 1.0]
+        assert Mk.max() <= C.upper[k] * (1 + 1e-9) and Mk.min() >= C.lower[k] * (1 - 1e-9)
+
+
+def test_witnesses_are_admissible_and_attain_their_values():
+    model = chain(3, 0.5)
+    f = np.array([16.0, 40.0, 110.0])
+    B = compute_bounds(model, f, K_MAX, F_lim=F_LIM, budget=500)
+    C = B.certificate
+    for k, fk in enumerate(f):
+        for K, value in ((C.K_upper[k], C.upper_witness[k]), (C.K_lower[k], C.lower_witness[k])):
+            assert np.all((K.real >= 0) & (K.real <= K_MAX) & (K.imag >= 0) & (K.imag <= K_MAX))
+            M, force = physical_grid(model, fk, K[None, :])
+            assert force[0] <= 1 + 1e-9
+            assert M[0] == pytest.approx(value, rel=1e-9)
+        assert C.upper[k] <= C.upper_witness[k] * 1.006 or not C.converged[0, k]
+
+
+def test_certificate_round_trips_through_a_file(tmp_path):
+    from mcfric.store import write_file
+
+    model = mcfric.two_beam(0.22)
+    f = np.linspace(12, 140, 9)
+    B = compute_bounds(model, f, K_MAX, F_lim=F_LIM)
+    path = tmp_path / "b.h5"
+    write_file(path, {"frequency": (f, {"units": "Hz"}), "damper": (np.arange(1, 2), {})},
+               {"bounds": to_group(B)}, {})
+    R = read_bounds(path).certificate
+    for name in ("upper", "lower", "upper_witness", "lower_witness", "K_upper", "K_lower",
+                 "converged", "evaluations"):
+        np.testing.assert_array_equal(getattr(R, name), getattr(B.certificate, name))
+
+
+def test_skipping_certification_and_bad_budget():
+    model = mcfric.two_beam(0.22)
+    f = np.linspace(12, 140, 5)
+    assert compute_bounds(model, f, K_MAX, certified=False).certificate is None
+    with pytest.raises(ValueError, match="^budget: expected an integer >= 1"):
+        compute_bounds(model, f, K_MAX, budget=0)
