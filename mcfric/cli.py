@@ -349,7 +349,8 @@ def _only_replacing_bounds(out):
 
 
 def _check_members(path):
-    """Count converged ensemble points outside the stored bounds (a validity check)."""
+    """Count converged ensemble points outside the stored bounds (a validity check):
+    ``(outside, total, outside_certified)``, the last None if not certified."""
     import numpy as np
 
     from .bounds import read_bounds
@@ -358,12 +359,15 @@ def _check_members(path):
     B = read_bounds(path)
     if B is None:
         return None
-    outside = total = 0
+    C = B.certificate
+    outside = total = outside_cert = 0
     for _, arr in iter_records(path, ["metric", "converged"]):
         ok = arr["converged"]
         outside += int(np.count_nonzero(~B.contains(arr["metric"]) & ok))
+        if C is not None:
+            outside_cert += int(np.count_nonzero(~C.contains(arr["metric"]) & ok))
         total += int(np.count_nonzero(ok))
-    return outside, total
+    return outside, total, None if C is None else outside_cert
 
 
 def order_path(out, E):
@@ -439,10 +443,14 @@ def _run_one(args, cfg, out, resume_as=None):
     if summary.complete:
         check = _check_members(out)
         if check is not None:
-            outside, total = check
+            outside, total, outside_cert = check
             print(f"bounds check: {outside} of {total:,} converged member points outside "
                   f"[lower, upper]" + ("" if outside == 0 else
                                        " (the bounds search missed them: please report)"))
+            if outside_cert is not None:
+                print(f"certified bounds check: {outside_cert} outside [lower_certified, "
+                      f"upper_certified]" + ("" if outside_cert == 0 else
+                                             " (a broken certificate: please report)"))
     if summary.complete and not args.no_figure:
         png = out.with_suffix(".png")
         plot.results_figure(out, png)

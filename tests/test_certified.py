@@ -159,3 +159,13 @@ def test_skipping_certification_and_bad_budget():
     assert compute_bounds(model, f, K_MAX, certified=False).certificate is None
     with pytest.raises(ValueError, match="^budget: expected an integer >= 1"):
         compute_bounds(model, f, K_MAX, budget=0)
+
+
+def test_certificate_does_not_depend_on_the_thread_count():
+    model = mcfric.eight_beam(1.1)
+    f = np.linspace(10, 150, 24)
+    A = compute_bounds(model, f, K_MAX, F_lim=F_LIM, n_threads=1).certificate
+    B = compute_bounds(model, f, K_MAX, F_lim=F_LIM, n_threads=2).certificate
+    for name in ("upper", "lower", "upper_witness", "lower_witness", "K_upper", "K_lower",
+                 "evaluations"):
+        np.testing.assert_array_equal(getattr(A, name), getattr(B, name))

@@ -27,6 +27,10 @@ BUDGET = 400
 RTOL = 5e-3
 #: ... or, for the minimum, within this fraction of the certified upper bound (absolute).
 ATOL_FRACTION = 1e-3
+#: Above this many dampers the branch and bound proves nothing beyond the force bound and
+#: 0 within any practical budget (measured: the docs' bounds page), so only the whole box
+#: is enclosed: the certificate is then Eq. 10 and 0, with the witnesses.
+MAX_DAMPERS = 8
 #: Relative margin on the force bound (a sum of non-negative products: (nd + 2) u).
 _FORCE_MARGIN = 1e-12
 
@@ -74,6 +78,12 @@ class Certificate:
         with np.errstate(divide="ignore", invalid="ignore"):
             return np.where(self.lower_witness > 0, 1.0 - self.lower / self.lower_witness, 0.0)
 
+    def contains(self, metric, rtol=1e-9):
+        """Boolean mask ``lower (1 - rtol) <= metric <= upper (1 + rtol)`` (NaN -> False)."""
+        metric = np.asarray(metric)
+        with np.errstate(invalid="ignore"):
+            return (metric >= self.lower * (1 - rtol)) & (metric <= self.upper * (1 + rtol))
+
     @property
     def lower_tight(self):
         """Where the lower bound is within 1 % of its witness or within ``ATOL_FRACTION``
@@ -114,7 +124,7 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=BUDGE
     scale : ndarray, shape (n_f,)
         ``omega ** k`` from displacement to the metric's quantity.
     budget : int
-        Enclosures per frequency and bound.
+        Enclosures per frequency and bound (1 above ``MAX_DAMPERS`` dampers).
     rtol : float
         Relative tolerance of the branch and bound.
 
@@ -123,6 +133,8 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=BUDGE
     Certificate
     """
     n_f, nd = q0.shape
+    if nd > MAX_DAMPERS:
+        budget = 1
     uniform = np.array([0.0, kr, kr + 1j * ki, 1j * ki, 0.5 * (kr + 1j * ki)])
     corners = np.broadcast_to(uniform[None, :, None], (n_f, len(uniform), nd))
     init_up = np.ascontiguousarray(np.concatenate([K_upper[:, None], corners], axis=1))

@@ -54,7 +54,7 @@ def refine_upper_peak(model, B, rtol=1e-4):
     sub_f = np.linspace(f[lo], f[hi], SUB_GRID)
     S = compute_bounds(model, sub_f, B.k_max_re, k_max_im=B.k_max_im,
                        F_lim=None if np.isinf(B.F_lim) else B.F_lim, quantity=B.quantity,
-                       beams=B.beams or None)
+                       beams=B.beams or None, certified=False)
     s_up = np.where(np.isfinite(S.upper), S.upper, -np.inf)
     j = int(np.argmax(s_up))
     if s_up[j] < up[k]:                  # never below what the grid found

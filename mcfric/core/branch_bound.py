@@ -19,6 +19,7 @@ from .enclosure import INFEASIBLE, OK, enclosure, workspace
 from .linalg import contact_solve
 
 
+
 @jit(nogil=True)
 def admissible_value(G, q0, ylin, H, K, F_lim, T, piv, q):
     """``M`` at ``K`` (m), and whether ``K`` satisfies the force limit (the box is the
@@ -137,6 +138,7 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, want_max, K_init, budget, rtol, atol,
     L = np.empty(nb)
     n = 0
     evaluations = 0
+    root = math.inf if want_max else 0.0
     converged = False
     # the root: the whole box
     n_free -= 1
@@ -187,6 +189,8 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, want_max, K_init, budget, rtol, atol,
                         j_star = j
             split[slot] = j_star
             key[slot] = sign * bnd
+            if evaluations == 1:
+                root = bnd
             n = _push(heap, key, n, slot)
         if n == 0:
             converged = True
@@ -201,9 +205,13 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, want_max, K_init, budget, rtol, atol,
             break
         if evaluations + 2 > budget:
             break
-        # a quarter of the budget spent and the best open sub-box still unproved: the
-        # sub-boxes are too many to shrink to provable ones, stop (the result stays valid)
-        if 4 * evaluations > budget and (top == math.inf if want_max else top == 0.0):
+        # budget / (2 nd) enclosures spent (one per real dimension and halving of the
+        # budget) and the best open bound no better than the whole box's (for the maximum
+        # its force bound, Eq. 10, or none; for the minimum 0): too many sub-boxes would
+        # have to shrink before any proves more, so stop (the result stays valid, only
+        # loose)
+        if (evaluations >= max(4, budget // (2 * nd))
+                and ((top >= root * (1.0 - 1e-3)) if want_max else (top <= root))):
             break
         slot = _pop(heap, key, n)
         n -= 1

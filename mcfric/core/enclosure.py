@@ -44,7 +44,7 @@ def workspace(nd, nb):
             np.empty(nd, np.int64), np.empty(nd, c), np.empty(nd, c),
             np.empty((nd, nd)), np.empty((nd, nd)), np.empty((nd, nd)), np.empty((nd, nd)),
             np.empty(nd), np.empty(nd), np.empty(nd), np.empty(nd), np.empty(nd),
-            np.empty(nd), np.empty(nd), np.empty(nd), np.empty(nd, c),
+            np.empty(nd), np.empty(nd), np.empty(nd), np.empty(nd, c), np.empty(nd, c),
             np.empty((nb, nd)), np.empty(nb))
 
 
@@ -135,7 +135,7 @@ def enclosure(G, q0, ylin, H, lo, hi, F_lim, U, L, ws):
         Whether the centre satisfies the force limit.
     """
     (A, X, XG, piv, qh, col, absX, Eb, XGb, N, r, kabs, e0, abar, rhs, eq, Ea, rad, cen,
-     Pb, yabs) = ws
+     hw, Pb, yabs) = ws
     nd = q0.shape[0]
     nb = ylin.shape[0]
     c = 8.0 * (nd + 4) * U_ROUND
@@ -147,6 +147,7 @@ def enclosure(G, q0, ylin, H, lo, hi, F_lim, U, L, ws):
         dr = max(hi[j].real - cr, cr - lo[j].real)
         di = max(hi[j].imag - ci, ci - lo[j].imag)
         r[j] = math.sqrt(dr * dr + di * di) * (1.0 + c)
+        hw[j] = complex(dr * (1.0 + c), di * (1.0 + c))
         kabs[j] = abs(Kc[j])
     for i in range(nd):
         for j in range(nd):
@@ -240,7 +241,18 @@ def enclosure(G, q0, ylin, H, lo, hi, F_lim, U, L, ws):
             yc -= hk * qh[j]
             # the E q term, the error of X q0 and that of forming yc
             ex += abs(hk) * (Ea[j] + e0[j] + c * abs(qh[j]))
-        # P = H - H Kc X G and its error
+        yabs[b] = abs(yc)
+        centre_value = max(centre_value, yabs[b])
+        # y - yc = -sum_j P_bj dK_j qh_j + remainder: the linear part is bounded exactly
+        # over the rectangles along and across u = yc / |yc|, the rest (second order:
+        # P dK (q - qh)) and every rounding error go to ex
+        ur = 1.0
+        ui = 0.0
+        if yabs[b] > 0.0:
+            ur = yc.real / yabs[b]
+            ui = yc.imag / yabs[b]
+        vp = 0.0
+        vq = 0.0
         for j in range(nd):
             p = H[b, j]
             pe = abs(H[b, j])
@@ -248,12 +260,20 @@ def enclosure(G, q0, ylin, H, lo, hi, F_lim, U, L, ws):
                 hk = H[b, i] * Kc[i]
                 p -= hk * XG[i, j]
                 pe += abs(hk) * XGb[i, j]
-            Pb[b, j] = (abs(p) + 2.0 * c * pe) * r[j] * abar[j]
-            ex += Pb[b, j]
-        yabs[b] = abs(yc)
-        centre_value = max(centre_value, yabs[b])
-        U[b] = (yabs[b] + ex) * (1.0 + 2.0 * c)
-        L[b] = max(0.0, (yabs[b] - ex) * (1.0 - 2.0 * c))
+            pe *= 2.0 * c
+            pq = p * qh[j]
+            along = ur * pq.real + ui * pq.imag
+            across = ur * pq.imag - ui * pq.real
+            lp = hw[j].real * abs(along) + hw[j].imag * abs(across)
+            lq = hw[j].real * abs(across) + hw[j].imag * abs(along)
+            rem = ((abs(p) + pe) * eq[j] + pe * abs(qh[j]) + c * abs(pq)) * r[j]
+            vp += lp
+            vq += lq
+            ex += rem
+            Pb[b, j] = lp + lq + rem
+        ex += c * (vp + vq)
+        U[b] = (math.sqrt((yabs[b] + vp) ** 2 + vq * vq) + ex) * (1.0 + 2.0 * c)
+        L[b] = max(0.0, (yabs[b] - vp - ex) * (1.0 - 2.0 * c))
     if math.isfinite(F_lim):
         if not _force_bound(ylin, H, Kc, qh, eq, r, kabs, F_lim, U, cen, rad, c):
             return INFEASIBLE, math.nan, False
