@@ -669,7 +669,7 @@ def cmd_info(args):
     from .bounds import read_bounds
     B = read_bounds(path)
     if B is not None and B.certificate is not None:
-        lines.append(f"bounds:      {B.certificate.summary()}")
+        lines.append(f"bounds:      {B.certificate.summary(B.freq_hz)}")
     if a.get("complete") == 1:
         lines.append(f"run time:    {a.get('wall_time_s', float('nan')):.1f} s "
                      f"(kernel {a.get('kernel_time_s', float('nan')):.1f} s) in the session "

@@ -90,8 +90,8 @@ def test_one_damper_encloses_a_dense_grid_and_is_tight(F0, F_lim):
     model = mcfric.two_beam(F0)
     f = np.array([12.0, 17.0, 30.0, 40.0, 55.0, 64.0, 90.0, 112.0, 140.0])
     B = compute_bounds(model, f, K_MAX, F_lim=F_lim, budget=4000)
-    C = check_encloses(B, model, f, 301, tight=0.006 if F_lim is None else None,
-                       n_edge=100001)
+    C = check_encloses(B, model, f, 201, tight=0.006 if F_lim is None else None,
+                       n_edge=40001)
     assert C.converged.all()
 
 
@@ -169,3 +169,33 @@ def test_certificate_does_not_depend_on_the_thread_count():
     for name in ("upper", "lower", "upper_witness", "lower_witness", "K_upper", "K_lower",
                  "evaluations"):
         np.testing.assert_array_equal(getattr(A, name), getattr(B, name))
+
+
+def test_eight_beams_enclose_a_multistart_search_of_the_joint_set():
+    """scipy SLSQP from random starts, on M subject to the box and the force limit
+    (physical-space solves): nothing above the certified upper or below the lower."""
+    from scipy import optimize
+
+    model = mcfric.eight_beam(1.1)
+    f = np.array([17.0, 45.0, 90.0, 130.0])
+    B = compute_bounds(model, f, K_MAX, F_lim=F_LIM, budget=200)
+    C = B.certificate
+    nd = model.n_dampers
+    rng = np.random.default_rng(11)
+
+    def unpack(x):
+        return (x[:nd] + 1j * x[nd:])[None, :]
+
+    for k, fk in enumerate(f):
+        for sign in (1.0, -1.0):
+            for x0 in rng.uniform(0, K_MAX, (4, 2 * nd)):
+                res = optimize.minimize(
+                    lambda x: -sign * physical_grid(model, fk, unpack(x))[0][0] / C.upper[k],
+                    x0, method="SLSQP", bounds=[(0, K_MAX)] * (2 * nd),
+                    constraints={"type": "ineq",
+                                 "fun": lambda x: 1.0 - physical_grid(model, fk, unpack(x))[1]},
+                    options={"maxiter": 60})
+                x = np.clip(res.x, 0, K_MAX)
+                M, force = physical_grid(model, fk, unpack(x))
+                if force[0] <= 1.0:
+                    assert C.lower[k] * (1 - 1e-9) <= M[0] <= C.upper[k] * (1 + 1e-9)

@@ -92,16 +92,29 @@ class Certificate:
             return ((self.lower_gap <= 0.01)
                     | (self.lower_witness - self.lower <= ATOL_FRACTION * self.upper))
 
-    def summary(self):
-        """Where the certificate is within 1 % of its witness, and the largest gaps."""
+    def summary(self, freq_hz):
+        """Where the certificate is within 1 % of its witness, the largest gaps and where
+        they are, and where the budget ran out (``freq_hz``: the frequencies, Hz)."""
+        f = np.asarray(freq_hz)
         n = len(self.upper)
         up = self.upper_gap
         loose = ~self.lower_tight
-        worst = np.max(self.lower_gap[loose]) if loose.any() else 0.0
-        return (f"certified: upper within 1 % of its witness at {np.count_nonzero(up <= 0.01)} "
-                f"of {n} frequencies (largest gap {_pct(np.max(up))}); lower within 1 % or "
-                f"{ATOL_FRACTION:g} x upper at {n - np.count_nonzero(loose)} (largest gap "
-                f"elsewhere {_pct(worst)})")
+        k_up = int(np.argmax(np.where(np.isnan(up), -np.inf, up)))
+        lo_gap = np.where(loose, self.lower_gap, -np.inf)
+        k_lo = int(np.argmax(lo_gap))
+        text = (f"certified: upper within 1 % of its witness at "
+                f"{np.count_nonzero(up <= 0.01)} of {n} frequencies (largest gap "
+                f"{_pct(up[k_up])} at {f[k_up]:.4g} Hz); lower within 1 % or "
+                f"{ATOL_FRACTION:g} x upper at {n - np.count_nonzero(loose)}")
+        if loose.any():
+            text += f" (largest gap elsewhere {_pct(lo_gap[k_lo])} at {f[k_lo]:.4g} Hz)"
+        for row, name in enumerate(("upper", "lower")):
+            out = ~self.converged[row]
+            if out.any():
+                text += (f"; {name}: budget spent before the tolerance at "
+                         f"{np.count_nonzero(out)} frequencies in {f[out].min():.4g}-"
+                         f"{f[out].max():.4g} Hz (valid there, looser)")
+        return text
 
 
 def _pct(x):

@@ -115,7 +115,7 @@ class Bounds:
         text = (f"bounds at {len(self.freq_hz)} frequencies: upper set by the force limit at "
                 f"{force}, by the box at {len(self.freq_hz) - force}; failed: {self.n_failed}")
         if self.certificate is not None:
-            text += "\n" + self.certificate.summary()
+            text += "\n" + self.certificate.summary(self.freq_hz)
         return text
 
     def contains(self, metric, rtol=1e-9):

@@ -19,7 +19,6 @@ from .enclosure import INFEASIBLE, OK, enclosure, workspace
 from .linalg import contact_solve
 
 
-
 @jit(nogil=True)
 def admissible_value(G, q0, ylin, H, K, F_lim, T, piv, q):
     """``M`` at ``K`` (m), and whether ``K`` satisfies the force limit (the box is the
