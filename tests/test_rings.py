@@ -265,3 +265,32 @@ def test_bad_ring_input_is_one_line_and_writes_nothing(tmp_path, monkeypatch, ca
         assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.toml"]
     with pytest.raises(ValueError, match="engine_order"):
         _ring(6, False, engine_order=6)
+
+
+@pytest.mark.parametrize("n", [5, 24, 72])
+def test_the_ring_elimination_of_the_bounds_searches_equals_numpy(n):
+    """The bounds' Gauss-Newton searches factor a ring's I + G diag(K) by bordering
+    (O(n)): the same solution as numpy's dense solve; a chain is not taken for a ring."""
+    from mcfric.core.linalg import cyclic_factor, cyclic_solve, is_cyclic
+    from mcfric.core.receptance import contact_space
+
+    rng = np.random.default_rng(n)
+    for topology in ("circular", "linear"):
+        model = Model.identical(TABLE_1, n, excitation=Excitation("travelling", 1.1),
+                                topology=topology)
+        f = np.array([17.0, 60.0, 110.0])
+        G, q0, _, _ = contact_space(model.receptances(2 * np.pi * f)[0], model.force,
+                                    *model.dampers)
+        for k in range(len(f)):
+            Gk = np.ascontiguousarray(G[k])
+            assert is_cyclic(Gk, model.n_dampers) == (topology == "circular")
+            if topology == "linear":
+                continue
+            for _ in range(10):
+                K = rng.uniform(0, 15000, n) + 1j * rng.uniform(0, 15000, n)
+                F = np.empty((4, n), complex)
+                assert cyclic_factor(Gk, K, F, n) == 0
+                x = q0[k].copy()
+                cyclic_solve(Gk, K, F, x, n)
+                ref = np.linalg.solve(np.eye(n) + Gk * K[None, :], q0[k])
+                np.testing.assert_allclose(x, ref, rtol=0, atol=1e-12 * np.abs(ref).max())

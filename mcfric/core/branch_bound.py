@@ -94,7 +94,7 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, want_max, K_init, budget, rtol, atol,
     K_init : ndarray of complex, shape (n_init, nd)
         Candidate witnesses, N/m (for example a search's optimum), used if admissible.
     budget : int
-        Enclosures to evaluate at most.
+        Enclosures to evaluate at most; 0: none (only the witness is sought).
     rtol, atol : float
         Stop when the best open bound is within ``rtol`` (relative) or ``atol`` (m) of the
         witness.
@@ -123,6 +123,9 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, want_max, K_init, budget, rtol, atol,
         if ok and math.isfinite(v) and sign * v > sign * witness:
             witness = v
             K_best[:] = K_init[s]
+    if budget <= 0:
+        # no enclosure: the whole box is not bounded here (the caller caps it)
+        return (math.inf if want_max else 0.0), witness, 0, False
     cap = budget + 2
     lo = np.zeros((cap, nd), np.complex128)
     hi = np.zeros((cap, nd), np.complex128)

@@ -232,3 +232,83 @@ def is_tridiagonal(gr, nd):
         if gr[j, 0] < j - 1 or gr[j, 1] > j + 2:
             return False
     return True
+
+
+@jit
+def is_cyclic(G, nd):
+    """G is cyclic tridiagonal with a nonzero corner (a ring of dampers), ``nd >= 5``:
+    ``I + G diag(K)`` then factors by :func:`cyclic_factor` in O(nd)."""
+    if nd < 5 or (G[0, nd - 1] == 0.0 and G[nd - 1, 0] == 0.0):
+        return False
+    for i in range(nd):
+        for j in range(nd):
+            d = abs(i - j)
+            if d > 1 and d != nd - 1 and G[i, j] != 0.0:
+                return False
+    return True
+
+
+@inline_jit
+def _t(G, K, i, j):
+    """Entry (i, j) of ``I + G diag(K)``."""
+    v = G[i, j] * K[j]
+    return v + 1.0 if i == j else v
+
+
+@jit
+def cyclic_factor(G, K, F, nd):
+    """Unpivoted factorisation of ``T = I + G diag(K)`` for a cyclic tridiagonal ``G``,
+    bordered by the last row and column: the tridiagonal block ``A`` (rows and columns
+    0..nd-2) by elimination, ``w = A^-1 u`` for the last column ``u`` and the Schur
+    complement ``s``. ``F`` (4, nd) complex keeps pivots, multipliers, ``w`` and ``s``.
+
+    Unpivoted like the chain's elimination: the searches use it, the values they report
+    are recomputed by LU with partial pivoting. Returns 0, or ``k + 1`` for a zero or
+    non-finite pivot at step ``k``.
+    """
+    m = nd - 1
+    F[0, 0] = _t(G, K, 0, 0)
+    for i in range(1, m):
+        p = F[0, i - 1]
+        if not (abs(p) > 0.0) or not math.isfinite(abs(p)):
+            return i
+        li = _t(G, K, i, i - 1) / p
+        F[1, i] = li
+        F[0, i] = _t(G, K, i, i) - li * _t(G, K, i - 1, i)
+    p = F[0, m - 1]
+    if not (abs(p) > 0.0) or not math.isfinite(abs(p)):
+        return m
+    w = F[2]
+    for i in range(m):
+        w[i] = 0.0
+    w[0] = _t(G, K, 0, m)
+    w[m - 1] += _t(G, K, m - 1, m)
+    _tri_apply(G, K, F, w, m)
+    s = _t(G, K, m, m) - _t(G, K, m, 0) * w[0] - _t(G, K, m, m - 1) * w[m - 1]
+    if not (abs(s) > 0.0) or not math.isfinite(abs(s)):
+        return nd
+    F[3, 0] = s
+    return 0
+
+
+@inline_jit
+def _tri_apply(G, K, F, x, m):
+    """``x = A^-1 x`` in place for the first ``m`` rows, with :func:`cyclic_factor`'s
+    factors of the tridiagonal block."""
+    for i in range(1, m):
+        x[i] -= F[1, i] * x[i - 1]
+    x[m - 1] /= F[0, m - 1]
+    for i in range(m - 2, -1, -1):
+        x[i] = (x[i] - _t(G, K, i, i + 1) * x[i + 1]) / F[0, i]
+
+
+@jit
+def cyclic_solve(G, K, F, x, nd):
+    """Solve ``(I + G diag(K)) x = b`` in place (``x`` holds ``b``) with the factors of
+    :func:`cyclic_factor`."""
+    m = nd - 1
+    _tri_apply(G, K, F, x, m)
+    xl = (x[m] - _t(G, K, m, 0) * x[0] - _t(G, K, m, m - 1) * x[m - 1]) / F[3, 0]
+    x[m] = xl
+    for i in range(m):
+        x[i] -= F[2, i] * xl

@@ -25,13 +25,28 @@ import math
 import numpy as np
 
 from ._jit import inline_jit, jit
-from .linalg import contact_solve, lm_solve, lu_factor, lu_solve
+from .linalg import (
+    contact_solve,
+    cyclic_factor,
+    cyclic_solve,
+    is_cyclic,
+    lm_solve,
+    lu_factor,
+    lu_solve,
+)
 
 
 @inline_jit
-def _sumsq(G, q0, ylin, H, K, T, piv, q, y, nd, nb, hr):
-    """``sum_b |y_b|^2`` at ``K`` (fills q, y; LU of I + G K in T); inf if singular."""
-    if contact_solve(G, K, q0, T, piv, q, nd) != 0:
+def _sumsq(G, q0, ylin, H, K, T, piv, q, y, nd, nb, hr, F, cyc):
+    """``sum_b |y_b|^2`` at ``K`` (fills q, y; the factors of I + G K in T, or in F for a
+    ring, ``cyc``); inf if singular."""
+    if cyc:
+        if cyclic_factor(G, K, F, nd) != 0:
+            return math.inf
+        for i in range(nd):
+            q[i] = q0[i]
+        cyclic_solve(G, K, F, q, nd)
+    elif contact_solve(G, K, q0, T, piv, q, nd) != 0:
         return math.inf
     tot = 0.0
     for b in range(nb):
@@ -44,13 +59,17 @@ def _sumsq(G, q0, ylin, H, K, T, piv, q, y, nd, nb, hr):
 
 
 @inline_jit
-def _jacobian(G, H, K, T, piv, q, kr, ki, X, col, D, nd, nb, hr):
+def _jacobian(G, H, K, T, piv, q, kr, ki, X, col, D, nd, nb, hr, F, cyc):
     """``D[b, 2j] = dy_b / d(Re K_j / kr)``, ``D[b, 2j + 1] = dy_b / d(Im K_j / ki)``
-    (complex, m), from the LU of ``I + G diag(K)`` in ``T`` and ``q`` at ``K``."""
+    (complex, m), from the factors of ``I + G diag(K)`` (``T``, or ``F`` for a ring) and
+    ``q`` at ``K``."""
     for j in range(nd):
         for i in range(nd):
             col[i] = G[i, j]
-        lu_solve(T, piv, col, nd)
+        if cyc:
+            cyclic_solve(G, K, F, col, nd)
+        else:
+            lu_solve(T, piv, col, nd)
         for i in range(nd):
             X[i, j] = col[i]
     for b in range(nb):
@@ -74,6 +93,10 @@ def lsq_valley(G, q0, ylin, H, kr, ki, K, w, n_iter=40):
     """
     T, piv, q, y = w[1], w[2], w[3], w[4]
     nd = K.shape[0]
+    # a ring: O(nd) eliminations instead of dense LU (the values reported are
+    # recomputed by pivoted LU, as for the chain's)
+    cyc = is_cyclic(G, nd)
+    F = np.empty((4, nd), dtype=np.complex128)
     nb = ylin.shape[0]
     n = 2 * nd
     X = np.empty((nd, nd), dtype=np.complex128)
@@ -86,7 +109,7 @@ def lsq_valley(G, q0, ylin, H, kr, ki, K, w, n_iter=40):
     rpiv = np.empty(n, dtype=np.int64)
     Kt = np.empty(nd, dtype=np.complex128)
     hr = w[12]
-    phi = _sumsq(G, q0, ylin, H, K, T, piv, q, y, nd, nb, hr)
+    phi = _sumsq(G, q0, ylin, H, K, T, piv, q, y, nd, nb, hr, F, cyc)
     if not math.isfinite(phi):
         return math.inf
     # the damping in the units of A^T A (m^2, like phi): an absolute lam (responses
@@ -94,7 +117,7 @@ def lsq_valley(G, q0, ylin, H, kr, ki, K, w, n_iter=40):
     lam_unit = phi
     lam = 1e-3 * lam_unit
     for it in range(n_iter):
-        _jacobian(G, H, K, T, piv, q, kr, ki, X, col, D, nd, nb, hr)
+        _jacobian(G, H, K, T, piv, q, kr, ki, X, col, D, nd, nb, hr, F, cyc)
         # the real normal equations: A^T A = Re(D^H D), A^T r = Re(D^H y)
         for i in range(n):
             acc = 0.0
@@ -119,7 +142,7 @@ def lsq_valley(G, q0, ylin, H, kr, ki, K, w, n_iter=40):
                 re = min(max(K[j].real + d[2 * j] * kr, 0.0), kr)
                 im = min(max(K[j].imag + d[2 * j + 1] * ki, 0.0), ki)
                 Kt[j] = complex(re, im)
-            phit = _sumsq(G, q0, ylin, H, Kt, T, piv, q, y, nd, nb, hr)
+            phit = _sumsq(G, q0, ylin, H, Kt, T, piv, q, y, nd, nb, hr, F, cyc)
             if phit < phi:
                 improved = True
                 break
@@ -166,12 +189,12 @@ def _barrier_value(t, ph, x, mu, nb, n):
 
 
 @inline_jit
-def _scaled_phi(G, q0, ylin, H, x, Kt, T, piv, q, y, ph, s, kr, ki, nd, nb, hr):
+def _scaled_phi(G, q0, ylin, H, x, Kt, T, piv, q, y, ph, s, kr, ki, nd, nb, hr, F, cyc):
     """``ph_b = |y_b|^2 / s`` at the scaled point ``x`` (``Kt`` its describing functions);
     returns ``max_b ph_b`` (inf if singular)."""
     for j in range(nd):
         Kt[j] = complex(x[2 * j] * kr, x[2 * j + 1] * ki)
-    if not math.isfinite(_sumsq(G, q0, ylin, H, Kt, T, piv, q, y, nd, nb, hr)):
+    if not math.isfinite(_sumsq(G, q0, ylin, H, Kt, T, piv, q, y, nd, nb, hr, F, cyc)):
         return math.inf
     m = 0.0
     for b in range(nb):
@@ -196,6 +219,10 @@ def minimax_barrier(G, q0, ylin, H, kr, ki, K, w):
     T, piv, q, y = w[1], w[2], w[3], w[4]
     hr = w[12]
     nd = K.shape[0]
+    # a ring: O(nd) eliminations instead of dense LU (the values reported are
+    # recomputed by pivoted LU, as for the chain's)
+    cyc = is_cyclic(G, nd)
+    F = np.empty((4, nd), dtype=np.complex128)
     nb = ylin.shape[0]
     n = 2 * nd
     x = np.empty(n)
@@ -209,11 +236,14 @@ def minimax_barrier(G, q0, ylin, H, kr, ki, K, w):
     X = np.empty((nd, nd), dtype=np.complex128)
     col = np.empty(nd, dtype=np.complex128)
     D = np.empty((nb, n), dtype=np.complex128)
+    # D's parts as contiguous real rows: the curvature's inner loop vectorises on them
+    Dre = np.empty(n)
+    Dim = np.empty(n)
     Hm = np.empty((n + 1, n + 1))
     step = np.empty(n + 1)
     grad = np.empty(n + 1)
     spiv = np.empty(n + 1, dtype=np.int64)
-    phi0 = _sumsq(G, q0, ylin, H, K, T, piv, q, y, nd, nb, hr)
+    phi0 = _sumsq(G, q0, ylin, H, K, T, piv, q, y, nd, nb, hr, F, cyc)
     if not math.isfinite(phi0):
         return math.nan
     s = 0.0
@@ -225,7 +255,8 @@ def minimax_barrier(G, q0, ylin, H, kr, ki, K, w):
     for j in range(nd):
         x[2 * j] = min(max(K[j].real / kr, _BARRIER_INSET), 1.0 - _BARRIER_INSET)
         x[2 * j + 1] = min(max(K[j].imag / ki, _BARRIER_INSET), 1.0 - _BARRIER_INSET)
-    m = _scaled_phi(G, q0, ylin, H, x, Kt, T, piv, q, y, ph, s, kr, ki, nd, nb, hr)
+    m = _scaled_phi(G, q0, ylin, H, x, Kt, T, piv, q, y, ph, s, kr, ki, nd, nb, hr, F,
+                        cyc)
     if not math.isfinite(m):
         return m_start
     t = 1.01 * m + 1e-3
@@ -237,7 +268,7 @@ def minimax_barrier(G, q0, ylin, H, kr, ki, K, w):
         while steps < _BARRIER_STEPS:
             steps += 1
             # T, q, y, ph are at x (the last evaluation was the accepted one)
-            _jacobian(G, H, Kt, T, piv, q, kr, ki, X, col, D, nd, nb, hr)
+            _jacobian(G, H, Kt, T, piv, q, kr, ki, X, col, D, nd, nb, hr, F, cyc)
             for i in range(n + 1):
                 grad[i] = 0.0
                 for k in range(n + 1):
@@ -254,12 +285,18 @@ def minimax_barrier(G, q0, ylin, H, kr, ki, K, w):
                 # mu (dc dc^T / c^2 + GN curvature / c), dc = (-grad phi_b, 1)
                 ib2 = mu * ib * ib
                 gn = 2.0 * mu * ib / s
+                gb = gphi[b]
                 for i in range(n):
-                    gi = gphi[b, i]
+                    Dre[i] = D[b, i].real
+                    Dim[i] = D[b, i].imag
+                for i in range(n):
+                    a = ib2 * gb[i]
+                    dr = Dre[i]
+                    di = Dim[i]
+                    row = Hm[i]
                     for k in range(i + 1):
-                        Hm[i, k] += ib2 * gi * gphi[b, k] + gn * (
-                            D[b, i].real * D[b, k].real + D[b, i].imag * D[b, k].imag)
-                    Hm[n, i] -= ib2 * gi
+                        row[k] += a * gb[k] + gn * (dr * Dre[k] + di * Dim[k])
+                    Hm[n, i] -= a
                 Hm[n, n] += ib2
             grad[n] += 1.0
             for i in range(n):
@@ -292,7 +329,7 @@ def minimax_barrier(G, q0, ylin, H, kr, ki, K, w):
                         break
                 if inside:
                     mt = _scaled_phi(G, q0, ylin, H, xt, Kt, T, piv, q, y, pht, s, kr, ki,
-                                     nd, nb, hr)
+                                     nd, nb, hr, F, cyc)
                     if math.isfinite(mt) and (
                             _barrier_value(tt, pht, xt, mu, nb, n) <= f0 - 1e-4 * lam * dec):
                         ok = True
@@ -300,7 +337,8 @@ def minimax_barrier(G, q0, ylin, H, kr, ki, K, w):
                 lam *= 0.5
             if not ok:
                 # T, q, y belong to a rejected trial: restore them at x
-                _scaled_phi(G, q0, ylin, H, x, Kt, T, piv, q, y, ph, s, kr, ki, nd, nb, hr)
+                _scaled_phi(G, q0, ylin, H, x, Kt, T, piv, q, y, ph, s, kr, ki, nd, nb, hr, F,
+                        cyc)
                 break
             for i in range(n):
                 x[i] = xt[i]
