@@ -80,9 +80,7 @@ class Certificate:
 
     def contains(self, metric, rtol=1e-9):
         """Boolean mask ``lower (1 - rtol) <= metric <= upper (1 + rtol)`` (NaN -> False)."""
-        metric = np.asarray(metric)
-        with np.errstate(invalid="ignore"):
-            return (metric >= self.lower * (1 - rtol)) & (metric <= self.upper * (1 + rtol))
+        return within(metric, self.lower, self.upper, rtol)
 
     @property
     def lower_tight(self):
@@ -115,6 +113,14 @@ class Certificate:
                          f"{np.count_nonzero(out)} frequencies in {f[out].min():.4g}-"
                          f"{f[out].max():.4g} Hz (valid there, looser)")
         return text
+
+
+def within(metric, lower, upper, rtol):
+    """Boolean mask ``lower (1 - rtol) <= metric <= upper (1 + rtol)`` (NaN -> False): the
+    containment test of searched and certified bounds alike."""
+    metric = np.asarray(metric)
+    with np.errstate(invalid="ignore"):
+        return (metric >= lower * (1 - rtol)) & (metric <= upper * (1 + rtol))
 
 
 def _pct(x):

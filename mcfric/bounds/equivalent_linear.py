@@ -43,7 +43,7 @@ from ..model import Model
 from ..threads import threads
 from ..validators import frequencies as check_frequencies
 from ..validators import real
-from .certified import BUDGET, Certificate, certify
+from .certified import BUDGET, Certificate, certify, within
 from .search import box_extreme, starts
 
 #: ``limited_by`` codes: which constraint sets the upper bound.
@@ -120,9 +120,7 @@ class Bounds:
 
     def contains(self, metric, rtol=1e-9):
         """Boolean mask ``lower (1 - rtol) <= metric <= upper (1 + rtol)`` (NaN -> False)."""
-        metric = np.asarray(metric)
-        with np.errstate(invalid="ignore"):
-            return (metric >= self.lower * (1 - rtol)) & (metric <= self.upper * (1 + rtol))
+        return within(metric, self.lower, self.upper, rtol)
 
 
 def force_limit(mu_max, N0_max):
