@@ -231,36 +231,37 @@ def test_exact_coordinate_minimum_equals_a_dense_search_of_the_rectangle():
     assert n_inside >= 10                                # the interior case is exercised
 
 
-def test_chain_elimination_of_the_smoothed_maximum_equals_dense_lu():
-    """The smoothed maximum and its gradient by the O(nd) chain elimination equal those
-    of the dense LU path; a ring of beams keeps the dense path."""
+def test_banded_elimination_of_the_smoothed_maximum_equals_dense_lu():
+    """The smoothed maximum and its gradient by the O(nd) eliminations (chain, and the
+    bordered one of a ring) equal those of the dense LU path."""
     from mcfric.bounds.search import sparsity
     from mcfric.core.coordinate_search import workspace
+    from mcfric.core.linalg import banded
     from mcfric.core.projected_gradient import smooth_max
     from mcfric.core.receptance import contact_space
 
-    model = mcfric.eight_beam(0.25)
+    chain = mcfric.eight_beam(0.25)
     f = np.linspace(10, 150, 12)
-    rec = model.receptances(2 * np.pi * f)[0]
-    G, q0, ylin, H = contact_space(rec, model.force, *model.dampers)
-    nd, nb = G.shape[1], ylin.shape[1]
-    hr, gr = sparsity(G, H)
-    w_tri = workspace(nd, nb, hr, gr)
-    w_dense = workspace(nd, nb, np.tile([0, nd], (nb, 1)), np.tile([0, nd], (nd, 1)))
-    assert w_tri[14] and not w_dense[14]
     rng = np.random.default_rng(2)
-    for k in range(len(f)):
-        for _ in range(10):
-            K = K_MAX * (rng.uniform(size=nd) + 1j * rng.uniform(size=nd))
-            g1, g2 = np.zeros(nd, complex), np.zeros(nd, complex)
-            v1, _ = smooth_max(G[k], q0[k], ylin[k], H[k], K, 0.01, 0, nb, g1, w_tri)
-            v2, _ = smooth_max(G[k], q0[k], ylin[k], H[k], K, 0.01, 0, nb, g2, w_dense)
-            assert abs(v1 - v2) <= 1e-10 * abs(v2)
-            assert np.max(np.abs(g1 - g2)) <= 1e-9 * np.max(np.abs(g2))
-    ring = dataclasses.replace(model, topology="circular")
-    Gr, _, _, Hr = contact_space(ring.receptances(2 * np.pi * f)[0], ring.force,
-                                 *ring.dampers)
-    assert not workspace(Gr.shape[1], nb, *sparsity(Gr, Hr))[14]
+    for model, code in ((chain, 1), (dataclasses.replace(chain, topology="circular"), 2)):
+        rec = model.receptances(2 * np.pi * f)[0]
+        G, q0, ylin, H = contact_space(rec, model.force, *model.dampers)
+        nd, nb = G.shape[1], ylin.shape[1]
+        hr, gr = sparsity(G, H)
+        w_band = workspace(nd, nb, hr, gr)
+        w_dense = workspace(nd, nb, np.tile([0, nd], (nb, 1)), np.tile([0, nd], (nd, 1)))
+        for k in range(len(f)):
+            Gk = np.ascontiguousarray(G[k])
+            assert banded(Gk, gr, nd) == code
+            w_band[14][0] = code
+            w_dense[14][0] = 0
+            for _ in range(10):
+                K = K_MAX * (rng.uniform(size=nd) + 1j * rng.uniform(size=nd))
+                g1, g2 = np.zeros(nd, complex), np.zeros(nd, complex)
+                v1, _ = smooth_max(Gk, q0[k], ylin[k], H[k], K, 0.01, 0, nb, g1, w_band)
+                v2, _ = smooth_max(Gk, q0[k], ylin[k], H[k], K, 0.01, 0, nb, g2, w_dense)
+                assert abs(v1 - v2) <= 1e-10 * abs(v2)
+                assert np.max(np.abs(g1 - g2)) <= 1e-9 * np.max(np.abs(g2))
 
 
 @pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2, reason="needs 2 threads")

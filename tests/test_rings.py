@@ -269,9 +269,16 @@ def test_bad_ring_input_is_one_line_and_writes_nothing(tmp_path, monkeypatch, ca
 
 @pytest.mark.parametrize("n", [5, 24, 72])
 def test_the_ring_elimination_of_the_bounds_searches_equals_numpy(n):
-    """The bounds' Gauss-Newton searches factor a ring's I + G diag(K) by bordering
-    (O(n)): the same solution as numpy's dense solve; a chain is not taken for a ring."""
-    from mcfric.core.linalg import cyclic_factor, cyclic_solve, is_cyclic
+    """The bounds' searches factor a ring's I + G diag(K) by bordering (O(n)): the same
+    solution as numpy's dense solve, and of the transposed system; a chain is not taken
+    for a ring."""
+    from mcfric.core.linalg import (
+        cyclic_factor,
+        cyclic_factor_stable,
+        cyclic_solve,
+        cyclic_solve_transposed,
+        is_cyclic,
+    )
     from mcfric.core.receptance import contact_space
 
     rng = np.random.default_rng(n)
@@ -292,5 +299,47 @@ def test_the_ring_elimination_of_the_bounds_searches_equals_numpy(n):
                 assert cyclic_factor(Gk, K, F, n) == 0
                 x = q0[k].copy()
                 cyclic_solve(Gk, K, F, x, n)
-                ref = np.linalg.solve(np.eye(n) + Gk * K[None, :], q0[k])
+                T = np.eye(n) + Gk * K[None, :]
+                ref = np.linalg.solve(T, q0[k])
                 np.testing.assert_allclose(x, ref, rtol=0, atol=1e-12 * np.abs(ref).max())
+                # the adjoint solve of the smoothed-gradient search
+                assert cyclic_factor_stable(Gk, K, F, n)
+                b = rng.normal(size=n) + 1j * rng.normal(size=n)
+                x = b.copy()
+                cyclic_solve_transposed(Gk, K, F, x, n)
+                ref = np.linalg.solve(T.T, b)
+                np.testing.assert_allclose(x, ref, rtol=0, atol=1e-12 * np.abs(ref).max())
+
+
+def test_the_ring_coordinate_search_takes_the_bordered_elimination():
+    """On a 24-blade ring the coordinate search and the smoothed gradient solve by the
+    ring's O(n) elimination (structure code 2), and the value the search returns is M at
+    the point it returns, by numpy's dense solve."""
+    from mcfric.bounds.search import sparsity
+    from mcfric.core.coordinate_search import coordinate_search, workspace
+    from mcfric.core.projected_gradient import projected_gradient
+    from mcfric.core.receptance import contact_space
+
+    model = Model.identical(TABLE_1, 24, excitation=Excitation("travelling", 1.1),
+                            topology="circular")
+    f = np.array([18.0, 45.0])
+    G, q0, ylin, H = (np.ascontiguousarray(x) for x in contact_space(
+        model.receptances(2 * np.pi * f)[0], model.force, *model.dampers))
+    hr, gr = sparsity(G, H)
+    w = workspace(24, 24, hr, gr)
+    for k in range(len(f)):
+        for want_max, b1 in ((False, 24), (True, 1)):
+            K = np.full(24, 7500.0 + 7500.0j)
+            v = coordinate_search(G[k], q0[k], ylin[k], H[k], 15000.0, 15000.0, K, want_max,
+                                  0, b1, 20, 1e-11, w)
+            assert w[14][0] == 2
+            q = np.linalg.solve(np.eye(24) + G[k] * K[None, :], q0[k])
+            ref = np.abs(ylin[k, :b1] - H[k, :b1] @ (K * q)).max()
+            assert abs(v - ref) <= 1e-9 * ref
+        K = np.full(24, 7500.0 + 7500.0j)
+        v = projected_gradient(G[k], q0[k], ylin[k], H[k], 15000.0, 15000.0, K, 1.0, 0, 24,
+                               w, 20)
+        assert w[14][0] == 2
+        q = np.linalg.solve(np.eye(24) + G[k] * K[None, :], q0[k])
+        ref = np.abs(ylin[k] - H[k] @ (K * q)).max()
+        assert abs(v - ref) <= 1e-9 * ref

@@ -83,7 +83,8 @@ def starts(n_f, nd, n_starts, seed):
             np.ascontiguousarray(starts_min, dtype=complex))
 
 
-def box_extreme(G, q0, ylin, H, kr, ki, starts, want_max, cap=None, max_sweeps=20, rounds=2):
+def box_extreme(G, q0, ylin, H, kr, ki, starts, want_max, cap=None, max_sweeps=20, rounds=2,
+                gradient=True):
     """Max (``want_max``) or min of ``M = max_b |y_b|`` over the box at every frequency.
 
     The maximum is sought beam by beam (the maximum over the box of a maximum over beams
@@ -116,6 +117,9 @@ def box_extreme(G, q0, ylin, H, kr, ki, starts, want_max, cap=None, max_sweeps=2
         Coordinate sweeps per local search.
     rounds : int
         Upward-and-downward continuation passes (stops early when nothing improves).
+    gradient : bool
+        The minimum's local searches include the smoothed-gradient stage (``SPG_ITER``);
+        False leaves it out (coordinate searches and the minimax search alone).
 
     Returns
     -------
@@ -146,7 +150,7 @@ def box_extreme(G, q0, ylin, H, kr, ki, starts, want_max, cap=None, max_sweeps=2
     idx = np.arange(n_f)
     ran = np.zeros((2, n_o, n_f), dtype=np.bool_)
     # the maximum's local searches are coordinate searches alone (see SPG_ITER)
-    spg_continuation = 0 if want_max else SPG_ITER_CONTINUATION
+    spg_continuation = SPG_ITER_CONTINUATION if gradient and not want_max else 0
     for r in range(rounds):
         # one chain per direction and objective, interleaved by direction
         in_threads(lambda t: continuation(t % 2, t // 2, G, q0, ylin, H, hr, gr, kr, ki, want_max,
@@ -177,7 +181,7 @@ def box_extreme(G, q0, ylin, H, kr, ki, starts, want_max, cap=None, max_sweeps=2
         # explore, then one tight sweep, then the minimax search (measured against 100
         # tight sweeps: the docs' performance page)
         sweeps, tol, end_sweeps, end_tol = max_sweeps, EXPLORE_TOL, 1, POLISH_TOL
-        spg_iter = SPG_ITER
+        spg_iter = SPG_ITER if gradient else 0
     in_threads(lambda freqs: polish(G, q0, ylin, H, hr, gr, kr, ki, want_max, objectives, cap,
                                       sweeps, tol, spg_iter, best, K_best, freqs, end_sweeps,
                                       end_tol), chunks)

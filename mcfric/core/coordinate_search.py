@@ -5,7 +5,8 @@ Each step replaces one describing function ``K_j`` by the best point of its rect
 maximum each sweep ends with a Hooke-Jeeves pattern move along the sweep's
 displacement. On a chain of beams ``G`` is tridiagonal and each row of ``H`` has two
 dampers: the search skips the exact zeros (the ``hr``, ``gr`` ranges of the workspace)
-and solves by O(nd) eliminations. :func:`workspace` is the scratch that this search, the
+and solves by O(nd) eliminations; on a ring (cyclic ``G``) by the bordered O(nd)
+elimination of :func:`.linalg.cyclic_factor`. :func:`workspace` is the scratch that this search, the
 projected gradient (:mod:`.projected_gradient`) and the minimax search (:mod:`.minimax`)
 share.
 """
@@ -15,21 +16,49 @@ import math
 import numpy as np
 
 from ._jit import inline_jit, jit
-from .linalg import contact_solve, factor_inverse, is_tridiagonal, tri_factor, tri_solve
+from .linalg import (
+    banded,
+    contact_solve,
+    cyclic_factor_stable,
+    cyclic_solve,
+    factor_inverse,
+    tri_factor,
+    tri_solve,
+)
 from .rectangle import best_on_rectangle
 
 
 @inline_jit
-def _refresh(G, q0, ylin, H, K, Tinv, T, piv, q, y, nd, b0, b1, hr, tri):
-    """``q = (I + G diag(K))^-1 q0`` and ``y`` (:func:`outputs`). With ``tri`` by the
-    chain elimination (factors left in ``T``), else, or at a tiny pivot, by the inverse
-    ``Tinv`` (kept for the search's updates). Returns 1 (chain), 0 (inverse) or -1
-    (singular)."""
-    mode = 1 if tri and tri_factor(G, K, T, nd) else 0
+def _factor(G, K, T, nd, band):
+    """Factors of ``I + G diag(K)`` in ``T`` for ``band`` 1 (chain) or 2 (ring, rows
+    0-3). Returns ``band``, or 0 at a tiny pivot or for ``band`` 0."""
+    if band == 1:
+        return 1 if tri_factor(G, K, T, nd) else 0
+    if band == 2:
+        return 2 if cyclic_factor_stable(G, K, T, nd) else 0
+    return 0
+
+
+@inline_jit
+def _banded_solve(G, K, T, x, nd, mode):
+    """``x = (I + G diag(K))^-1 x`` with the factors of :func:`_factor` (mode 1 or 2)."""
     if mode == 1:
+        tri_solve(T, x, nd)
+    else:
+        cyclic_solve(G, K, T, x, nd)
+
+
+@inline_jit
+def _refresh(G, q0, ylin, H, K, Tinv, T, piv, q, y, nd, b0, b1, hr, band):
+    """``q = (I + G diag(K))^-1 q0`` and ``y`` (:func:`outputs`). For ``band`` 1 or 2
+    (:func:`.linalg.banded`) by the O(nd) elimination (factors left in ``T``), else, or
+    at a tiny pivot, by the inverse ``Tinv`` (kept for the search's updates). Returns 1
+    (chain), 2 (ring), 0 (inverse) or -1 (singular)."""
+    mode = _factor(G, K, T, nd, band)
+    if mode > 0:
         for i in range(nd):
             q[i] = q0[i]
-        tri_solve(T, q, nd)
+        _banded_solve(G, K, T, q, nd, mode)
     else:
         if not factor_inverse(G, K, Tinv, T, piv, nd):
             return -1
@@ -43,15 +72,16 @@ def _refresh(G, q0, ylin, H, K, Tinv, T, piv, q, y, nd, b0, b1, hr, tri):
 
 
 @inline_jit
-def contact_q(G, K, q0, T, piv, q, nd, tri):
-    """``q = (I + G diag(K))^-1 q0``: by the chain elimination if ``tri`` (factors left
-    in ``T``), else, or at a tiny pivot, by LU with pivoting. Returns 1 (chain), 0 (LU)
-    or -1 (singular)."""
-    if tri and tri_factor(G, K, T, nd):
+def contact_q(G, K, q0, T, piv, q, nd, band):
+    """``q = (I + G diag(K))^-1 q0``: by the O(nd) elimination for ``band`` 1 or 2
+    (:func:`.linalg.banded`; factors left in ``T``), else, or at a tiny pivot, by LU with
+    pivoting. Returns 1 (chain), 2 (ring), 0 (LU) or -1 (singular)."""
+    mode = _factor(G, K, T, nd, band)
+    if mode > 0:
         for i in range(nd):
             q[i] = q0[i]
-        tri_solve(T, q, nd)
-        return 1
+        _banded_solve(G, K, T, q, nd, mode)
+        return mode
     return 0 if contact_solve(G, K, q0, T, piv, q, nd) == 0 else -1
 
 
@@ -67,15 +97,15 @@ def outputs(ylin, H, K, q, y, b0, b1, hr):
 
 
 @inline_jit
-def _column(G, Tinv, T, u, j, nd, gr, tri):
-    """``u = (I + G diag(K))^-1 G[:, j]``: from the inverse, or (``tri``) by the chain
-    elimination whose factors are in ``T``."""
-    if tri:
+def _column(G, K, Tinv, T, u, j, nd, gr, mode):
+    """``u = (I + G diag(K))^-1 G[:, j]``: from the inverse (``mode`` 0), or by the
+    elimination whose factors are in ``T`` (1 chain, 2 ring)."""
+    if mode > 0:
         for i in range(nd):
             u[i] = 0.0j
         for m in range(gr[j, 0], gr[j, 1]):
             u[m] = G[m, j]
-        tri_solve(T, u, nd)
+        _banded_solve(G, K, T, u, nd, mode)
         return
     for i in range(nd):
         acc = 0.0j
@@ -130,13 +160,15 @@ def coordinate_search(G, q0, ylin, H, kr, ki, K, want_max, b0, b1, max_sweeps, t
     Tinv, T, piv, q, y, u, alpha, beta, rowj = w[:9]
     hr, gr = w[12], w[13]
     nd = K.shape[0]
-    # a chain: O(nd) eliminations instead of keeping the inverse (O(nd^2) per step,
-    # O(nd^3) per refresh); any other graph, or a tiny pivot, takes the inverse
-    tri = _refresh(G, q0, ylin, H, K, Tinv, T, piv, q, y, nd, b0, b1, hr, w[14])
-    if tri < 0:
+    # a chain or a ring: O(nd) eliminations instead of keeping the inverse (O(nd^2) per
+    # step, O(nd^3) per refresh); any other graph, or a tiny pivot, takes the inverse
+    band = banded(G, gr, nd)
+    w[14][0] = band
+    mode = _refresh(G, q0, ylin, H, K, Tinv, T, piv, q, y, nd, b0, b1, hr, band)
+    if mode < 0:
         return math.nan
     best = max_abs(y, b0, b1)
-    stale = False                   # the chain factors are those of an earlier K
+    stale = False                   # the factors in T are those of an earlier K
     K0, Kt = w[15], w[16]
     for sweep in range(max_sweeps):
         old = best
@@ -144,14 +176,14 @@ def coordinate_search(G, q0, ylin, H, kr, ki, K, want_max, b0, b1, max_sweeps, t
         for j in range(nd):
             K0[j] = K[j]
         for j in range(nd):
-            if tri and stale:
-                if tri_factor(G, K, T, nd):
+            if mode > 0 and stale:
+                if _factor(G, K, T, nd, mode) > 0:
                     stale = False
                 else:
-                    tri = 0
+                    mode = 0
                     if not factor_inverse(G, K, Tinv, T, piv, nd):
                         return math.nan
-            _column(G, Tinv, T, u, j, nd, gr, tri == 1)
+            _column(G, K, Tinv, T, u, j, nd, gr, mode)
             d0, d1 = _coefficients(ylin, H, K, q, y, j, u, alpha, beta, b0, b1, hr)
             # the interior only in tight searches (exploring relies on the edges and on
             # the smoothed-gradient polish)
@@ -166,7 +198,7 @@ def coordinate_search(G, q0, ylin, H, kr, ki, K, want_max, b0, b1, max_sweeps, t
             qj = q[j]
             for i in range(nd):
                 q[i] -= fac * u[i] * qj
-            if tri:
+            if mode > 0:
                 stale = True
             else:
                 for m in range(nd):
@@ -185,8 +217,9 @@ def coordinate_search(G, q0, ylin, H, kr, ki, K, want_max, b0, b1, max_sweeps, t
             # (not for the minimum: there it ends higher, see the performance page)
             _pattern_move(G, q0, ylin, H, kr, ki, K, K0, Kt, best, b0, b1, w)
         # refresh: Sherman-Morrison updates accumulate rounding
-        tri = _refresh(G, q0, ylin, H, K, Tinv, T, piv, q, y, nd, b0, b1, hr, tri == 1)
-        if tri < 0:
+        mode = _refresh(G, q0, ylin, H, K, Tinv, T, piv, q, y, nd, b0, b1, hr,
+                        band if mode > 0 else 0)
+        if mode < 0:
             return math.nan
         stale = False
         best = max_abs(y, b0, b1)
@@ -212,7 +245,7 @@ def _pattern_move(G, q0, ylin, H, kr, ki, K, K0, Kt, best, b0, b1, w):
         for j in range(nd):
             z = K[j] + t * (K[j] - K0[j])
             Kt[j] = complex(min(max(z.real, 0.0), kr), min(max(z.imag, 0.0), ki))
-        if contact_q(G, Kt, q0, T, piv, q, nd, w[14]) < 0:
+        if contact_q(G, Kt, q0, T, piv, q, nd, w[14][0]) < 0:
             break
         outputs(ylin, H, Kt, q, y, b0, b1, hr)
         v = max_abs(y, b0, b1)
@@ -230,10 +263,11 @@ def _pattern_move(G, q0, ylin, H, kr, ki, K, K0, Kt, best, b0, b1, w):
 @jit
 def workspace(nd, nb, hr, gr):
     """Scratch of one thread's searches; ends with its own copies of the sparsity ranges
-    (an array shared by the threads would have its reference count contended)."""
+    (an array shared by the threads would have its reference count contended) and the
+    structure of ``G`` (:func:`.linalg.banded`), set by each search for its ``G``."""
     c16 = np.complex128
     return (np.zeros((nd, nd), c16), np.zeros((nd, nd), c16), np.zeros(nd, np.int64),
             np.zeros(nd, c16), np.zeros(nb, c16), np.zeros(nd, c16), np.zeros(nb, c16),
             np.zeros(nb, c16), np.zeros(nd, c16), np.zeros(nd, c16), np.zeros(nb),
-            np.zeros((5, nb)), hr.copy(), gr.copy(), is_tridiagonal(gr, nd),
+            np.zeros((5, nb)), hr.copy(), gr.copy(), np.zeros(1, np.int64),
             np.zeros(nd, c16), np.zeros(nd, c16))

@@ -312,3 +312,45 @@ def cyclic_solve(G, K, F, x, nd):
     x[m] = xl
     for i in range(m):
         x[i] -= F[2, i] * xl
+
+
+@jit
+def cyclic_solve_transposed(G, K, F, b, nd):
+    """Solve ``(I + G diag(K))^T x = b`` in place with the factors of
+    :func:`cyclic_factor`: the last unknown from the transposed Schur complement (the
+    same ``s``), then ``A^T = U^T L^T`` forward and back."""
+    m = nd - 1
+    acc = b[m]
+    for i in range(m):
+        acc -= F[2, i] * b[i]
+    xl = acc / F[3, 0]
+    b[m] = xl
+    b[0] -= _t(G, K, m, 0) * xl
+    b[m - 1] -= _t(G, K, m, m - 1) * xl
+    b[0] /= F[0, 0]
+    for i in range(1, m):
+        b[i] = (b[i] - _t(G, K, i - 1, i) * b[i - 1]) / F[0, i]
+    for i in range(m - 2, -1, -1):
+        b[i] -= F[1, i + 1] * b[i + 1]
+
+
+@jit
+def cyclic_factor_stable(G, K, F, nd):
+    """:func:`cyclic_factor` with the chain's guard (:func:`tri_factor`): False (use
+    pivoting instead) also at a pivot small against its row."""
+    if cyclic_factor(G, K, F, nd) != 0:
+        return False
+    for i in range(nd - 1):
+        if not (abs(F[0, i]) > 1e-10 * (1.0 + abs(G[i, i] * K[i]))):
+            return False
+    return abs(F[3, 0]) > 1e-10 * (1.0 + abs(G[nd - 1, nd - 1] * K[nd - 1]))
+
+
+@jit
+def banded(G, gr, nd):
+    """How the searches solve with ``I + G diag(K)``: 1 a chain (:func:`tri_factor`),
+    2 a ring (:func:`cyclic_factor`), 0 neither (dense LU)."""
+    if is_tridiagonal(gr, nd):
+        return 1
+    return 2 if is_cyclic(G, nd) else 0
+

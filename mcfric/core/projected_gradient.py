@@ -11,7 +11,7 @@ import numpy as np
 
 from ._jit import jit
 from .coordinate_search import contact_q
-from .linalg import lu_solve_transposed, tri_solve_transposed
+from .linalg import banded, cyclic_solve_transposed, lu_solve_transposed, tri_solve_transposed
 
 _TINY = 1e-300
 
@@ -30,9 +30,9 @@ def smooth_max(G, q0, ylin, H, K, mu, b0, b1, grad, w):
     T, piv, q, y, u, r, lb = w[1], w[2], w[3], w[4], w[5], w[9], w[10]
     hr, gr = w[12], w[13]
     nd = K.shape[0]
-    # a chain: O(nd) elimination; else (or at a tiny pivot) LU with pivoting. Only the
-    # search path depends on this: values are taken from the coordinate search's own
-    mode = contact_q(G, K, q0, T, piv, q, nd, w[14])
+    # a chain or a ring: O(nd) elimination; else (or at a tiny pivot) LU with pivoting.
+    # Only the search path depends on this: values are taken from the coordinate search's
+    mode = contact_q(G, K, q0, T, piv, q, nd, w[14][0])
     if mode < 0:
         return math.inf, math.inf
     lmax = -math.inf
@@ -66,6 +66,8 @@ def smooth_max(G, q0, ylin, H, K, mu, b0, b1, grad, w):
         u[m] = r[m] * K[m]
     if mode == 1:
         tri_solve_transposed(T, u, nd)
+    elif mode == 2:
+        cyclic_solve_transposed(G, K, T, u, nd)
     else:
         lu_solve_transposed(T, piv, u, nd)
     for j in range(nd):
@@ -93,6 +95,7 @@ def projected_gradient(G, q0, ylin, H, kr, ki, K, sign, b0, b1, w, max_iter):
     :func:`.minimax.minimax_barrier` finishes the minimum.)
     """
     nd = K.shape[0]
+    w[14][0] = banded(G, w[13], nd)
     g = np.zeros(nd, dtype=np.complex128)
     x = np.zeros(nd, dtype=np.complex128)      # K scaled to the unit box
     xt = np.zeros(nd, dtype=np.complex128)
