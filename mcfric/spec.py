@@ -74,8 +74,9 @@ class BoundsSpec:
         Starts of the box search per frequency.
     certify : bool
         Whether the bounds are also certified (branch and bound).
-    budget : int
-        Enclosures per frequency and bound of the certification.
+    budget : int or None
+        Enclosures per frequency and bound of the certification; None: 4000 for one
+        damper, 400 for more.
     """
 
     k_max_re: float
@@ -83,7 +84,7 @@ class BoundsSpec:
     F_lim: float
     n_starts: int
     certify: bool = True
-    budget: int = 400
+    budget: int | None = None
 
 
 @dataclass(frozen=True)

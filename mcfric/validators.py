@@ -260,6 +260,19 @@ def auto_or_number(lo=0, words=("auto",)):
     return check
 
 
+def auto_or_integer(lo, hi):
+    """``"auto"`` or an integer in ``lo..hi``."""
+    whole = integer(lo, hi)
+
+    def check(v, key):
+        if v == "auto":
+            return v
+        if isinstance(v, str):
+            raise InputError(key, f'expected "auto" or {whole.what}, got {show(v)}')
+        return whole(v, key)
+    return check
+
+
 def beams_or_all():
     """``"all"`` or a list of beam numbers."""
     ints = integers()

@@ -132,6 +132,8 @@ def test_config_json_round_trips_floats_exactly():
     ({"metric": {"beams": [1, 1]}}, "metric.beams"),
     ({"excitation": {"mode": -1}}, "excitation.mode"),
     ({"run": {"threads": 10 ** 6}}, "run.threads"),
+    ({"bounds": {"certify_budget": "many"}}, "bounds.certify_budget"),
+    ({"bounds": {"certify_budget": 0}}, "bounds.certify_budget"),
     ({"model": "eight-beam"}, "model"),
 ])
 def test_errors_name_the_key(raw, key):

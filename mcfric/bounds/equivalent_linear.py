@@ -43,7 +43,7 @@ from ..model import Model
 from ..threads import threads
 from ..validators import frequencies as check_frequencies
 from ..validators import real
-from .certified import BUDGET, Certificate, certify, within
+from .certified import Certificate, certify, within
 from .search import box_extreme, starts
 
 #: ``limited_by`` codes: which constraint sets the upper bound.
@@ -182,7 +182,7 @@ def rotation_invariant(model):
 
 def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity="displacement",
                    beams=None, n_starts=N_STARTS, max_sweeps=MAX_SWEEPS, seed=0, n_threads=None,
-                   certified=True, budget=BUDGET):
+                   certified=True, budget=None):
     """Equivalent-linear bounds on the response metric of ``model``.
 
     Parameters
@@ -215,8 +215,9 @@ def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity
     certified : bool
         Also certify the bounds over the admissible set (:mod:`.certified`, the
         ``certificate`` attribute); False for a quick look.
-    budget : int
-        Enclosures per frequency and bound of the certification.
+    budget : int, optional
+        Enclosures per frequency and bound of the certification; default 4000 for one
+        damper, 400 for more (:func:`.certified.default_budget`).
 
     Returns
     -------
@@ -235,7 +236,7 @@ def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity
         raise ValueError(f"beams: expected 0-based beam indices in 0..{model.n_beams - 1}")
     if not (isinstance(n_starts, (int, np.integer)) and n_starts >= 1):
         raise ValueError(f"n_starts: expected an integer >= 1, got {n_starts!r}")
-    if not (isinstance(budget, (int, np.integer)) and budget >= 1):
+    if budget is not None and not (isinstance(budget, (int, np.integer)) and budget >= 1):
         raise ValueError(f"budget: expected an integer >= 1, got {budget!r}")
 
     omega = 2 * np.pi * f

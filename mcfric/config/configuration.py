@@ -58,7 +58,8 @@ class Config:
                              " an undamped mode has an unbounded resonance; give zeta > 0 or "
                              "set bounds.enabled = false")
         bounds = (BoundsSpec(*validation.bounds_limits(d), n_starts=b["n_starts"],
-                             certify=b["certify"], budget=b["certify_budget"])
+                             certify=b["certify"],
+                             budget=None if b["certify_budget"] == "auto" else b["certify_budget"])
                   if b["enabled"] else None)
         r = d["run"]
         metric = MetricSpec(d["metric"]["quantity"],

@@ -15,6 +15,7 @@ from ..presets import PRESETS
 from ..presets import preset as make_preset
 from ..validators import (
     InputError,
+    auto_or_integer,
     auto_or_number,
     beams_or_all,
     boolean,
@@ -72,7 +73,7 @@ def defaults(preset=DEFAULT_PRESET):
         "output": {"keep_response": True, "response": "auto", "keep_harmonics": False},
         "run": {"threads": 0, "chunk": 0, "checkpoint_s": 0.0, "scheduler": ""},
         "bounds": {"enabled": True, "k_max": "auto", "k_max_im": "auto", "F_lim": "auto",
-                   "n_starts": 3, "certify": True, "certify_budget": 400},
+                   "n_starts": 3, "certify": True, "certify_budget": "auto"},
     }
 
 
@@ -197,8 +198,9 @@ SPEC = {
         "certify": (boolean(), "also certify the bounds over the admissible set by branch "
                                "and bound (bounds/upper_certified, lower_certified); false "
                                "for a quick look"),
-        "certify_budget": (integer(1, 1000000), "enclosures per frequency and bound of the "
-                                                "certification at most"),
+        "certify_budget": (auto_or_integer(1, 1000000), "enclosures per frequency and bound "
+                           'of the certification at most; "auto": 4000 for one damper, 400 '
+                           "for more"),
     },
 }
 SECTION_DOC = {

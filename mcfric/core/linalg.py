@@ -1,7 +1,10 @@
-"""Small dense and tridiagonal linear solves for the Newton kernels and the bounds searches.
+"""Small dense, tridiagonal (chain) and cyclic tridiagonal (ring) linear solves for the
+Newton kernels and the bounds searches.
 
-Every routine works in place and returns an info code instead of raising:
-0 = success, k > 0 = zero or non-finite pivot at step k (1-based), as LAPACK does.
+Every routine works in place and raises nothing: a factorisation returns an info code
+(0 = success, k > 0 = zero or non-finite pivot at step k, 1-based, as LAPACK does), or,
+for the guarded unpivoted eliminations (:func:`tri_factor`, :func:`cyclic_factor_stable`),
+False where a pivot is too small and pivoting must take over.
 """
 
 import math
