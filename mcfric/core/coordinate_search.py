@@ -6,9 +6,9 @@ maximum each sweep ends with a Hooke-Jeeves pattern move along the sweep's
 displacement. On a chain of beams ``G`` is tridiagonal and each row of ``H`` has two
 dampers: the search skips the exact zeros (the ``hr``, ``gr`` ranges of the workspace)
 and solves by O(nd) eliminations; on a ring (cyclic ``G``) by the bordered O(nd)
-elimination of :func:`.linalg.cyclic_factor`. :func:`workspace` is the scratch that this search, the
-projected gradient (:mod:`.projected_gradient`) and the minimax search (:mod:`.minimax`)
-share.
+elimination of :func:`.linalg.cyclic_factor`. :func:`workspace` is the scratch that this
+search, the projected gradient (:mod:`.projected_gradient`) and the minimax search
+(:mod:`.minimax`) share.
 """
 
 import math
