@@ -234,9 +234,19 @@ def jenkins(Q, orders, kc, fs, n_time, F, dF, work):
     zia = work[2 * n_time + p_max + 1:2 * n_time + 2 * p_max + 2]
     zrb = work[2 * n_time + 2 * p_max + 2:2 * n_time + 3 * p_max + 3]
     zib = work[2 * n_time + 3 * p_max + 3:2 * n_time + 4 * p_max + 4]
-    # brackets of the extrema: sign changes of q' on the samples
+    # brackets of the extrema: sign changes of q' on the samples; the sample angles by
+    # rotation (no sin/cos per sample: the bracketing was half of the AFT's time)
+    w = complex(math.cos(_TWO_PI / n_time), math.sin(_TWO_PI / n_time))
+    e = complex(1.0, 0.0)
     for i in range(n_time):
-        dq[i] = _q_derivs(Q, orders, n_h, _TWO_PI * i / n_time)[1]
+        e2 = e * e
+        p = e
+        d1 = 0.0
+        for h in range(n_h):
+            d1 -= orders[h] * (Q[h].real * p.imag + Q[h].imag * p.real)
+            p *= e2
+        dq[i] = d1
+        e *= w
     n_ext = 0
     q_max = -math.inf
     q_min = math.inf
