@@ -11,8 +11,12 @@ with ``F_lh`` the harmonics of damper ``l``'s force from :func:`mcfric.core.aft.
 the real and imaginary parts (the force is not complex-analytic in ``Q``) with the exact
 AFT Jacobian, a dense LU of size ``2 nd n_h``, and a halving line search.
 
-Each sample sweeps the frequencies in order. A point starts from the previous frequency's
-solution; if that fails (or at the first frequency), from the single-harmonic solution of
+Each sample sweeps the frequencies in order. A point starts from a prediction out of the
+previous frequencies: the higher harmonics extrapolated linearly from the last two
+solutions, the fundamental moved from the last solution by the change of the
+single-harmonic solution between the two frequencies (which follows the resonances far
+better than an extrapolation). If that fails, it starts from the previous frequency's
+solution itself; then (or at the first frequency) from the single-harmonic solution of
 the same point (passed in as its slip ratios), with zero higher harmonics.
 
 Arguments
@@ -36,10 +40,10 @@ y_peak : ndarray of float64, shape (n_s, n_f, n_beams)
 s : ndarray of float64, shape (n_s, n_f, nd)
     Out: ``mu0 N0 / (kc |Q_j1|)``, the slip ratio of the fundamental.
 status, iterations, residual
-    Out: 0 from the previous frequency, 1 from the single-harmonic start, 2 by
-    continuation in the higher harmonics' coupling from the single-harmonic start, -1 not
-    converged (``y``, ``y_peak`` and ``s`` NaN); iterations of all attempts; the final
-    ``max |R| / max_j |Q_j1|``.
+    Out: 0 from the previous frequencies (prediction or last solution), 1 from the
+    single-harmonic start, 2 by continuation in the higher harmonics' coupling from the
+    single-harmonic start, -1 not converged (``y``, ``y_peak`` and ``s`` NaN);
+    iterations of all attempts; the final ``max |R| / max_j |Q_j1|``.
 """
 
 import math
@@ -360,6 +364,9 @@ def _sample(i, rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, tol, m
     q0 = np.empty(nd, dtype=np.complex128)
     Q = np.zeros((nd, n_h), dtype=np.complex128)
     Qp = np.zeros((nd, n_h), dtype=np.complex128)
+    Qpp = np.zeros((nd, n_h), dtype=np.complex128)
+    Qsh = np.zeros((nd, n_h), dtype=np.complex128)
+    Qsh_prev = np.zeros((nd, n_h), dtype=np.complex128)
     Qt = np.zeros((nd, n_h), dtype=np.complex128)
     F = np.zeros((nd, n_h), dtype=np.complex128)
     dF = np.zeros((nd, 2 * n_h, 2 * n_h))
@@ -376,6 +383,8 @@ def _sample(i, rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, tol, m
     for j in range(nd):
         fs[j] = mu0[i, j] * N0[i, j]
     have_prev = False
+    have_prev2 = False               # Qpp holds the solution two frequencies back
+    sh_prev = False                  # Qsh_prev holds the single-harmonic start of k - 1
     n_peak = 4 * n_time
     # exp(i n_h theta) on the peak samples, once per sample
     ph = np.empty((n_peak, n_h), dtype=np.complex128)
@@ -392,21 +401,43 @@ def _sample(i, rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, tol, m
         ok = False
         st = 0
         rel = math.inf
-        if have_prev:
+        sh = _single_harmonic_start(s1[i, k], G, q0, kci, Qsh, T, piv, nd, n_h)
+        if have_prev and (have_prev2 or (sh and sh_prev)):
+            for j in range(nd):
+                for h in range(n_h):
+                    if h == 0 and sh and sh_prev:
+                        Q[j, h] = Qp[j, h] + (Qsh[j, h] - Qsh_prev[j, h])
+                    elif have_prev2:
+                        Q[j, h] = 2.0 * Qp[j, h] - Qpp[j, h]
+                    else:
+                        Q[j, h] = Qp[j, h]
+            ok, it, rel = _newton(Q, orders, G, q0, kci, fs, n_time, tol, max_iter, F, dF,
+                                  R, J, piv, dx, Qt, work, nd, n_h, chain)
+            its += it
+        if have_prev and not ok:
             for j in range(nd):
                 for h in range(n_h):
                     Q[j, h] = Qp[j, h]
             ok, it, rel = _newton(Q, orders, G, q0, kci, fs, n_time, tol, max_iter, F, dF,
                                   R, J, piv, dx, Qt, work, nd, n_h, chain)
             its += it
+        sh_prev = sh
+        for j in range(nd):
+            Qsh_prev[j, 0] = Qsh[j, 0]
         if not ok:
             st = 1 if have_prev else 0
-            if _single_harmonic_start(s1[i, k], G, q0, kci, Q, T, piv, nd, n_h):
+            if sh:
+                for j in range(nd):
+                    for h in range(n_h):
+                        Q[j, h] = Qsh[j, h]
                 ok, it, rel = _newton(Q, orders, G, q0, kci, fs, n_time, tol, max_iter, F,
                                       dF, R, J, piv, dx, Qt, work, nd, n_h, chain)
                 its += it
-        if not ok and _single_harmonic_start(s1[i, k], G, q0, kci, Q, T, piv, nd, n_h):
+        if not ok and sh:
             st = 2
+            for j in range(nd):
+                for h in range(n_h):
+                    Q[j, h] = Qsh[j, h]
             ok, it, rel = _continuation(Q, Qc, orders, G, Gs, q0, kci, fs, n_time, tol,
                                         max_iter, F, dF, R, J, piv, dx, Qt, work, nd, n_h,
                                         chain)
@@ -416,6 +447,7 @@ def _sample(i, rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, tol, m
         if not ok:
             status[i, k] = -1
             have_prev = False
+            have_prev2 = False
             for bb in range(n_beams):
                 for h in range(y.shape[2]):
                     y[i, k, h, bb] = complex(math.nan, math.nan)
@@ -424,9 +456,11 @@ def _sample(i, rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, tol, m
                 s[i, k, j] = math.nan
             continue
         status[i, k] = st
+        have_prev2 = have_prev
         have_prev = True
         for j in range(nd):
             for h in range(n_h):
+                Qpp[j, h] = Qp[j, h]
                 Qp[j, h] = Q[j, h]
             amp = abs(Q[j, 0])
             if fs[j] == 0.0:
