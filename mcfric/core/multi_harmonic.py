@@ -127,61 +127,133 @@ def _assemble(G, dF, J, nd, n_h):
                     _block(G, dF, h, j, l, m, n_h, J, 2 * (j * n_h + h), 2 * (l * n_h + m))
 
 
+@inline_jit
+def _linear_gain(dF, j, n_h):
+    """``c`` if damper ``j``'s Jacobian is ``c I`` (a stuck or force-free element: the
+    AFT then writes exactly that), else NaN."""
+    c = dF[j, 0, 0]
+    for r in range(2 * n_h):
+        for k in range(2 * n_h):
+            if dF[j, r, k] != (c if r == k else 0.0):
+                return math.nan
+    return c
+
+
+@inline_jit
+def _couple(G, dF, h, j, l, n_h, c, out, r0):
+    """Add the block row ``h`` of ``G_h[j, l] dF_l`` at rows ``r0``, ``r0 + 1`` of
+    ``out`` (columns from 0): only its diagonal 2x2 block if ``dF_l = c I``."""
+    if math.isnan(c):
+        for m in range(n_h):
+            _block(G, dF, h, j, l, m, n_h, out, r0, 2 * m)
+    else:
+        g = G[h, j, l] * c
+        out[r0, 2 * h] += g.real
+        out[r0, 2 * h + 1] -= g.imag
+        out[r0 + 1, 2 * h] += g.imag
+        out[r0 + 1, 2 * h + 1] += g.real
+
+
 @jit
 def _chain_step(G, dF, W, piv, x, nd, n_h):
     """Solve ``(I + G dF) dx = x`` in place for a chain (``G_h`` tridiagonal): block
     Thomas elimination on blocks of size ``2 n_h``, O(nd) blocks. ``W`` is scratch of at
-    least ``(3 nd + 1) * 2 n_h`` rows and ``2 n_h`` columns. Returns False on a singular
-    block."""
+    least ``(2 nd + 1) * 2 n_h`` rows and ``2 n_h`` columns. Returns False on a singular
+    block.
+
+    A damper whose Jacobian is ``c I`` (stuck) makes its coupling blocks 2x2-block
+    diagonal; the elimination then updates with those blocks alone."""
     m2 = 2 * n_h
-    col = np.empty(m2)
+    rl = 2 * nd * m2                 # rows of the scratch block Lo
+    c_prev = math.nan
+    c_cur = _linear_gain(dF, 0, n_h)
     for j in range(nd):
-        D = W[3 * j * m2:(3 * j + 1) * m2, :m2]
-        Lo = W[(3 * j + 1) * m2:(3 * j + 2) * m2, :m2]
-        Up = W[(3 * j + 2) * m2:(3 * j + 3) * m2, :m2]
+        c_next = _linear_gain(dF, j + 1, n_h) if j < nd - 1 else math.nan
+        rd = 2 * j * m2              # D_j, then its LU factors
+        rx = rd + m2                 # Up_j, then X_j = D_j^-1 Up_j
         for r in range(m2):
             for c in range(m2):
-                D[r, c] = 0.0
-                Lo[r, c] = 0.0
-                Up[r, c] = 0.0
-            D[r, r] = 1.0
+                W[rd + r, c] = 0.0
+            W[rd + r, r] = 1.0
         for h in range(n_h):
-            for m in range(n_h):
-                _block(G, dF, h, j, j, m, n_h, D, 2 * h, 2 * m)
-                if j > 0:
-                    _block(G, dF, h, j, j - 1, m, n_h, Lo, 2 * h, 2 * m)
-                if j < nd - 1:
-                    _block(G, dF, h, j, j + 1, m, n_h, Up, 2 * h, 2 * m)
+            _couple(G, dF, h, j, j, n_h, c_cur, W, rd + 2 * h)
         if j > 0:
-            Xp = W[(3 * (j - 1) + 2) * m2:(3 * (j - 1) + 3) * m2, :m2]
-            # D -= Lo X_{j-1};  x_j -= Lo y_{j-1}
-            for r in range(m2):
-                acc = 0.0
-                for k in range(m2):
-                    lk = Lo[r, k]
-                    if lk != 0.0:
-                        acc += lk * x[(j - 1) * m2 + k]
-                        for c in range(m2):
-                            D[r, c] -= lk * Xp[k, c]
-                x[j * m2 + r] -= acc
+            rxp = rx - 2 * m2        # X_{j-1}
+            o = (j - 1) * m2
+            if not math.isnan(c_prev):
+                # Lo_j is 2x2-block diagonal: D -= Lo X_{j-1}, x_j -= Lo y_{j-1} by blocks
+                for h in range(n_h):
+                    g = G[h, j, j - 1] * c_prev
+                    gr = g.real
+                    gi = g.imag
+                    r0 = 2 * h
+                    for c in range(m2):
+                        a0 = W[rxp + r0, c]
+                        a1 = W[rxp + r0 + 1, c]
+                        W[rd + r0, c] -= gr * a0 - gi * a1
+                        W[rd + r0 + 1, c] -= gi * a0 + gr * a1
+                    a0 = x[o + r0]
+                    a1 = x[o + r0 + 1]
+                    x[j * m2 + r0] -= gr * a0 - gi * a1
+                    x[j * m2 + r0 + 1] -= gi * a0 + gr * a1
+            else:
+                for r in range(m2):
+                    for c in range(m2):
+                        W[rl + r, c] = 0.0
+                for h in range(n_h):
+                    _couple(G, dF, h, j, j - 1, n_h, c_prev, W, rl + 2 * h)
+                for r in range(m2):
+                    acc = 0.0
+                    for k in range(m2):
+                        lk = W[rl + r, k]
+                        if lk != 0.0:
+                            acc += lk * x[o + k]
+                            for c in range(m2):
+                                W[rd + r, c] -= lk * W[rxp + k, c]
+                    x[j * m2 + r] -= acc
+        D = W[rd:rd + m2, :m2]
         p = piv[j * m2:(j + 1) * m2]
         if lu_factor(D, p, m2) != 0:
             return False
         xj = x[j * m2:(j + 1) * m2]
         lu_solve(D, p, xj, m2)
         if j < nd - 1:
-            for c in range(m2):
-                for r in range(m2):
-                    col[r] = Up[r, c]
-                lu_solve(D, p, col, m2)
-                for r in range(m2):
-                    Up[r, c] = col[r]
+            for r in range(m2):
+                for c in range(m2):
+                    W[rx + r, c] = 0.0
+            for h in range(n_h):
+                _couple(G, dF, h, j, j + 1, n_h, c_next, W, rx + 2 * h)
+            # X = D^-1 Up for all columns at once, row by row
+            for k in range(m2):
+                pk = p[k]
+                if pk != k:
+                    for c in range(m2):
+                        t = W[rx + k, c]
+                        W[rx + k, c] = W[rx + pk, c]
+                        W[rx + pk, c] = t
+            for r in range(1, m2):
+                for k in range(r):
+                    lk = D[r, k]
+                    if lk != 0.0:
+                        for c in range(m2):
+                            W[rx + r, c] -= lk * W[rx + k, c]
+            for r in range(m2 - 1, -1, -1):
+                for k in range(r + 1, m2):
+                    uk = D[r, k]
+                    if uk != 0.0:
+                        for c in range(m2):
+                            W[rx + r, c] -= uk * W[rx + k, c]
+                inv = 1.0 / D[r, r]
+                for c in range(m2):
+                    W[rx + r, c] *= inv
+        c_prev = c_cur
+        c_cur = c_next
     for j in range(nd - 2, -1, -1):
-        X = W[(3 * j + 2) * m2:(3 * j + 3) * m2, :m2]
+        rx = (2 * j + 1) * m2
         for r in range(m2):
             acc = 0.0
             for c in range(m2):
-                acc += X[r, c] * x[(j + 1) * m2 + c]
+                acc += W[rx + r, c] * x[(j + 1) * m2 + c]
             x[j * m2 + r] -= acc
     return True
 
@@ -371,8 +443,8 @@ def _sample(i, rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, tol, m
     F = np.zeros((nd, n_h), dtype=np.complex128)
     dF = np.zeros((nd, 2 * n_h, 2 * n_h))
     R = np.zeros((nd, n_h), dtype=np.complex128)
-    # dense Jacobian, or the chain's block rows (3 blocks of 2 n_h rows per damper)
-    J = np.zeros((3 * n + 2 * n_h, 2 * n_h)) if chain else np.zeros((n, n))
+    # dense Jacobian, or the chain's block rows (2 blocks of 2 n_h rows per damper)
+    J = np.zeros((2 * n + 2 * n_h, 2 * n_h)) if chain else np.zeros((n, n))
     T = np.zeros((nd, nd), dtype=np.complex128)
     piv = np.zeros(n, dtype=np.int64)
     dx = np.zeros(n)
