@@ -52,7 +52,7 @@ _EVENT_ITER = 60
 @jit
 def work_size(n_h, n_time):
     """Length of the float64 scratch array that :func:`jenkins` needs (orders ``2h+1``)."""
-    return 2 * n_time + 4 * (4 * n_h - 1) + 8
+    return 2 * n_time + 6 * (4 * n_h - 1) + 8
 
 
 @inline_jit
@@ -138,7 +138,7 @@ def _integral(p, a, b, ar, ai, br, bi):
 
 @jit
 def _segment(Q, orders, n_h, a, b, stick, f_a, q_a, th_a, kc, fs_sign, F, dF, zra, zia,
-             zrb, zib, p_max):
+             zrb, zib, p_max, tr, ti):
     """Add one segment ``[a, b]`` of the period to ``F`` and ``dF``.
 
     Slip: ``f = fs_sign`` (the signed slip force). Stick: ``f = f_a + kc (q - q_a)``,
@@ -149,20 +149,29 @@ def _segment(Q, orders, n_h, a, b, stick, f_a, q_a, th_a, kc, fs_sign, F, dF, zr
         return
     _powers(a, p_max, zra, zia)
     _powers(b, p_max, zrb, zib)
+    if not stick:
+        for h in range(n_h):
+            F[h] += _INV_PI * fs_sign * _integral(-orders[h], a, b, zra, zia, zrb, zib)
+        return
+    # the integrals of exp(i p theta) for the even p = nm - n and -nm - n, once each
+    # (index (p + p_max) / 2) instead of twice per pair of orders
+    for t in range(p_max // 2 + n_h):
+        v = _integral(2 * t - p_max, a, b, zra, zia, zrb, zib)
+        tr[t] = v.real
+        ti[t] = v.imag
     ea = complex(math.cos(th_a), math.sin(th_a))
     ea2 = ea * ea
     for h in range(n_h):
         n = orders[h]
         e_n = _integral(-n, a, b, zra, zia, zrb, zib)
-        if not stick:
-            F[h] += _INV_PI * fs_sign * e_n
-            continue
         acc = (f_a - kc * q_a) * e_n
         pa = ea          # exp(i nm th_a), nm = 1, 3, 5, ...
         for m in range(n_h):
             nm = orders[m]
-            i1 = _integral(nm - n, a, b, zra, zia, zrb, zib)
-            i2 = _integral(-nm - n, a, b, zra, zia, zrb, zib)
+            t1 = (nm - n + p_max) // 2
+            t2 = (p_max - nm - n) // 2
+            i1 = complex(tr[t1], ti[t1])
+            i2 = complex(tr[t2], ti[t2])
             c_mn = 0.5 * (i1 + i2)                      # integral cos(nm th) e^{-i n th}
             d = i1 - i2
             s_mn = complex(0.5 * d.imag, -0.5 * d.real)  # integral sin(nm th) e^{-i n th}
@@ -234,6 +243,8 @@ def jenkins(Q, orders, kc, fs, n_time, F, dF, work):
     zia = work[2 * n_time + p_max + 1:2 * n_time + 2 * p_max + 2]
     zrb = work[2 * n_time + 2 * p_max + 2:2 * n_time + 3 * p_max + 3]
     zib = work[2 * n_time + 3 * p_max + 3:2 * n_time + 4 * p_max + 4]
+    tr = work[2 * n_time + 4 * p_max + 4:2 * n_time + 5 * p_max + 5]
+    ti = work[2 * n_time + 5 * p_max + 5:2 * n_time + 6 * p_max + 6]
     # brackets of the extrema: sign changes of q' on the samples; the sample angles by
     # rotation (no sin/cos per sample: the bracketing was half of the AFT's time)
     w = complex(math.cos(_TWO_PI / n_time), math.sin(_TWO_PI / n_time))
@@ -306,10 +317,10 @@ def jenkins(Q, orders, kc, fs, n_time, F, dF, work):
         if (up and q_b > level) or (not up and q_b < level):
             th_s = _root(Q, orders, n_h, a, b, q_s - level, level, False)
             _segment(Q, orders, n_h, stick_from, th_s, True, f_a, q_a, th_a, kc, 0.0, F, dF,
-                     zra, zia, zrb, zib, p_max)
+                     zra, zia, zrb, zib, p_max, tr, ti)
             sgn = fs if up else -fs
             _segment(Q, orders, n_h, th_s, b, False, 0.0, 0.0, 0.0, kc, sgn, F, dF,
-                     zra, zia, zrb, zib, p_max)
+                     zra, zia, zrb, zib, p_max, tr, ti)
             th_a = b
             q_a = q_b
             f_a = sgn
@@ -318,7 +329,7 @@ def jenkins(Q, orders, kc, fs, n_time, F, dF, work):
         a = b
         q_s = q_b
     _segment(Q, orders, n_h, stick_from, th0 + _TWO_PI, True, f_a, q_a, th_a, kc, 0.0, F, dF,
-             zra, zia, zrb, zib, p_max)
+             zra, zia, zrb, zib, p_max, tr, ti)
     return n_events
 
 

@@ -458,12 +458,16 @@ def _sample(i, rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, tol, m
     have_prev2 = False               # Qpp holds the solution two frequencies back
     sh_prev = False                  # Qsh_prev holds the single-harmonic start of k - 1
     n_peak = 4 * n_time
-    # exp(i n_h theta) on the peak samples, once per sample
-    ph = np.empty((n_peak, n_h), dtype=np.complex128)
+    # cos and sin of n_h theta on the peak samples, once per sample; real arrays, the
+    # sample index innermost, so that the sums over the samples run in SIMD lanes
+    pc = np.empty((n_h, n_peak))
+    ps = np.empty((n_h, n_peak))
     for t in range(n_peak):
         for h in range(n_h):
             th = 2.0 * math.pi * orders[h] * t / n_peak
-            ph[t, h] = complex(math.cos(th), math.sin(th))
+            pc[h, t] = math.cos(th)
+            ps[h, t] = math.sin(th)
+    yt = np.empty(n_peak)
     for k in range(n_f):
         for h in range(n_h):
             _dense_G(rech, r_base + h, k, a, b, G[h], nd)
@@ -557,9 +561,14 @@ def _sample(i, rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, tol, m
             t_hi = 0
             t_lo = 0
             for t in range(n_peak):
-                v = 0.0
-                for h in range(n_h):
-                    v += (yh[h, bb] * ph[t, h]).real
+                yt[t] = 0.0
+            for h in range(n_h):
+                yr = yh[h, bb].real
+                yi = yh[h, bb].imag
+                for t in range(n_peak):
+                    yt[t] += yr * pc[h, t] - yi * ps[h, t]
+            for t in range(n_peak):
+                v = yt[t]
                 if v > hi:
                     hi = v
                     t_hi = t
