@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..core.branch_bound import certify_frequencies
+from ..core.joint_ascent import witnesses
 from ..threads import in_threads
 from .search import _chunks
 
@@ -34,6 +35,17 @@ ATOL_FRACTION = 1e-3
 #: 0 within any practical budget (measured: the docs' bounds page), so it is not run: the
 #: certificate is then Eq. 10 and 0, with the witnesses.
 MAX_DAMPERS = 7
+#: The ascent to the upper witness over the admissible set, per frequency: random points
+#: of the box tried (besides no damper and the search's box optimum) ...
+WITNESS_POOL = 200
+#: ... of which this many admissible ones, those of largest M, are climbed ...
+WITNESS_STARTS = 6
+#: ... each for this many beams (those of the largest force bound) ...
+WITNESS_BEAMS = 3
+#: ... with at most this many sweeps over the dampers, and this many samples per force
+#: circle and edge of a damper's rectangle in each step.
+WITNESS_SWEEPS = 20
+WITNESS_SAMPLES = 24
 #: Relative margin on the force bound (a sum of non-negative products: (nd + 2) u).
 _FORCE_MARGIN = 1e-12
 
@@ -132,6 +144,23 @@ def default_budget(n_dampers):
     return BUDGET_ONE_DAMPER if n_dampers == 1 else BUDGET
 
 
+def joint_witnesses(args, kr, ki, F_lim, K_upper, seed=0):
+    """Admissible points of large ``M`` (N/m, shape (n_f, nd)): the best that
+    :func:`mcfric.core.joint_ascent.witnesses` climbs to per frequency, from no damper,
+    the search's box optimum ``K_upper`` (where admissible) and ``WITNESS_POOL`` random
+    points. ``args``: the contact-space arrays (contiguous)."""
+    n_f, nd = K_upper.shape
+    given = np.ascontiguousarray(np.stack([np.zeros_like(K_upper), K_upper], axis=1))
+    K = np.zeros((n_f, nd), complex)
+    M = np.empty(n_f)
+    in_threads(lambda freqs: witnesses(*args, kr, ki, F_lim, given, WITNESS_POOL,
+                                       WITNESS_STARTS, WITNESS_BEAMS, WITNESS_SWEEPS,
+                                       WITNESS_SAMPLES, seed,
+                                       np.asarray(freqs, np.int64), K, M),
+               _chunks(n_f))
+    return K
+
+
 def _pct(x):
     return "unbounded" if not np.isfinite(x) else f"{100 * x:.3g} %"
 
@@ -172,6 +201,10 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
     init_up = np.ascontiguousarray(np.concatenate([K_upper[:, None], corners], axis=1))
     init_lo = np.ascontiguousarray(np.concatenate([K_lower[:, None], corners], axis=1))
     args = [np.ascontiguousarray(a) for a in (G, q0, ylin, H)]
+    if np.isfinite(F_lim) and nd <= MAX_DAMPERS:
+        # the box search ignores the force limit: climb to admissible witnesses as well
+        climbed = joint_witnesses(args, kr, ki, F_lim, K_upper)
+        init_up = np.concatenate([init_up, climbed[:, None]], axis=1)
     out = {}
     force = (np.abs(ylin) + (F_lim * np.abs(H).sum(axis=2) if np.isfinite(F_lim) else np.inf)
              ).max(axis=1) * (1 + _FORCE_MARGIN)
