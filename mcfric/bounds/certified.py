@@ -41,11 +41,13 @@ WITNESS_POOL = 200
 #: ... of which this many admissible ones, those of largest M, are climbed ...
 WITNESS_STARTS = 6
 #: ... each for this many beams (those of the largest force bound) ...
-WITNESS_BEAMS = 3
-#: ... with at most this many sweeps over the dampers, and this many samples per force
-#: circle and edge of a damper's rectangle in each step.
+WITNESS_BEAMS = 2
+#: ... with at most this many sweeps over the dampers, stopping when one gains less than
+#: this (relative), and this many samples per force circle and edge of a damper's
+#: rectangle in each step.
 WITNESS_SWEEPS = 20
-WITNESS_SAMPLES = 24
+WITNESS_GAIN = 1e-4
+WITNESS_SAMPLES = 12
 #: Relative margin on the force bound (a sum of non-negative products: (nd + 2) u).
 _FORCE_MARGIN = 1e-12
 
@@ -155,7 +157,7 @@ def joint_witnesses(args, kr, ki, F_lim, K_upper, seed=0):
     M = np.empty(n_f)
     in_threads(lambda freqs: witnesses(*args, kr, ki, F_lim, given, WITNESS_POOL,
                                        WITNESS_STARTS, WITNESS_BEAMS, WITNESS_SWEEPS,
-                                       WITNESS_SAMPLES, seed,
+                                       WITNESS_GAIN, WITNESS_SAMPLES, seed,
                                        np.asarray(freqs, np.int64), K, M),
                _chunks(n_f))
     return K

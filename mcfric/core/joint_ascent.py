@@ -48,20 +48,25 @@ def workspace(nd):
 
 
 @jit(nogil=True)
-def _consider(s, Kc, kr, ki, a, bco, F, yb, wb, best):
-    """``|yb - s wb|`` if ``s`` is admissible (``Kc``: damper j's new value), else -1;
-    ``best`` is the value to beat."""
+def _abs2(z):
+    return z.real * z.real + z.imag * z.imag
+
+
+@jit(nogil=True)
+def _consider(s, Kc, kr, ki, a, bco, F, yb, wb, best2):
+    """``|yb - s wb|^2`` if ``s`` is admissible (``Kc``: damper j's new value) and beats
+    ``best2``, else -1 (squares: no square roots in the inner loop)."""
     if not (-1e-12 * kr <= Kc.real <= kr * (1.0 + 1e-12)
             and -1e-12 * ki <= Kc.imag <= ki * (1.0 + 1e-12)):
         return -1.0
-    v = abs(yb - s * wb)
-    if not v > best:
+    v2 = _abs2(yb - s * wb)
+    if not v2 > best2:
         return -1.0
-    lim = F * (1.0 - _INSIDE)
+    lim2 = (F * (1.0 - _INSIDE)) ** 2
     for i in range(a.shape[0]):
-        if abs(a[i] + bco[i] * s) > lim:
+        if _abs2(a[i] + bco[i] * s) > lim2:
             return -1.0
-    return v
+    return v2
 
 
 @jit(nogil=True)
@@ -127,7 +132,7 @@ def _step(G, q0, ylin, H, kr, ki, F, b, K, j, n_samples, ws):
     qj = q[j]
     uj = u[j]
     Kj = K[j]
-    best = abs(yb)
+    best = _abs2(yb)
     k_best = Kj
     c_best = -1
     t_best = 0.0
@@ -176,11 +181,11 @@ def _step(G, q0, ylin, H, kr, ki, F, b, K, j, n_samples, ws):
                         k_best = Kn
                         t_best = t
         K[j] = complex(min(max(k_best.real, 0.0), kr), min(max(k_best.imag, 0.0), ki))
-    return best
+    return math.sqrt(best)
 
 
 @jit(nogil=True)
-def ascend(G, q0, ylin, H, kr, ki, F_lim, b, K, max_sweeps, n_samples, ws):
+def ascend(G, q0, ylin, H, kr, ki, F_lim, b, K, max_sweeps, gain, n_samples, ws):
     """Coordinate ascent of ``|y_b|`` over the admissible set, from the admissible ``K``.
 
     Parameters
@@ -197,6 +202,8 @@ def ascend(G, q0, ylin, H, kr, ki, F_lim, b, K, max_sweeps, n_samples, ws):
         In: an admissible start; out: the point reached, N/m.
     max_sweeps : int
         Sweeps over the dampers at most.
+    gain : float
+        Stop when a sweep raises ``|y_b|`` by less than this (relative).
     n_samples : int
         Samples per force circle and per edge of the rectangle.
     ws : tuple
@@ -215,7 +222,7 @@ def ascend(G, q0, ylin, H, kr, ki, F_lim, b, K, max_sweeps, n_samples, ws):
             v = _step(G, q0, ylin, H, kr, ki, F_lim, b, K, j, n_samples, ws)
             if v < 0.0:
                 return -1.0
-        if last > 0.0 and v <= last * (1.0 + 1e-9):
+        if last > 0.0 and v <= last * (1.0 + gain):
             return v
         last = v
     return last
@@ -223,7 +230,7 @@ def ascend(G, q0, ylin, H, kr, ki, F_lim, b, K, max_sweeps, n_samples, ws):
 
 @jit(nogil=True)
 def witnesses(G, q0, ylin, H, kr, ki, F_lim, K_given, n_pool, n_climb, n_beams, max_sweeps,
-              n_samples, seed, freqs, K_out, M_out):
+              gain, n_samples, seed, freqs, K_out, M_out):
     """The best admissible point :func:`ascend` reaches at each frequency of ``freqs``.
 
     At frequency ``k`` the starts are the rows of ``K_given[k]`` (n_g, nd) and ``n_pool``
@@ -276,7 +283,7 @@ def witnesses(G, q0, ylin, H, kr, ki, F_lim, K_given, n_pool, n_climb, n_beams, 
             for bi in range(min(n_beams, nb)):
                 K[:] = pool[r]
                 ascend(G[k], q0[k], ylin[k], H[k], kr, ki, F_lim, order[bi], K, max_sweeps,
-                       n_samples, ws)
+                       gain, n_samples, ws)
                 v, ok = admissible_value(G[k], q0[k], ylin[k], H[k], K, F_lim, T, piv, q)
                 if ok and math.isfinite(v) and v > M_out[k]:
                     M_out[k] = v
