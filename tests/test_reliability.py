@@ -304,7 +304,13 @@ def test_sigterm_stops_a_run_resumably(tmp_path):
     p = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     assert "mcfric run:" in p.stdout.readline()
     import time
-    time.sleep(3)
+    # signal once the ensemble has begun writing (the bounds come first; their time
+    # depends on the machine's load)
+    partial = tmp_path / "r.h5.partial"
+    deadline = time.monotonic() + 120
+    while not partial.exists() and time.monotonic() < deadline and p.poll() is None:
+        time.sleep(0.1)
+    time.sleep(1)
     p.send_signal(15)
     _, err = p.communicate()
     assert p.returncode == 130, err
