@@ -238,7 +238,8 @@ def witnesses(G, q0, ylin, H, kr, ki, F_lim, K_given, n_pool, n_climb, n_beams, 
     ``10^U(-3, 0)`` per point (drawn from ``seed + k``: the same whatever the thread).
     The ``n_climb`` admissible starts of largest ``M = max_b |y_b|`` are climbed, each for
     the ``n_beams`` beams with the largest force bound ``|ylin_b| + F_lim sum_j |H_bj|``
-    (those that can set the maximum). The best point by ``M``, solved afresh and
+    (those that can set the maximum), until one comes within ``1e-4`` of the largest force
+    bound, which no admissible point exceeds. The best point by ``M``, solved afresh and
     admissible, goes to ``K_out[k]`` (N/m) and its ``M`` (m) to ``M_out[k]`` (``-inf`` if
     no start was admissible).
     """
@@ -260,6 +261,9 @@ def witnesses(G, q0, ylin, H, kr, ki, F_lim, K_given, n_pool, n_climb, n_beams, 
                 s += F_lim * abs(H[k, b, j])
             bound[b] = s
         order = np.argsort(-bound)
+        # no admissible point exceeds the force bound: a witness that reaches it is the
+        # maximum, and further climbs are wasted
+        enough = bound[order[0]] * (1.0 - 1e-4)
         np.random.seed(seed + k)
         for r in range(n_g + n_pool):
             if r < n_g:
@@ -275,7 +279,7 @@ def witnesses(G, q0, ylin, H, kr, ki, F_lim, K_given, n_pool, n_climb, n_beams, 
         M_out[k] = -math.inf
         for c in range(min(n_climb, n_g + n_pool)):
             r = rank[c]
-            if value[r] == -math.inf:
+            if value[r] == -math.inf or M_out[k] >= enough:
                 break
             if value[r] > M_out[k]:
                 M_out[k] = value[r]
@@ -288,3 +292,5 @@ def witnesses(G, q0, ylin, H, kr, ki, F_lim, K_given, n_pool, n_climb, n_beams, 
                 if ok and math.isfinite(v) and v > M_out[k]:
                     M_out[k] = v
                     K_out[k, :] = K
+                if M_out[k] >= enough:
+                    break
