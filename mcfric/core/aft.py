@@ -24,7 +24,13 @@ The periodic hysteresis loop needs no settling passes: the walk starts at the gl
 maximum of ``q``. If ``kc (q_max - q_min) > 2 fs`` the slider slips on the way up to
 that maximum in every period, so the force there is exactly ``+fs``; otherwise it never
 slips and ``f = kc (q - c)``, whose harmonics do not depend on the offset ``c``. One pass
-from there is the periodic state (a test checks a second pass changes nothing).
+from there is the periodic state.
+
+With odd orders only, ``q(theta + pi) = -q(theta)``; the extrema, the events and the
+periodic force are mirrored the same way, and ``f(theta) exp(-i n theta)`` has period
+``pi`` for odd ``n``. So half a period is bracketed (``n_time`` rounded up to even),
+located and integrated, from the global maximum to the global minimum, and the
+integrals doubled.
 
 Contact-law interface
 ---------------------
@@ -43,7 +49,7 @@ import numpy as np
 from ._jit import inline_jit, jit
 
 _TWO_PI = 2.0 * math.pi
-_INV_PI = 1.0 / math.pi
+_TWO_OVER_PI = 2.0 / math.pi
 #: Event location stops when the Newton step is below this, rad.
 _THETA_TOL = 1e-13
 _EVENT_ITER = 60
@@ -52,7 +58,7 @@ _EVENT_ITER = 60
 @jit
 def work_size(n_h, n_time):
     """Length of the float64 scratch array that :func:`jenkins` needs (orders ``2h+1``)."""
-    return 2 * n_time + 6 * (4 * n_h - 1) + 8
+    return 3 * ((n_time + 1) // 2) + 8 * (4 * n_h - 1) + 8
 
 
 @inline_jit
@@ -79,11 +85,13 @@ def _q_derivs(Q, orders, n_h, th):
 
 
 @jit
-def _root(Q, orders, n_h, lo, hi, flo, level, deriv):
+def _root(Q, orders, n_h, lo, hi, flo, fhi, level, deriv):
     """Root in ``[lo, hi]`` of ``g - level`` (``g = q'`` if ``deriv`` else ``q``), which
-    changes sign on the bracket (``flo`` = its value at ``lo``): Newton kept inside the
-    bracket, bisection when it would leave it."""
-    th = 0.5 * (lo + hi)
+    changes sign on the bracket (``flo``, ``fhi``: its values at the ends): Newton from
+    the secant point, kept inside the bracket, bisection when it would leave it."""
+    th = lo + (hi - lo) * flo / (flo - fhi)
+    if not (lo < th < hi):
+        th = 0.5 * (lo + hi)
     for _ in range(_EVENT_ITER):
         q, d1, d2 = _q_derivs(Q, orders, n_h, th)
         g = (d1 if deriv else q) - level
@@ -109,63 +117,59 @@ def _root(Q, orders, n_h, lo, hi, flo, level, deriv):
 
 
 @inline_jit
-def _powers(th, p_max, zr, zi):
-    """``exp(i p th)`` for ``p = 0..p_max`` into ``zr + i zi``."""
+def _powers(th, p_max, zr, zi, o):
+    """``exp(i p th)`` for ``p = 0..p_max`` into ``zr[o + p] + i zi[o + p]``."""
     c = math.cos(th)
     s = math.sin(th)
-    zr[0] = 1.0
-    zi[0] = 0.0
+    zr[o] = 1.0
+    zi[o] = 0.0
     for p in range(1, p_max + 1):
         # recurrence on the unit circle; p_max is a few tens, so rounding stays ~1e-15
-        zr[p] = zr[p - 1] * c - zi[p - 1] * s
-        zi[p] = zr[p - 1] * s + zi[p - 1] * c
+        zr[o + p] = zr[o + p - 1] * c - zi[o + p - 1] * s
+        zi[o + p] = zr[o + p - 1] * s + zi[o + p - 1] * c
 
 
 @inline_jit
-def _integral(p, a, b, ar, ai, br, bi):
-    """``integral_a^b exp(i p theta) dtheta`` from the powers at both ends (``p`` may be
-    negative: the conjugate powers)."""
+def _integral(p, a, b, zr, zi, oa, ob):
+    """``integral_a^b exp(i p theta) dtheta`` from the powers at both ends (offsets
+    ``oa``, ``ob`` in ``zr``, ``zi``; ``p`` may be negative: the conjugate powers)."""
     if p == 0:
         return complex(b - a, 0.0)
     m = abs(p)
     sgn = 1.0 if p > 0 else -1.0
-    dr = br[m] - ar[m]
-    di = sgn * (bi[m] - ai[m])
+    dr = zr[ob + m] - zr[oa + m]
+    di = sgn * (zi[ob + m] - zi[oa + m])
     # (dr + i di) / (i p) = (di - i dr) / p
     inv = 1.0 / p
     return complex(di * inv, -dr * inv)
 
 
 @jit
-def _segment(Q, orders, n_h, a, b, stick, f_a, q_a, th_a, kc, fs_sign, F, dF, zra, zia,
-             zrb, zib, p_max, tr, ti):
-    """Add one segment ``[a, b]`` of the period to ``F`` and ``dF``.
+def _segment(Q, orders, n_h, a, b, stick, f_a, q_a, kc, fs_sign, F, dF, zr, zi, oa, ob,
+             p_max, tr, ti):
+    """Add twice one segment ``[a, b]`` of the half period to ``F`` and ``dF`` (the
+    powers of ``exp(i a)``, ``exp(i b)`` at offsets ``oa``, ``ob``).
 
     Slip: ``f = fs_sign`` (the signed slip force). Stick: ``f = f_a + kc (q - q_a)``,
-    anchored at ``th_a``, an extremum of ``q`` (so ``q'(th_a) = 0``: moving the anchor
+    anchored at ``a``, an extremum of ``q`` (so ``q'(a) = 0``: moving the anchor
     changes nothing to first order).
     """
     if b <= a:
         return
-    _powers(a, p_max, zra, zia)
-    _powers(b, p_max, zrb, zib)
     if not stick:
         for h in range(n_h):
-            F[h] += _INV_PI * fs_sign * _integral(-orders[h], a, b, zra, zia, zrb, zib)
+            F[h] += _TWO_OVER_PI * fs_sign * _integral(-orders[h], a, b, zr, zi, oa, ob)
         return
     # the integrals of exp(i p theta) for the even p = nm - n and -nm - n, once each
     # (index (p + p_max) / 2) instead of twice per pair of orders
     for t in range(p_max // 2 + n_h):
-        v = _integral(2 * t - p_max, a, b, zra, zia, zrb, zib)
+        v = _integral(2 * t - p_max, a, b, zr, zi, oa, ob)
         tr[t] = v.real
         ti[t] = v.imag
-    ea = complex(math.cos(th_a), math.sin(th_a))
-    ea2 = ea * ea
     for h in range(n_h):
         n = orders[h]
-        e_n = _integral(-n, a, b, zra, zia, zrb, zib)
+        e_n = _integral(-n, a, b, zr, zi, oa, ob)
         acc = (f_a - kc * q_a) * e_n
-        pa = ea          # exp(i nm th_a), nm = 1, 3, 5, ...
         for m in range(n_h):
             nm = orders[m]
             t1 = (nm - n + p_max) // 2
@@ -176,14 +180,14 @@ def _segment(Q, orders, n_h, a, b, stick, f_a, q_a, th_a, kc, fs_sign, F, dF, zr
             d = i1 - i2
             s_mn = complex(0.5 * d.imag, -0.5 * d.real)  # integral sin(nm th) e^{-i n th}
             acc += kc * (Q[m].real * c_mn - Q[m].imag * s_mn)
-            d_re = kc * _INV_PI * (c_mn - pa.real * e_n)
-            d_im = kc * _INV_PI * (-s_mn + pa.imag * e_n)
+            # exp(i nm a): the anchor's powers
+            d_re = kc * _TWO_OVER_PI * (c_mn - zr[oa + nm] * e_n)
+            d_im = kc * _TWO_OVER_PI * (-s_mn + zi[oa + nm] * e_n)
             dF[2 * h, 2 * m] += d_re.real
             dF[2 * h + 1, 2 * m] += d_re.imag
             dF[2 * h, 2 * m + 1] += d_im.real
             dF[2 * h + 1, 2 * m + 1] += d_im.imag
-            pa *= ea2
-        F[h] += _INV_PI * acc
+        F[h] += _TWO_OVER_PI * acc
 
 
 @jit
@@ -236,20 +240,25 @@ def jenkins(Q, orders, kc, fs, n_time, F, dF, work):
             dF[2 * h, 2 * h] = kc
             dF[2 * h + 1, 2 * h + 1] = kc
         return 0
+    # odd orders only: q(th + pi) = -q(th), and so are the extrema, the events and the
+    # periodic force; half a period is sampled, located and integrated, the rest mirrored
+    n_half = (n_time + 1) // 2
     p_max = 2 * orders[n_h - 1]
-    ext = work[:n_time]                     # extrema angles
-    dq = work[n_time:2 * n_time]
-    zra = work[2 * n_time:2 * n_time + p_max + 1]
-    zia = work[2 * n_time + p_max + 1:2 * n_time + 2 * p_max + 2]
-    zrb = work[2 * n_time + 2 * p_max + 2:2 * n_time + 3 * p_max + 3]
-    zib = work[2 * n_time + 3 * p_max + 3:2 * n_time + 4 * p_max + 4]
-    tr = work[2 * n_time + 4 * p_max + 4:2 * n_time + 5 * p_max + 5]
-    ti = work[2 * n_time + 5 * p_max + 5:2 * n_time + 6 * p_max + 6]
+    ext = work[:n_half]                     # extrema angles in [0, pi)
+    qe = work[n_half:2 * n_half]            # q there
+    dq = work[2 * n_half:3 * n_half]
+    o = 3 * n_half
+    pw = p_max + 1
+    zr = work[o:o + 3 * pw]                 # powers at three angles
+    zi = work[o + 3 * pw:o + 6 * pw]
+    tr = work[o + 6 * pw:o + 7 * pw]
+    ti = work[o + 7 * pw:o + 8 * pw]
     # brackets of the extrema: sign changes of q' on the samples; the sample angles by
     # rotation (no sin/cos per sample: the bracketing was half of the AFT's time)
-    w = complex(math.cos(_TWO_PI / n_time), math.sin(_TWO_PI / n_time))
+    step = math.pi / n_half
+    w = complex(math.cos(step), math.sin(step))
     e = complex(1.0, 0.0)
-    for i in range(n_time):
+    for i in range(n_half):
         e2 = e * e
         p = e
         d1 = 0.0
@@ -258,28 +267,31 @@ def jenkins(Q, orders, kc, fs, n_time, F, dF, work):
             p *= e2
         dq[i] = d1
         e *= w
-    n_ext = 0
+    m_ext = 0
     q_max = -math.inf
-    q_min = math.inf
     i_max = -1
-    for i in range(n_time):
-        lo = _TWO_PI * i / n_time
+    for i in range(n_half):
+        lo = step * i
         g0 = dq[i]
-        g1 = dq[(i + 1) % n_time]
+        g1 = dq[i + 1] if i + 1 < n_half else -dq[0]
         if g0 == 0.0:
             th = lo
         elif (g0 > 0.0) != (g1 > 0.0) and g1 != 0.0:
-            th = _root(Q, orders, n_h, lo, lo + _TWO_PI / n_time, g0, 0.0, True)
+            th = _root(Q, orders, n_h, lo, lo + step, g0, g1, 0.0, True)
         else:
             continue
-        ext[n_ext] = th
+        ext[m_ext] = th
         q = _q_derivs(Q, orders, n_h, th)[0]
+        qe[m_ext] = q
+        # the global maximum over the period: q here or -q half a period on
         if q > q_max:
             q_max = q
-            i_max = n_ext
-        q_min = min(q_min, q)
-        n_ext += 1
-    if n_ext == 0:
+            i_max = m_ext
+        if -q > q_max:
+            q_max = -q
+            i_max = m_ext + n_half
+        m_ext += 1
+    if m_ext == 0:
         # q constant (all Q zero): the element sticks, f = kc (q - c)
         for h in range(n_h):
             F[h] = kc * Q[h]
@@ -289,48 +301,59 @@ def jenkins(Q, orders, kc, fs, n_time, F, dF, work):
             if Q[h] != 0.0:
                 return -1
         return 0
-    if n_ext < 2:
-        return -1
-    if kc * (q_max - q_min) <= 2.0 * fs:
+    if kc * q_max <= fs:
         for h in range(n_h):
             F[h] = kc * Q[h]
             dF[2 * h, 2 * h] = kc
             dF[2 * h + 1, 2 * h + 1] = kc
         return 0
-    # walk one period from the global maximum, piece by monotone piece; a stick phase
-    # keeps its anchor across reversals, so it is integrated as one segment from the end
-    # of the last slip to the start of the next
-    th0 = ext[i_max]
-    th_a = th0
+    # walk half a period from the global maximum to the global minimum, piece by monotone
+    # piece; a stick phase keeps its anchor across reversals, so it is integrated as one
+    # segment from the end of the last slip to the start of the next. Extremum k of the
+    # period (k = i + m_ext j) is ext[i] + j pi with q = (-1)^j qe[i].
+    k0 = i_max if i_max < n_half else i_max - n_half + m_ext
+    th0 = ext[k0 % m_ext] + math.pi * (k0 // m_ext)
     q_a = q_max
     f_a = fs
     n_events = 0
     a = th0
     q_s = q_max
     stick_from = th0
-    for p in range(1, n_ext + 1):
-        k = i_max + p
-        b = ext[k - n_ext] + _TWO_PI if k >= n_ext else ext[k]
-        q_b = q_max if p == n_ext else _q_derivs(Q, orders, n_h, b)[0]
+    o_f = 0                                 # powers at stick_from, at th_s, at b
+    o_s = pw
+    o_b = 2 * pw
+    _powers(th0, p_max, zr, zi, o_f)
+    for p in range(1, m_ext + 1):
+        k = k0 + p
+        j = k // m_ext
+        b = th0 + math.pi if p == m_ext else ext[k - m_ext * j] + math.pi * j
+        q_b = -q_max if p == m_ext else (qe[k - m_ext * j] if j % 2 == 0
+                                         else -qe[k - m_ext * j])
         up = q_b > q_s
         level = q_a + ((fs - f_a) / kc if up else -(fs + f_a) / kc)
         if (up and q_b > level) or (not up and q_b < level):
-            th_s = _root(Q, orders, n_h, a, b, q_s - level, level, False)
-            _segment(Q, orders, n_h, stick_from, th_s, True, f_a, q_a, th_a, kc, 0.0, F, dF,
-                     zra, zia, zrb, zib, p_max, tr, ti)
+            th_s = _root(Q, orders, n_h, a, b, q_s - level, q_b - level, level, False)
+            _powers(th_s, p_max, zr, zi, o_s)
+            _powers(b, p_max, zr, zi, o_b)
+            _segment(Q, orders, n_h, stick_from, th_s, True, f_a, q_a, kc, 0.0, F, dF,
+                     zr, zi, o_f, o_s, p_max, tr, ti)
             sgn = fs if up else -fs
-            _segment(Q, orders, n_h, th_s, b, False, 0.0, 0.0, 0.0, kc, sgn, F, dF,
-                     zra, zia, zrb, zib, p_max, tr, ti)
-            th_a = b
+            _segment(Q, orders, n_h, th_s, b, False, 0.0, 0.0, kc, sgn, F, dF,
+                     zr, zi, o_s, o_b, p_max, tr, ti)
             q_a = q_b
             f_a = sgn
             stick_from = b
+            o_f, o_b = o_b, o_f
             n_events += 2
         a = b
         q_s = q_b
-    _segment(Q, orders, n_h, stick_from, th0 + _TWO_PI, True, f_a, q_a, th_a, kc, 0.0, F, dF,
-             zra, zia, zrb, zib, p_max, tr, ti)
-    return n_events
+    if stick_from < th0 + math.pi:
+        # not reached when the loop slips into the global minimum (it does, unless
+        # rounding hides the last crossing)
+        _powers(th0 + math.pi, p_max, zr, zi, o_b)
+        _segment(Q, orders, n_h, stick_from, th0 + math.pi, True, f_a, q_a, kc, 0.0, F, dF,
+                 zr, zi, o_f, o_b, p_max, tr, ti)
+    return 2 * n_events
 
 
 def harmonic_orders(harmonics):
