@@ -335,26 +335,36 @@ def _single_harmonic_start(s1, G, q0, kc, Q, T, piv, nd, n_h):
 @jit
 def _extremum(yh, orders, bb, t, n_peak, v0):
     """The extremum of ``y(theta) = Re sum_h Y_h e^{i n_h theta}`` next to sample ``t``
-    (value ``v0``): a few Newton steps on ``y'``, kept within one sample spacing."""
+    (value ``v0``): a few Newton steps on ``y'``, kept within one sample spacing. The
+    orders are ``1, 3, 5, ...``."""
     th0 = 2.0 * math.pi * t / n_peak
     th = th0
     best = v0
     for _ in range(4):
         d1 = 0.0
         d2 = 0.0
+        # exp(i n th) for the odd orders by powers of exp(2 i th): one sin/cos per step
+        e = complex(math.cos(th), math.sin(th))
+        e2 = e * e
+        p = e
         for h in range(orders.shape[0]):
             n = orders[h]
-            z = yh[h, bb] * complex(math.cos(n * th), math.sin(n * th))
+            z = yh[h, bb] * p
             d1 -= n * z.imag
             d2 -= n * n * z.real
+            p *= e2
         if d2 == 0.0:
             break
         th = th - d1 / d2
         if abs(th - th0) > 2.0 * math.pi / n_peak:
             break
     v = 0.0
+    e = complex(math.cos(th), math.sin(th))
+    e2 = e * e
+    p = e
     for h in range(orders.shape[0]):
-        v += (yh[h, bb] * complex(math.cos(orders[h] * th), math.sin(orders[h] * th))).real
+        v += (yh[h, bb] * p).real
+        p *= e2
     # keep the sampled value unless the refined point is further out on the same side
     if (v0 >= 0.0 and v > best) or (v0 < 0.0 and v < best):
         best = v
