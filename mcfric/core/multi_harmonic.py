@@ -155,6 +155,89 @@ def _couple(G, dF, h, j, l, n_h, c, out, r0):
 
 
 @jit
+def _stuck_eliminate(G, dF, W, x, j0, j1, step, n_h):
+    """Eliminate the stuck dampers ``j0, j0 + step, ...`` (up to ``j1`` excluded) of a
+    chain, each towards the next: their blocks are ``c I``, so every harmonic is a complex
+    scalar recurrence. The pivot of damper ``j``, harmonic ``h`` goes to
+    ``W[2 j m2, 2 h : 2 h + 2]`` (``m2 = 2 n_h``), the reduced right side into ``x``.
+    Returns False on a zero pivot."""
+    m2 = 2 * n_h
+    for h in range(n_h):
+        for j in range(j0, j1, step):
+            c = dF[j, 0, 0]
+            d = 1.0 + G[h, j, j] * c
+            xj = complex(x[j * m2 + 2 * h], x[j * m2 + 2 * h + 1])
+            if j != j0:
+                p = j - step
+                t = G[h, j, p] * dF[p, 0, 0] / complex(W[2 * p * m2, 2 * h],
+                                                        W[2 * p * m2, 2 * h + 1])
+                d -= t * G[h, p, j] * c
+                xj -= t * complex(x[p * m2 + 2 * h], x[p * m2 + 2 * h + 1])
+            if d == 0.0 or not math.isfinite(abs(d)):
+                return False
+            W[2 * j * m2, 2 * h] = d.real
+            W[2 * j * m2, 2 * h + 1] = d.imag
+            x[j * m2 + 2 * h] = xj.real
+            x[j * m2 + 2 * h + 1] = xj.imag
+    return True
+
+
+@inline_jit
+def _force_step(dF, x, p, h, m2):
+    """``(dF_p x_p)`` at harmonic ``h``, complex."""
+    re = 0.0
+    im = 0.0
+    for k in range(m2):
+        re += dF[p, 2 * h, k] * x[p * m2 + k]
+        im += dF[p, 2 * h + 1, k] * x[p * m2 + k]
+    return complex(re, im)
+
+
+@jit
+def _stuck_back(G, dF, W, x, j0, j1, step, full, n_h):
+    """Back-substitution after :func:`_stuck_eliminate` (same ``j0``, ``j1``, ``step``),
+    from ``j1 - step`` back to ``j0``. Damper ``j1`` is solved already (``dF_j1``
+    full if ``full``) unless ``j1`` is off the chain."""
+    m2 = 2 * n_h
+    nd = dF.shape[0]
+    for h in range(n_h):
+        for j in range(j1 - step, j0 - step, -step):
+            p = j + step
+            xj = complex(x[j * m2 + 2 * h], x[j * m2 + 2 * h + 1])
+            if 0 <= p < nd:
+                if p == j1 and full:
+                    v = _force_step(dF, x, p, h, m2)
+                else:
+                    v = dF[p, 0, 0] * complex(x[p * m2 + 2 * h], x[p * m2 + 2 * h + 1])
+                xj -= G[h, j, p] * v
+            xj /= complex(W[2 * j * m2, 2 * h], W[2 * j * m2, 2 * h + 1])
+            x[j * m2 + 2 * h] = xj.real
+            x[j * m2 + 2 * h + 1] = xj.imag
+
+
+@inline_jit
+def _stuck_correction(G, dF, W, x, j, p, n_h, rd):
+    """Fold the eliminated stuck neighbour ``p`` of the nonlinear damper ``j`` into
+    ``j``'s diagonal block (rows from ``rd`` of ``W``) and right side: per harmonic,
+    ``D_j -= t G_h[p, j] dF_j`` and ``x_j -= t y_p`` with ``t = G_h[j, p] c_p / d_p``."""
+    m2 = 2 * n_h
+    for h in range(n_h):
+        t = G[h, j, p] * dF[p, 0, 0] / complex(W[2 * p * m2, 2 * h], W[2 * p * m2, 2 * h + 1])
+        g = t * G[h, p, j]
+        gr = g.real
+        gi = g.imag
+        r0 = rd + 2 * h
+        for c in range(m2):
+            a0 = dF[j, 2 * h, c]
+            a1 = dF[j, 2 * h + 1, c]
+            W[r0, c] -= gr * a0 - gi * a1
+            W[r0 + 1, c] -= gi * a0 + gr * a1
+        y = t * complex(x[p * m2 + 2 * h], x[p * m2 + 2 * h + 1])
+        x[j * m2 + 2 * h] -= y.real
+        x[j * m2 + 2 * h + 1] -= y.imag
+
+
+@jit
 def _chain_step(G, dF, W, piv, x, nd, n_h):
     """Solve ``(I + G dF) dx = x`` in place for a chain (``G_h`` tridiagonal): block
     Thomas elimination on blocks of size ``2 n_h``, O(nd) blocks. ``W`` is scratch of at
@@ -162,13 +245,31 @@ def _chain_step(G, dF, W, piv, x, nd, n_h):
     block.
 
     A damper whose Jacobian is ``c I`` (stuck) makes its coupling blocks 2x2-block
-    diagonal; the elimination then updates with those blocks alone."""
+    diagonal; the elimination then updates with those blocks alone. The stuck dampers
+    before the first nonlinear one ``f`` and after the last one ``l`` are eliminated
+    towards them harmonic by harmonic, as complex scalars; the blocks run over ``f..l``
+    only."""
     m2 = 2 * n_h
     rl = 2 * nd * m2                 # rows of the scratch block Lo
+    f = 0
+    while f < nd and not math.isnan(_linear_gain(dF, f, n_h)):
+        f += 1
+    if f == nd:
+        if not _stuck_eliminate(G, dF, W, x, 0, nd, 1, n_h):
+            return False
+        _stuck_back(G, dF, W, x, 0, nd, 1, False, n_h)
+        return True
+    l = nd - 1
+    while not math.isnan(_linear_gain(dF, l, n_h)):
+        l -= 1
+    if not _stuck_eliminate(G, dF, W, x, 0, f, 1, n_h):
+        return False
+    if not _stuck_eliminate(G, dF, W, x, nd - 1, l, -1, n_h):
+        return False
     c_prev = math.nan
-    c_cur = _linear_gain(dF, 0, n_h)
-    for j in range(nd):
-        c_next = _linear_gain(dF, j + 1, n_h) if j < nd - 1 else math.nan
+    c_cur = math.nan
+    for j in range(f, l + 1):
+        c_next = _linear_gain(dF, j + 1, n_h) if j < l else math.nan
         rd = 2 * j * m2              # D_j, then its LU factors
         rx = rd + m2                 # Up_j, then X_j = D_j^-1 Up_j
         for r in range(m2):
@@ -177,7 +278,11 @@ def _chain_step(G, dF, W, piv, x, nd, n_h):
             W[rd + r, r] = 1.0
         for h in range(n_h):
             _couple(G, dF, h, j, j, n_h, c_cur, W, rd + 2 * h)
-        if j > 0:
+        if j == f and f > 0:
+            _stuck_correction(G, dF, W, x, j, j - 1, n_h, rd)
+        if j == l and l < nd - 1:
+            _stuck_correction(G, dF, W, x, j, j + 1, n_h, rd)
+        if j > f:
             rxp = rx - 2 * m2        # X_{j-1}
             o = (j - 1) * m2
             if not math.isnan(c_prev):
@@ -217,7 +322,7 @@ def _chain_step(G, dF, W, piv, x, nd, n_h):
             return False
         xj = x[j * m2:(j + 1) * m2]
         lu_solve(D, p, xj, m2)
-        if j < nd - 1:
+        if j < l:
             for r in range(m2):
                 for c in range(m2):
                     W[rx + r, c] = 0.0
@@ -248,13 +353,15 @@ def _chain_step(G, dF, W, piv, x, nd, n_h):
                     W[rx + r, c] *= inv
         c_prev = c_cur
         c_cur = c_next
-    for j in range(nd - 2, -1, -1):
+    for j in range(l - 1, f - 1, -1):
         rx = (2 * j + 1) * m2
         for r in range(m2):
             acc = 0.0
             for c in range(m2):
                 acc += W[rx + r, c] * x[(j + 1) * m2 + c]
             x[j * m2 + r] -= acc
+    _stuck_back(G, dF, W, x, nd - 1, l, -1, True, n_h)
+    _stuck_back(G, dF, W, x, 0, f, 1, True, n_h)
     return True
 
 
