@@ -53,12 +53,16 @@ _TWO_OVER_PI = 2.0 / math.pi
 #: Event location stops when the Newton step is below this, rad.
 _THETA_TOL = 1e-13
 _EVENT_ITER = 60
+#: ``work[0:3]`` tags the sample table that follows: this value, ``n_time``, ``n_h``.
+_TAG = -0.7853981633974483e-300
+_TAG_SIZE = 3
 
 
 @jit
 def work_size(n_h, n_time):
     """Length of the float64 scratch array that :func:`jenkins` needs (orders ``2h+1``)."""
-    return 3 * ((n_time + 1) // 2) + 8 * (4 * n_h - 1) + 8
+    n_half = (n_time + 1) // 2
+    return _TAG_SIZE + (2 * n_h + 3) * n_half + 8 * (4 * n_h - 1) + 8
 
 
 @inline_jit
@@ -211,7 +215,9 @@ def jenkins(Q, orders, kc, fs, n_time, F, dF, work):
     dF : ndarray of float64, shape (2 n_h, 2 n_h)
         Out: derivatives of (Re F_h, Im F_h) with respect to (Re Q_m, Im Q_m), N/m.
     work : ndarray of float64, shape (work_size(n_h, n_time),)
-        Scratch.
+        Scratch. Its head caches a table of the samples' cos and sin between calls,
+        tagged with ``n_time`` and ``n_h`` and rebuilt when the tag does not match
+        (any initial content is fine).
 
     Returns
     -------
@@ -244,29 +250,39 @@ def jenkins(Q, orders, kc, fs, n_time, F, dF, work):
     # periodic force; half a period is sampled, located and integrated, the rest mirrored
     n_half = (n_time + 1) // 2
     p_max = 2 * orders[n_h - 1]
-    ext = work[:n_half]                     # extrema angles in [0, pi)
-    qe = work[n_half:2 * n_half]            # q there
-    dq = work[2 * n_half:3 * n_half]
-    o = 3 * n_half
+    o = _TAG_SIZE + 2 * n_h * n_half
+    ext = work[o:o + n_half]                # extrema angles in [0, pi)
+    qe = work[o + n_half:o + 2 * n_half]    # q there
+    dq = work[o + 2 * n_half:o + 3 * n_half]
+    o += 3 * n_half
     pw = p_max + 1
     zr = work[o:o + 3 * pw]                 # powers at three angles
     zi = work[o + 3 * pw:o + 6 * pw]
     tr = work[o + 6 * pw:o + 7 * pw]
     ti = work[o + 7 * pw:o + 8 * pw]
-    # brackets of the extrema: sign changes of q' on the samples; the sample angles by
-    # rotation (no sin/cos per sample: the bracketing was half of the AFT's time)
+    # brackets of the extrema: sign changes of q' on the samples. cos and sin of n_h
+    # theta_i are a table kept at the head of ``work`` (built when its tag does not
+    # match), so that the sums over the samples run in SIMD lanes
     step = math.pi / n_half
-    w = complex(math.cos(step), math.sin(step))
-    e = complex(1.0, 0.0)
-    for i in range(n_half):
-        e2 = e * e
-        p = e
-        d1 = 0.0
+    tab = work[_TAG_SIZE:_TAG_SIZE + 2 * n_h * n_half]
+    if work[0] != _TAG or work[1] != n_time or work[2] != n_h:
         for h in range(n_h):
-            d1 -= orders[h] * (Q[h].real * p.imag + Q[h].imag * p.real)
-            p *= e2
-        dq[i] = d1
-        e *= w
+            for i in range(n_half):
+                th = orders[h] * step * i
+                tab[2 * h * n_half + i] = math.cos(th)
+                tab[(2 * h + 1) * n_half + i] = math.sin(th)
+        work[0] = _TAG
+        work[1] = n_time
+        work[2] = n_h
+    for i in range(n_half):
+        dq[i] = 0.0
+    for h in range(n_h):
+        a_c = -orders[h] * Q[h].imag
+        a_s = -orders[h] * Q[h].real
+        c = tab[2 * h * n_half:(2 * h + 1) * n_half]
+        sn = tab[(2 * h + 1) * n_half:(2 * h + 2) * n_half]
+        for i in range(n_half):
+            dq[i] += a_c * c[i] + a_s * sn[i]
     m_ext = 0
     q_max = -math.inf
     i_max = -1
