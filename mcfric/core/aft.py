@@ -62,7 +62,7 @@ _TAG_SIZE = 3
 def work_size(n_h, n_time):
     """Length of the float64 scratch array that :func:`jenkins` needs (orders ``2h+1``)."""
     n_half = (n_time + 1) // 2
-    return _TAG_SIZE + (2 * n_h + 3) * n_half + 8 * (4 * n_h - 1) + 8
+    return _TAG_SIZE + (2 * n_h + 4) * n_half + 8 * (4 * n_h - 1) + 8
 
 
 @inline_jit
@@ -254,13 +254,15 @@ def jenkins(Q, orders, kc, fs, n_time, F, dF, work):
     ext = work[o:o + n_half]                # extrema angles in [0, pi)
     qe = work[o + n_half:o + 2 * n_half]    # q there
     dq = work[o + 2 * n_half:o + 3 * n_half]
-    o += 3 * n_half
+    qs = work[o + 3 * n_half:o + 4 * n_half]
+    o += 4 * n_half
     pw = p_max + 1
     zr = work[o:o + 3 * pw]                 # powers at three angles
     zi = work[o + 3 * pw:o + 6 * pw]
     tr = work[o + 6 * pw:o + 7 * pw]
     ti = work[o + 7 * pw:o + 8 * pw]
-    # brackets of the extrema: sign changes of q' on the samples. cos and sin of n_h
+    # brackets of the extrema: sign changes of q' on the samples (and q there, for the
+    # crossings). cos and sin of n_h
     # theta_i are a table kept at the head of ``work`` (built when its tag does not
     # match), so that the sums over the samples run in SIMD lanes
     step = math.pi / n_half
@@ -276,13 +278,17 @@ def jenkins(Q, orders, kc, fs, n_time, F, dF, work):
         work[2] = n_h
     for i in range(n_half):
         dq[i] = 0.0
+        qs[i] = 0.0
     for h in range(n_h):
-        a_c = -orders[h] * Q[h].imag
-        a_s = -orders[h] * Q[h].real
+        re = Q[h].real
+        im = Q[h].imag
+        a_c = -orders[h] * im
+        a_s = -orders[h] * re
         c = tab[2 * h * n_half:(2 * h + 1) * n_half]
         sn = tab[(2 * h + 1) * n_half:(2 * h + 2) * n_half]
         for i in range(n_half):
             dq[i] += a_c * c[i] + a_s * sn[i]
+            qs[i] += re * c[i] - im * sn[i]
     m_ext = 0
     q_max = -math.inf
     i_max = -1
@@ -348,7 +354,25 @@ def jenkins(Q, orders, kc, fs, n_time, F, dF, work):
         up = q_b > q_s
         level = q_a + ((fs - f_a) / kc if up else -(fs + f_a) / kc)
         if (up and q_b > level) or (not up and q_b < level):
-            th_s = _root(Q, orders, n_h, a, b, q_s - level, q_b - level, level, False)
+            # q is monotone on the piece: narrow the bracket to the samples around the
+            # crossing (sample k at k step, q = (-1)^(k // n_half) qs[k % n_half])
+            lo = a
+            hi = b
+            flo = q_s - level
+            fhi = q_b - level
+            ks = int(math.floor(a / step)) + 1
+            while ks * step < b:
+                js = ks // n_half
+                v = qs[ks - js * n_half]
+                v = (v if js % 2 == 0 else -v) - level
+                if (v > 0.0) != (flo > 0.0):
+                    hi = ks * step
+                    fhi = v
+                    break
+                lo = ks * step
+                flo = v
+                ks += 1
+            th_s = _root(Q, orders, n_h, lo, hi, flo, fhi, level, False)
             _powers(th_s, p_max, zr, zi, o_s)
             _powers(b, p_max, zr, zi, o_b)
             _segment(Q, orders, n_h, stick_from, th_s, True, f_a, q_a, kc, 0.0, F, dF,
