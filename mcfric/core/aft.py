@@ -48,7 +48,6 @@ import numpy as np
 
 from ._jit import inline_jit, jit
 
-_TWO_PI = 2.0 * math.pi
 _TWO_OVER_PI = 2.0 / math.pi
 #: Event location stops when the Newton step is below this, rad.
 _THETA_TOL = 1e-13
@@ -262,9 +261,9 @@ def jenkins(Q, orders, kc, fs, n_time, F, dF, work):
     tr = work[o + 6 * pw:o + 7 * pw]
     ti = work[o + 7 * pw:o + 8 * pw]
     # brackets of the extrema: sign changes of q' on the samples (and q there, for the
-    # crossings). cos and sin of n_h
-    # theta_i are a table kept at the head of ``work`` (built when its tag does not
-    # match), so that the sums over the samples run in SIMD lanes
+    # crossings). cos and sin of n_h theta_i are a table kept at the head of ``work``
+    # (built when its tag does not match), so that the sums over the samples run in SIMD
+    # lanes
     step = math.pi / n_half
     tab = work[_TAG_SIZE:_TAG_SIZE + 2 * n_h * n_half]
     if work[0] != _TAG or work[1] != n_time or work[2] != n_h:
