@@ -150,6 +150,9 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, want_max, K_init, budget, rtol, atol,
     pending = np.empty(2, np.int64)
     pending[0] = slot
     n_pending = 1
+    # a sub-box's extreme is bounded by its parent's bound as well (enclosures of the
+    # halves can come out looser than the whole's)
+    parent = math.inf if want_max else 0.0
     while True:
         for p in range(n_pending):
             slot = pending[p]
@@ -166,6 +169,7 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, want_max, K_init, budget, rtol, atol,
             bnd = -math.inf if want_max else 0.0
             for b in range(nb):
                 bnd = max(bnd, U[b] if want_max else L[b])
+            bnd = min(bnd, parent) if want_max else max(bnd, parent)
             if (bnd <= witness) if want_max else (bnd >= witness):
                 free[n_free] = slot
                 n_free += 1
@@ -217,6 +221,7 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, want_max, K_init, budget, rtol, atol,
             break
         slot = _pop(heap, key, n)
         n -= 1
+        parent = sign * key[slot]
         j = split[slot]
         a = lo[slot, j]
         z = hi[slot, j]
