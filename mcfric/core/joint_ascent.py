@@ -101,6 +101,29 @@ def _point(c, t, a, bco, qj, uj, Kj, kr, ki, F):
 
 
 @jit(nogil=True)
+def _farthest(c, a, bco, yb, wb):
+    """Parameter ``t`` of force circle ``c``'s point farthest from the pole ``yb / wb``
+    (where ``|yb - s wb|`` is largest on it); -1 for an edge or a degenerate circle."""
+    if c >= a.shape[0] or bco[c] == 0.0 or wb == 0.0:
+        return -1.0
+    d = -a[c] / bco[c] - yb / wb
+    if not abs(d) > 0.0:
+        return -1.0
+    # s - centre = F e^{i th} / bco points along d
+    e = d * bco[c]
+    return math.atan2(e.imag, e.real) / (2.0 * math.pi) % 1.0
+
+
+@jit(nogil=True)
+def _try(c, t, a, bco, qj, uj, Kj, kr, ki, F, yb, wb, best2):
+    """:func:`_consider` at point ``t`` of curve ``c``: ``(|y_b|^2 or -1, damper j's K)``."""
+    s, Kn, exists = _point(c, t, a, bco, qj, uj, Kj, kr, ki, F)
+    if not exists:
+        return -1.0, Kn
+    return _consider(s, Kn, kr, ki, a, bco, F, yb, wb, best2), Kn
+
+
+@jit(nogil=True)
 def _step(G, q0, ylin, H, kr, ki, F, b, K, j, n_samples, ws):
     """Move damper ``j`` to the best admissible boundary point for beam ``b``: every curve
     sampled at ``n_samples`` points, then the best one's neighbourhood zoomed into
@@ -137,31 +160,17 @@ def _step(G, q0, ylin, H, kr, ki, F, b, K, j, n_samples, ws):
     c_best = -1
     t_best = 0.0
     for c in range(nd + 4):
-        for n in range(n_samples + 1):
-            t = n / n_samples
-            s, Kn, exists = _point(c, t, a, bco, qj, uj, Kj, kr, ki, F)
-            if exists:
-                v = _consider(s, Kn, kr, ki, a, bco, F, yb, wb, best)
-                if v > best:
-                    best = v
-                    k_best = Kn
-                    c_best = c
-                    t_best = t
-        # each force circle's farthest point from the pole y_b / w_b
-        if c < nd and bco[c] != 0.0 and wb != 0.0:
-            d = -a[c] / bco[c] - yb / wb
-            if abs(d) > 0.0:
-                e = d / abs(d) * F * (1.0 - 2.0 * _INSIDE) * bco[c] / abs(bco[c])
-                # the angle of that point on the circle's own parameter
-                t = math.atan2((e).imag, (e).real) / (2.0 * math.pi) % 1.0
-                s, Kn, exists = _point(c, t, a, bco, qj, uj, Kj, kr, ki, F)
-                if exists:
-                    v = _consider(s, Kn, kr, ki, a, bco, F, yb, wb, best)
-                    if v > best:
-                        best = v
-                        k_best = Kn
-                        c_best = c
-                        t_best = t
+        # the samples, then (circles) the farthest point from the pole y_b / w_b
+        for n in range(n_samples + 2):
+            t = n / n_samples if n <= n_samples else _farthest(c, a, bco, yb, wb)
+            if t < 0.0:
+                continue
+            v, Kn = _try(c, t, a, bco, qj, uj, Kj, kr, ki, F, yb, wb, best)
+            if v > best:
+                best = v
+                k_best = Kn
+                c_best = c
+                t_best = t
     if c_best >= 0:
         h = 1.0 / n_samples
         for _ in range(_ZOOMS):
@@ -173,13 +182,11 @@ def _step(G, q0, ylin, H, kr, ki, F, b, K, j, n_samples, ws):
                     t = t % 1.0
                 elif not 0.0 <= t <= 1.0:
                     continue
-                s, Kn, exists = _point(c_best, t, a, bco, qj, uj, Kj, kr, ki, F)
-                if exists:
-                    v = _consider(s, Kn, kr, ki, a, bco, F, yb, wb, best)
-                    if v > best:
-                        best = v
-                        k_best = Kn
-                        t_best = t
+                v, Kn = _try(c_best, t, a, bco, qj, uj, Kj, kr, ki, F, yb, wb, best)
+                if v > best:
+                    best = v
+                    k_best = Kn
+                    t_best = t
         K[j] = complex(min(max(k_best.real, 0.0), kr), min(max(k_best.imag, 0.0), ki))
     return math.sqrt(best)
 
