@@ -152,7 +152,7 @@ def joint_witnesses(args, kr, ki, F_lim, K_upper, seed=0):
     the search's box optimum ``K_upper`` (where admissible) and ``WITNESS_POOL`` random
     points. ``args``: the contact-space arrays (contiguous)."""
     n_f, nd = K_upper.shape
-    given = np.ascontiguousarray(np.stack([np.zeros_like(K_upper), K_upper], axis=1))
+    given = np.ascontiguousarray(np.stack([K_upper, np.zeros_like(K_upper)], axis=1))
     K = np.zeros((n_f, nd), complex)
     M = np.empty(n_f)
     in_threads(lambda freqs: witnesses(*args, kr, ki, F_lim, given, WITNESS_POOL,

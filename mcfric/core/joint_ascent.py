@@ -240,15 +240,17 @@ def witnesses(G, q0, ylin, H, kr, ki, F_lim, K_given, n_pool, n_climb, n_beams, 
               gain, n_samples, seed, freqs, K_out, M_out):
     """The best admissible point :func:`ascend` reaches at each frequency of ``freqs``.
 
-    At frequency ``k`` the starts are the rows of ``K_given[k]`` (n_g, nd) and ``n_pool``
-    random points of the box, each damper's ``K`` uniform in the box scaled by one factor
-    ``10^U(-3, 0)`` per point (drawn from ``seed + k``: the same whatever the thread).
-    The ``n_climb`` admissible starts of largest ``M = max_b |y_b|`` are climbed, each for
-    the ``n_beams`` beams with the largest force bound ``|ylin_b| + F_lim sum_j |H_bj|``
-    (those that can set the maximum), until one comes within ``1e-4`` of the largest force
-    bound, which no admissible point exceeds. The best point by ``M``, solved afresh and
-    admissible, goes to ``K_out[k]`` (N/m) and its ``M`` (m) to ``M_out[k]`` (``-inf`` if
-    no start was admissible).
+    At frequency ``k`` the starts are the rows of ``K_given[k]`` (n_g, nd), the first of
+    them the box search's optimum, and ``n_pool`` random points of the box, each damper's
+    ``K`` uniform in the box scaled by one factor ``10^U(-3, 0)`` per point (drawn from
+    ``seed + k``: the same whatever the thread). The ``n_climb`` admissible starts of
+    largest ``M = max_b |y_b|`` are climbed, each for the ``n_beams`` beams with the
+    largest force bound ``|ylin_b| + F_lim sum_j |H_bj|`` (those that can set the
+    maximum), until a witness comes within ``1e-4`` of the smaller of that force bound
+    and ``M`` at the box optimum (admissible or not): no admissible point exceeds either
+    (the second as far as the box search is right), so climbing further is wasted. The
+    best point by ``M``, solved afresh and admissible, goes to ``K_out[k]`` (N/m) and its
+    ``M`` (m) to ``M_out[k]`` (``-inf`` if no start was admissible).
     """
     nd = q0.shape[1]
     nb = ylin.shape[1]
@@ -268,9 +270,7 @@ def witnesses(G, q0, ylin, H, kr, ki, F_lim, K_given, n_pool, n_climb, n_beams, 
                 s += F_lim * abs(H[k, b, j])
             bound[b] = s
         order = np.argsort(-bound)
-        # no admissible point exceeds the force bound: a witness that reaches it is the
-        # maximum, and further climbs are wasted
-        enough = bound[order[0]] * (1.0 - 1e-4)
+        enough = bound[order[0]]
         np.random.seed(seed + k)
         for r in range(n_g + n_pool):
             if r < n_g:
@@ -282,15 +282,20 @@ def witnesses(G, q0, ylin, H, kr, ki, F_lim, K_given, n_pool, n_climb, n_beams, 
                                          f * ki * np.random.random())
             v, ok = admissible_value(G[k], q0[k], ylin[k], H[k], pool[r], F_lim, T, piv, q)
             value[r] = v if ok and math.isfinite(v) else -math.inf
+            if r == 0 and math.isfinite(v):
+                enough = min(enough, v)
+        enough *= 1.0 - 1e-4
         rank = np.argsort(-value)
         M_out[k] = -math.inf
         for c in range(min(n_climb, n_g + n_pool)):
             r = rank[c]
-            if value[r] == -math.inf or M_out[k] >= enough:
+            if value[r] == -math.inf:
                 break
             if value[r] > M_out[k]:
                 M_out[k] = value[r]
                 K_out[k, :] = pool[r]
+            if M_out[k] >= enough:
+                break
             for bi in range(min(n_beams, nb)):
                 K[:] = pool[r]
                 ascend(G[k], q0[k], ylin[k], H[k], kr, ki, F_lim, order[bi], K, max_sweeps,
