@@ -148,9 +148,10 @@ def default_budget(n_dampers):
 
 def joint_witnesses(args, kr, ki, F_lim, K_upper, seed=0):
     """Admissible points of large ``M`` (N/m, shape (n_f, nd)): the best that
-    :func:`mcfric.core.joint_ascent.witnesses` climbs to per frequency, from no damper,
-    the search's box optimum ``K_upper`` (where admissible) and ``WITNESS_POOL`` random
-    points. ``args``: the contact-space arrays (contiguous)."""
+    :func:`mcfric.core.joint_ascent.witnesses` climbs to per frequency, from the search's
+    box optimum ``K_upper`` (where admissible; its ``M``, admissible or not, ends the climb
+    once a witness reaches it), no damper and ``WITNESS_POOL`` random points. ``args``:
+    the contact-space arrays (contiguous)."""
     n_f, nd = K_upper.shape
     given = np.ascontiguousarray(np.stack([K_upper, np.zeros_like(K_upper)], axis=1))
     K = np.zeros((n_f, nd), complex)
