@@ -20,7 +20,7 @@ convex in ``s``: its largest value over that region lies on the boundary, on a f
 circle or on an edge of the rectangle. A step samples those curves (and takes each
 circle's farthest point from the pole ``y_b / w_b`` exactly), keeps the admissible
 candidates and moves to the best. Sweeps over the dampers repeat until a sweep gains less
-than a relative ``1e-9``. The result is a local maximum of the sampled problem: a
+than a given relative amount. The result is a local maximum of the sampled problem: a
 witness, never a bound.
 """
 
@@ -30,7 +30,7 @@ import numpy as np
 
 from ._jit import jit
 from .branch_bound import admissible_value
-from .linalg import lu_factor, lu_solve
+from .linalg import contact_solve, lu_solve
 
 #: Candidates are kept this far inside the force limit (relative), so that rounding in
 #: the final solve cannot push an accepted point over it.
@@ -132,14 +132,8 @@ def _step(G, q0, ylin, H, kr, ki, F, b, K, j, n_samples, ws):
     system is singular)."""
     A, piv, q, u, a, bco = ws
     nd = q0.shape[0]
-    for r in range(nd):
-        for c in range(nd):
-            A[r, c] = G[r, c] * K[c]
-        A[r, r] += 1.0
-    if lu_factor(A, piv, nd) != 0:
+    if contact_solve(G, K, q0, A, piv, q, nd) != 0:
         return -1.0
-    q[:] = q0
-    lu_solve(A, piv, q, nd)
     for r in range(nd):
         u[r] = G[r, j]
     lu_solve(A, piv, u, nd)
