@@ -1,0 +1,604 @@
+"""A semidefinite relaxation of the admissible set: certificates from quadratic forms.
+
+With ``z = (p, 1)``, ``p`` the damper forces, every constraint of the admissible set is a
+quadratic form ``u^H S u <= 0`` in two linear functionals ``u = (v_a^H z, v_b^H z)``:
+``q_j = w_j^T z`` and ``p_j``: ``a |q_j|^2 <= Re(conj(q_j) p_j) <= b |q_j|^2`` and the same
+for ``Im`` (the rectangle), a disc holding it, and ``|p_j|^2 <= F_lim^2``. Writing
+``A_i = V_i S_i V_i^H``, any ``theta >= 0`` and ``t`` with
+
+    Z = t E - Y_b + sum_i theta_i A_i  >= 0     (E = e e^H, e the last unit vector)
+
+prove ``|y_b|^2 <= t`` on the set: ``0 <= z^H Z z = t - |y_b|^2 + sum theta_i z^H A_i z``
+and every ``z^H A_i z <= 0``. For the minimum, ``Z = sum lambda_b Y_b - s E + sum theta_i
+A_i >= 0`` with ``lambda`` on the simplex proves ``max_b |y_b|^2 >= s``. The best such
+multipliers solve a small semidefinite program; :func:`solve` finds them with a
+log-det barrier (Newton steps with a backtracking line search, the barrier weight
+shrunk tenfold per round). Whatever the solver reaches, only a *verified* point is
+returned: ``Z`` is assembled in floating point beside a bound on its rounding, and a
+Cholesky factorisation of ``Z - delta I`` must succeed, ``delta`` covering both the
+assembly's and the factorisation's rounding (:func:`verified`).
+
+The forms are exact: scalings are powers of two and the disc's radius is rounded up,
+so rounding only enters through ``Z``.
+"""
+
+import math
+
+import numpy as np
+
+from ._jit import jit
+
+#: Relative accuracy at which :func:`solve` stops (in ``t``, a squared response).
+TOL = 1e-4
+#: Newton steps per barrier weight and in all at most.
+STEPS_PER_ROUND = 40
+MAX_STEPS = 160
+#: Newton decrement below which a barrier weight counts as centred.
+CENTRED = 0.5
+#: Safety factors over the rounding bounds of the assembly (gamma_k |V| |C| |V|^T, k <=
+#: ~100 operations: ~1e-14) and of the Cholesky test (Rump: (n + 1) u tr Z).
+ASSEMBLY_MARGIN = 1e-12
+CHOLESKY_MARGIN = 1e-11
+
+
+@jit
+def _pow2(x):
+    """The power of two nearest above ``x > 0`` (exact scalings)."""
+    m, e = math.frexp(x)
+    return math.ldexp(1.0, e)
+
+
+@jit
+def _assemble(x, coef_const, V, idx, S, C, T, Z, m):
+    """``Z = V C V^H`` with ``C = sum_i x_i S_i`` (+ the constant form, weight
+    ``coef_const``) scattered on the basis."""
+    nn, nv = V.shape
+    C[:, :] = 0.0
+    for i in range(m + 1):
+        w = x[i] if i < m else coef_const
+        for a in range(2):
+            for b in range(2):
+                C[idx[i, a], idx[i, b]] += w * S[i, a, b]
+    for j in range(nn):
+        for b in range(nv):
+            acc = 0j
+            for a in range(nv):
+                acc += V[j, a] * C[a, b]
+            T[j, b] = acc
+    for j in range(nn):
+        for k in range(j, nn):
+            acc = 0j
+            for b in range(nv):
+                acc += T[j, b] * V[k, b].conjugate()
+            Z[j, k] = acc
+            Z[k, j] = acc.conjugate()
+    for j in range(nn):
+        Z[j, j] = Z[j, j].real
+
+
+@jit
+def cholesky(Z, L, nn):
+    """Lower Cholesky factor of Hermitian ``Z`` into ``L``; ``log det Z``, or ``nan``
+    where a pivot is not positive (not positive definite)."""
+    logdet = 0.0
+    for j in range(nn):
+        d = Z[j, j].real
+        for k in range(j):
+            d -= L[j, k].real ** 2 + L[j, k].imag ** 2
+        if not d > 0.0:
+            return np.nan
+        d = math.sqrt(d)
+        L[j, j] = d
+        logdet += 2.0 * math.log(d)
+        for i in range(j + 1, nn):
+            acc = Z[i, j]
+            for k in range(j):
+                acc -= L[i, k] * L[j, k].conjugate()
+            L[i, j] = acc / d
+    return logdet
+
+
+@jit
+def _inverse(L, Zi, W, nn):
+    """``Zi = (L L^H)^-1`` (``W``: scratch, ``L^-1``)."""
+    for c in range(nn):
+        for i in range(nn):
+            acc = 1.0 + 0j if i == c else 0j
+            for k in range(c, i):
+                acc -= L[i, k] * W[k, c]
+            W[i, c] = acc / L[i, i].real if i >= c else 0j
+    for i in range(nn):
+        for j in range(i, nn):
+            acc = 0j
+            for k in range(j, nn):
+                acc += W[k, i].conjugate() * W[k, j]
+            Zi[i, j] = acc
+            Zi[j, i] = acc.conjugate()
+
+
+@jit
+def _barrier(x, mu, cvec, pos, simplex, m):
+    """The linear part of the barrier: ``c.x / mu - sum log x_pos - log(1 - sum
+    x_simplex)``; ``inf`` outside."""
+    f = 0.0
+    ssum = 0.0
+    for i in range(m):
+        f += cvec[i] * x[i] / mu
+        if pos[i]:
+            if not x[i] > 0.0:
+                return np.inf
+            f -= math.log(x[i])
+        if simplex[i]:
+            ssum += x[i]
+    if simplex.any():
+        if not ssum < 1.0:
+            return np.inf
+        f -= math.log(1.0 - ssum)
+    return f
+
+
+@jit
+def verified(x, V, idx, S, m, pos, simplex, ws):
+    """Whether ``Z(x)`` is proved positive semidefinite (and ``x`` in its cone): the
+    rounding of the assembly is bounded by ``|V| |C| |V|^T`` entrywise and that of the
+    Cholesky test by ``tr Z``; the test factorises ``Z - delta I`` with ``delta`` above
+    both, by the margins."""
+    C, T, Z, L, Zi, W, Q, Hm, g, dx, xn, Cabs, Vabs, Zabs, Lh, yv = ws
+    nn = V.shape[0]
+    ssum = 0.0
+    for i in range(m):
+        if pos[i] and not x[i] >= 0.0:
+            return False
+        if simplex[i]:
+            ssum += x[i]
+    if simplex.any() and not ssum <= 1.0 - 1e-12:
+        return False
+    _assemble(x, 1.0, V, idx, S, C, T, Z, m)
+    # the same sum with absolute values: a bound on every entry's rounding
+    for i in range(m + 1):
+        w = abs(x[i]) if i < m else 1.0
+        for a in range(2):
+            for b in range(2):
+                Cabs[idx[i, a], idx[i, b]] += w * abs(S[i, a, b])
+    for j in range(nn):
+        for k in range(nn):
+            acc = 0.0
+            for a in range(V.shape[1]):
+                if Vabs[j, a] == 0.0:
+                    continue
+                for b in range(V.shape[1]):
+                    acc += Vabs[j, a] * Cabs[a, b] * Vabs[k, b]
+            Zabs[j, k] = acc
+    frob = math.sqrt((Zabs ** 2).sum())
+    trace = 0.0
+    for j in range(nn):
+        trace += abs(Z[j, j].real)
+    delta = ASSEMBLY_MARGIN * frob + CHOLESKY_MARGIN * trace + 1e-300
+    Cabs[:, :] = 0.0
+    for j in range(nn):
+        Z[j, j] = Z[j, j].real - delta
+    return not np.isnan(cholesky(Z, L, nn))
+
+
+@jit
+def workspace(nn, nv, m):
+    """Scratch arrays of :func:`solve` for ``Z`` of order ``nn``, ``nv`` basis vectors and
+    ``m`` multipliers."""
+    c = np.complex128
+    return (np.zeros((nv, nv), c), np.empty((nn, nv), c), np.empty((nn, nn), c),
+            np.zeros((nn, nn), c), np.empty((nn, nn), c), np.empty((nn, nn), c),
+            np.empty((nv, nv), c), np.empty((m, m)), np.empty(m), np.empty(m),
+            np.empty(m), np.zeros((nv, nv)), np.empty((nn, nv)), np.empty((nn, nn)),
+            np.zeros((m, m)), np.empty(m))
+
+
+@jit
+def _solve_spd(Hm, Lh, yv, g, dx, m):
+    """``dx = -Hm^-1 g`` by Cholesky (a growing ridge where rounding makes ``Hm``
+    indefinite); False if that fails too."""
+    scale = 0.0
+    for j in range(m):
+        scale = max(scale, Hm[j, j])
+    ridge = 0.0
+    ok = False
+    for attempt in range(8):
+        ok = True
+        for j in range(m):
+            d = Hm[j, j] + ridge
+            for k in range(j):
+                d -= Lh[j, k] ** 2
+            if not d > 0.0:
+                ok = False
+                break
+            d = math.sqrt(d)
+            Lh[j, j] = d
+            for i in range(j + 1, m):
+                acc = Hm[i, j]
+                for k in range(j):
+                    acc -= Lh[i, k] * Lh[j, k]
+                Lh[i, j] = acc / d
+        if ok:
+            break
+        ridge = 1e-12 * scale if ridge == 0.0 else 100.0 * ridge
+    if not ok:
+        return False
+    for i in range(m):
+        acc = -g[i]
+        for k in range(i):
+            acc -= Lh[i, k] * yv[k]
+        yv[i] = acc / Lh[i, i]
+    for i in range(m - 1, -1, -1):
+        acc = yv[i]
+        for k in range(i + 1, m):
+            acc -= Lh[k, i] * dx[k]
+        dx[i] = acc / Lh[i, i]
+    return True
+
+
+@jit
+def _newton(x, mu, V, idx, S, cvec, pos, simplex, m, ws):
+    """The barrier's Newton direction at ``x`` (into ``dx``, from ``ws``); returns the
+    decrement squared (``-1`` if the system could not be solved)."""
+    C, T, Z, L, Zi, W, Q, Hm, g, dx, xn, Cabs, Vabs, Zabs, Lh, yv = ws
+    nn, nv = V.shape
+    _assemble(x, 1.0, V, idx, S, C, T, Z, m)
+    if np.isnan(cholesky(Z, L, nn)):
+        return -1.0
+    _inverse(L, Zi, W, nn)
+    # Q = V^H Zi V: every trace below is a product of its 2 x 2 blocks
+    for j in range(nn):
+        for b in range(nv):
+            acc = 0j
+            for k in range(nn):
+                acc += Zi[j, k] * V[k, b]
+            T[j, b] = acc
+    for a in range(nv):
+        for b in range(a, nv):
+            acc = 0j
+            for j in range(nn):
+                acc += V[j, a].conjugate() * T[j, b]
+            Q[a, b] = acc
+            Q[b, a] = acc.conjugate()
+    ssum = 0.0
+    for i in range(m):
+        if simplex[i]:
+            ssum += x[i]
+    sgap = 1.0 - ssum
+    for i in range(m):
+        ia, ib = idx[i, 0], idx[i, 1]
+        # d(-log det Z)/dx_i = -tr(Zi A_i) = -sum_ab S_ab Q_ba
+        tr = (S[i, 0, 0] * Q[ia, ia] + S[i, 0, 1] * Q[ib, ia]
+              + S[i, 1, 0] * Q[ia, ib] + S[i, 1, 1] * Q[ib, ib])
+        gi = cvec[i] / mu - tr.real
+        if pos[i]:
+            gi -= 1.0 / x[i]
+        if simplex[i]:
+            gi += 1.0 / sgap
+        g[i] = gi
+        for l in range(i, m):
+            la, lb = idx[l, 0], idx[l, 1]
+            # tr(Zi A_i Zi A_l) = sum_abcd S_i[a,b] Q[I_b, L_c] S_l[c,d] Q[L_d, I_a]
+            acc = 0j
+            for a in range(2):
+                ra = ia if a == 0 else ib
+                for b in range(2):
+                    sab = S[i, a, b]
+                    if sab == 0:
+                        continue
+                    rb = ia if b == 0 else ib
+                    for c in range(2):
+                        rc = la if c == 0 else lb
+                        for d in range(2):
+                            scd = S[l, c, d]
+                            if scd == 0:
+                                continue
+                            rd = la if d == 0 else lb
+                            acc += sab * Q[rb, rc] * scd * Q[rd, ra]
+            h = acc.real
+            if i == l and pos[i]:
+                h += 1.0 / x[i] ** 2
+            if simplex[i] and simplex[l]:
+                h += 1.0 / sgap ** 2
+            Hm[i, l] = h
+            Hm[l, i] = h
+    if not _solve_spd(Hm, Lh, yv, g, dx, m):
+        return -1.0
+    lam2 = 0.0
+    for i in range(m):
+        lam2 -= g[i] * dx[i]
+    return lam2
+
+
+@jit
+def _value(x, mu, V, idx, S, cvec, pos, simplex, m, ws):
+    """The barrier ``c.x / mu - log det Z - sum log(cone)`` at ``x`` (``inf`` outside)."""
+    C, T, Z, L = ws[0], ws[1], ws[2], ws[3]
+    f = _barrier(x, mu, cvec, pos, simplex, m)
+    if not np.isfinite(f):
+        return np.inf
+    _assemble(x, 1.0, V, idx, S, C, T, Z, m)
+    logdet = cholesky(Z, L, V.shape[0])
+    if np.isnan(logdet):
+        return np.inf
+    return f - logdet
+
+
+@jit
+def solve(x, shift, V, idx, S, cvec, pos, simplex, grow, target, ws):
+    """Improve the multipliers ``x`` (in place) and return the best *verified* value of
+    the shift variable ``x[shift]`` (``nan`` if none verified).
+
+    Parameters
+    ----------
+    x : ndarray, shape (m,)
+        Start; the ``grow`` entries are doubled until the leading block of ``Z`` is
+        positive definite, then ``x[shift]`` is set to make ``Z`` so.
+    shift : int
+        The variable on ``E`` (``t`` with ``S = +1``, ``s`` with ``S = -1``).
+    V, idx, S
+        Basis vectors (columns), each form's two basis indices and 2 x 2 matrix; form
+        ``m`` (the last) is the constant one.
+    cvec : ndarray, shape (m,)
+        Minimised objective (``+1`` or ``-1`` on ``shift``).
+    pos, simplex, grow : ndarray of bool
+        Multipliers kept positive, kept with a sum below 1, grown at the start.
+    target : float
+        Stop once the verified objective ``cvec[shift] x[shift]`` is at or below this.
+    """
+    C, T, Z, L, Zi, W, Q, Hm, g, dx, xn, Cabs, Vabs, Zabs, Lh, yv = ws
+    nn, nv = V.shape
+    m = len(x)
+    sgn = S[shift, 0, 0].real
+    for j in range(nn):
+        for a in range(nv):
+            Vabs[j, a] = abs(V[j, a])
+    # start: the leading block positive definite, then the shift from its Schur complement
+    x[shift] = 0.0
+    found = False
+    for attempt in range(200):
+        _assemble(x, 1.0, V, idx, S, C, T, Z, m)
+        if not np.isnan(cholesky(Z, L, nn - 1)):
+            found = True
+            break
+        for i in range(m):
+            if grow[i]:
+                x[i] *= 2.0
+    if not found:
+        return np.nan
+    # Schur complement of the leading block: r = Z_ee - b^H P^-1 b, by L w = b
+    for i in range(nn - 1):
+        acc = Z[i, nn - 1]
+        for k in range(i):
+            acc -= L[i, k] * W[k, 0]
+        W[i, 0] = acc / L[i, i].real
+    r = Z[nn - 1, nn - 1].real
+    for i in range(nn - 1):
+        r -= W[i, 0].real ** 2 + W[i, 0].imag ** 2
+    # sgn x_shift + r > 0, with a margin
+    x[shift] = (1.0 + abs(r) - r) / sgn
+    nu = float(nn)
+    for i in range(m):
+        if pos[i]:
+            nu += 1.0
+    if simplex.any():
+        nu += 1.0
+    mu = max(abs(x[shift]), 1e-300) / nu
+    best = np.nan
+    steps = 0
+    while steps < MAX_STEPS:
+        for inner in range(STEPS_PER_ROUND):
+            lam2 = _newton(x, mu, V, idx, S, cvec, pos, simplex, m, ws)
+            steps += 1
+            if lam2 < 0.0:
+                steps = MAX_STEPS
+                break
+            f0 = _value(x, mu, V, idx, S, cvec, pos, simplex, m, ws)
+            step = 1.0
+            moved = False
+            for back in range(40):
+                for i in range(m):
+                    xn[i] = x[i] + step * dx[i]
+                if _value(xn, mu, V, idx, S, cvec, pos, simplex, m, ws) <= f0 - 0.25 * step * lam2:
+                    moved = True
+                    break
+                step *= 0.5
+            if moved:
+                x[:] = xn
+            if not moved or lam2 < CENTRED ** 2 or steps >= MAX_STEPS:
+                break
+        if verified(x, V, idx, S, m, pos, simplex, ws):
+            val = cvec[shift] * x[shift]
+            if np.isnan(best) or val < best:
+                best = val
+            if best <= target:
+                break
+        if mu * nu <= TOL * abs(x[shift]):
+            break
+        mu *= 0.1
+    return best
+
+
+@jit
+def forms(G, q0, ylin, H, lo, hi, F_lim, beam, V, idx, S, x, cvec, pos, simplex, grow):
+    """The relaxation of one frequency's admissible set (dampers in ``[lo_j, hi_j]``,
+    N/m, and ``|p_j| <= F_lim``, N) into the given arrays; returns ``(shift, 2**e)``:
+    the shift variable's index and the factor from its value to ``|y|^2`` (m^2).
+
+    ``beam >= 0``: the upper bound of that beam's ``|y_b|``; ``beam < 0``: the lower
+    bound of ``max_b |y_b|``. Sizes: ``nd`` dampers, ``nb`` beams, ``V``: (nd + 1,
+    2 nd + 1 + nb); forms: 6 per damper (5 without a force limit), the shift, ``nb - 1``
+    simplex weights for the minimum, and the constant form last.
+    """
+    nd = len(q0)
+    nb = len(ylin)
+    nn = nd + 1
+    e_last = 2 * nd
+    force = np.isfinite(F_lim)
+    # p in units of a power of two near the force scale: Z better conditioned, exactly
+    sp = _pow2(F_lim) if force else 1.0
+    V[:, :] = 0.0
+    for j in range(nd):
+        for k in range(nd):
+            V[k, j] = -G[j, k].conjugate() * sp
+        V[nd, j] = q0[j].conjugate()
+        V[j, nd + j] = sp
+    V[nd, e_last] = 1.0
+    ymax = 0.0
+    for b in range(nb):
+        col = e_last + 1 + b
+        for k in range(nd):
+            V[k, col] = -H[b, k].conjugate() * sp
+        V[nd, col] = ylin[b].conjugate()
+        for k in range(nn):
+            ymax = max(ymax, abs(V[k, col]))
+    ys = _pow2(ymax * ymax * nn)
+    vmax = np.zeros(V.shape[1])
+    for a in range(V.shape[1]):
+        for k in range(nn):
+            vmax[a] = max(vmax[a], abs(V[k, a]))
+    S[:, :, :] = 0.0
+    i = 0
+    per = 6 if force else 5
+    for j in range(nd):
+        a, b, c, d = lo[j].real, hi[j].real, lo[j].imag, hi[j].imag
+        mid = 0.5 * (lo[j] + hi[j])
+        rho2 = 0.0
+        for corner in (lo[j], hi[j], complex(a, d), complex(b, c)):
+            rho2 = max(rho2, abs(corner - mid) ** 2)
+        # rounded up past the rounding of |mid|^2: the disc still holds the rectangle
+        rho2 = rho2 * (1.0 + 1e-10) + 1e-10 * abs(mid) ** 2
+        for f in range(5):
+            idx[i + f, 0] = j
+            idx[i + f, 1] = nd + j
+        S[i, 0, 0] = a
+        S[i, 0, 1] = -0.5
+        S[i, 1, 0] = -0.5
+        S[i + 1, 0, 0] = -b
+        S[i + 1, 0, 1] = 0.5
+        S[i + 1, 1, 0] = 0.5
+        S[i + 2, 0, 0] = c
+        S[i + 2, 0, 1] = 0.5j
+        S[i + 2, 1, 0] = -0.5j
+        S[i + 3, 0, 0] = -d
+        S[i + 3, 0, 1] = -0.5j
+        S[i + 3, 1, 0] = 0.5j
+        S[i + 4, 0, 0] = abs(mid) ** 2 - rho2
+        S[i + 4, 0, 1] = -mid.conjugate()
+        S[i + 4, 1, 0] = -mid
+        S[i + 4, 1, 1] = 1.0
+        if force:
+            idx[i + 5, 0] = nd + j
+            idx[i + 5, 1] = e_last
+            S[i + 5, 0, 0] = 1.0
+            S[i + 5, 1, 1] = -(F_lim * F_lim) * (1.0 + 1e-12)
+        for f in range(per):
+            # each form scaled by a power of two to entries of order one (exact)
+            big = 0.0
+            for r in range(2):
+                for s_ in range(2):
+                    big = max(big, abs(S[i + f, r, s_]) * vmax[idx[i + f, r]]
+                              * vmax[idx[i + f, s_]])
+            sc = _pow2(big)
+            for r in range(2):
+                for s_ in range(2):
+                    S[i + f, r, s_] /= sc
+            x[i + f] = 1.0 if f >= 4 else 1e-2
+            pos[i + f] = True
+            simplex[i + f] = False
+            grow[i + f] = f == 5
+            cvec[i + f] = 0.0
+        i += per
+    shift = i
+    idx[i, 0] = e_last
+    idx[i, 1] = e_last
+    S[i, 0, 0] = 1.0 if beam >= 0 else -1.0
+    x[i] = 0.0
+    cvec[i] = S[i, 0, 0].real
+    pos[i] = False
+    simplex[i] = False
+    grow[i] = False
+    i += 1
+    last = e_last + nb
+    if beam < 0:
+        for b in range(nb - 1):
+            idx[i, 0] = e_last + 1 + b
+            idx[i, 1] = last
+            S[i, 0, 0] = 1.0 / ys
+            S[i, 1, 1] = -1.0 / ys
+            x[i] = 1.0 / nb
+            cvec[i] = 0.0
+            pos[i] = True
+            simplex[i] = True
+            grow[i] = False
+            i += 1
+        idx[i, 0] = last
+        idx[i, 1] = last
+        S[i, 0, 0] = 1.0 / ys
+    else:
+        idx[i, 0] = e_last + 1 + beam
+        idx[i, 1] = e_last + 1 + beam
+        S[i, 0, 0] = -1.0 / ys
+    return shift, ys
+
+
+@jit
+def n_forms(nd, nb, force, lower):
+    """Multipliers of :func:`forms` (the constant form not counted)."""
+    return nd * (6 if force else 5) + 1 + (nb - 1 if lower else 0)
+
+
+@jit(nogil=True)
+def relax_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, floor, target, freqs, out):
+    """Certified bounds over the whole box ``[0, kr] x [0, ki]`` at ``freqs``: ``out[k]``
+    the upper bound of ``max_b |y_b|`` (``want_max``) or the lower one (m).
+
+    The upper bound takes the beams in decreasing order of their force bound (Eq. 10)
+    and stops at the first below the running maximum (``floor[k]`` to begin, a witness);
+    each relaxation stops once it proves its beam below ``max(running maximum,
+    target[k])``. The lower bound stops once it reaches ``target[k]``.
+    """
+    n_f, nd = q0.shape
+    nb = ylin.shape[1]
+    nn = nd + 1
+    nv = 2 * nd + 1 + nb
+    force = np.isfinite(F_lim)
+    m = n_forms(nd, nb, force, not want_max)
+    V = np.empty((nn, nv), np.complex128)
+    idx = np.empty((m + 1, 2), np.int64)
+    S = np.empty((m + 1, 2, 2), np.complex128)
+    x = np.empty(m)
+    cvec = np.empty(m)
+    pos = np.empty(m, np.bool_)
+    simplex = np.empty(m, np.bool_)
+    grow = np.empty(m, np.bool_)
+    ws = workspace(nn, nv, m)
+    lo = np.zeros(nd, np.complex128)
+    hi = np.full(nd, complex(kr, ki))
+    eq10 = np.empty(nb)
+    for k in freqs:
+        if want_max:
+            for b in range(nb):
+                acc = abs(ylin[k, b])
+                for j in range(nd):
+                    acc += F_lim * abs(H[k, b, j])
+                eq10[b] = acc
+            R = floor[k]
+            for b in np.argsort(-eq10):
+                if eq10[b] <= R:
+                    break
+                shift, ys = forms(G[k], q0[k], ylin[k], H[k], lo, hi, F_lim, b, V, idx,
+                                  S, x, cvec, pos, simplex, grow)
+                goal = max(R, target[k])
+                t = solve(x, shift, V, idx, S, cvec, pos, simplex, grow,
+                          goal * goal / ys, ws)
+                bound = eq10[b]
+                if not np.isnan(t):
+                    bound = min(bound, math.sqrt(max(t, 0.0) * ys) * (1.0 + 1e-14))
+                R = max(R, bound)
+            out[k] = R
+        else:
+            shift, ys = forms(G[k], q0[k], ylin[k], H[k], lo, hi, F_lim, -1, V, idx, S,
+                              x, cvec, pos, simplex, grow)
+            s = solve(x, shift, V, idx, S, cvec, pos, simplex, grow,
+                      -target[k] * target[k] / ys, ws)
+            out[k] = 0.0 if np.isnan(s) else math.sqrt(max(-s * ys, 0.0)) * (1.0 - 1e-14)
