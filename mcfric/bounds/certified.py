@@ -19,6 +19,7 @@ import numpy as np
 
 from ..core.branch_bound import certify_frequencies
 from ..core.joint_ascent import witnesses
+from ..core.relaxation import relax_frequencies
 from ..threads import in_threads
 from .search import _chunks
 
@@ -48,6 +49,12 @@ WITNESS_BEAMS = 2
 WITNESS_SWEEPS = 20
 WITNESS_GAIN = 1e-4
 WITNESS_SAMPLES = 12
+#: Whether the semidefinite relaxation of the whole box tightens the branch and bound's
+#: bounds where they are not yet within the tolerance (two or more dampers, a force limit).
+RELAX = True
+#: Newton steps, barrier rounds and relaxations of the last call, upper and lower (for
+#: the docs' measurements).
+LAST_RELAXATION = np.zeros((2, 3), np.int64)
 #: Relative margin on the force bound (a sum of non-negative products: (nd + 2) u).
 _FORCE_MARGIN = 1e-12
 
@@ -164,6 +171,30 @@ def joint_witnesses(args, kr, ki, F_lim, K_upper, seed=0):
     return K
 
 
+def _relaxed(args, kr, ki, F_lim, want_max, cert, wit, rtol, atol):
+    """``cert`` improved by the semidefinite relaxation of the whole box
+    (:mod:`mcfric.core.relaxation`) where it is not yet within the tolerance of its
+    witness."""
+    if want_max:
+        loose = np.flatnonzero(~(cert <= wit * (1 + rtol)))
+        target = wit * (1 + rtol)
+    else:
+        loose = np.flatnonzero(~((cert >= wit * (1 - rtol)) | (wit - cert <= atol)))
+        target = np.maximum(wit * (1 - rtol), wit - atol)
+    if not len(loose):
+        return cert
+    got = np.full(len(cert), np.inf if want_max else 0.0)
+    floor = np.ascontiguousarray(wit)
+    target = np.ascontiguousarray(target)
+    stats = np.zeros((64, 3), np.int64)
+    in_threads(lambda item: relax_frequencies(*args, kr, ki, F_lim, want_max, floor,
+                                              target, np.asarray(item[1], np.int64), got,
+                                              stats[item[0]]),
+               enumerate(np.array_split(loose, min(len(loose), 64))))
+    LAST_RELAXATION[int(not want_max)] = stats.sum(axis=0)
+    return np.fmin(cert, got) if want_max else np.fmax(cert, got)
+
+
 def _pct(x):
     return "unbounded" if not np.isfinite(x) else f"{100 * x:.3g} %"
 
@@ -209,6 +240,8 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
         climbed = joint_witnesses(args, kr, ki, F_lim, K_upper)
         init_up = np.concatenate([init_up, climbed[:, None]], axis=1)
     out = {}
+    # the relaxation needs the force limit (its multiplier makes the start definite)
+    relax = RELAX and np.isfinite(F_lim) and 2 <= nd <= MAX_DAMPERS
     force = (np.abs(ylin) + (F_lim * np.abs(H).sum(axis=2) if np.isfinite(F_lim) else np.inf)
              ).max(axis=1) * (1 + _FORCE_MARGIN)
     for want_max, init, atol in ((True, init_up, np.zeros(n_f)), (False, init_lo, None)):
@@ -224,6 +257,8 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
                    certify_frequencies(*args, kr, ki, F_lim, w, i, int(budget), rtol, a,
                                        np.asarray(freqs, np.int64), c, x, k, e, o),
                    _chunks(n_f))
+        if relax:
+            cert = _relaxed(args, kr, ki, F_lim, want_max, cert, wit, rtol, atol)
         if want_max:
             cert = np.maximum(np.fmin(cert, force), wit)
         else:

@@ -34,7 +34,9 @@ TOL = 1e-4
 STEPS_PER_ROUND = 40
 MAX_STEPS = 160
 #: Newton decrement below which a barrier weight counts as centred.
-CENTRED = 0.5
+CENTRED = 1.0
+#: Barrier weight factor per round.
+MU_FACTOR = 0.1
 #: Safety factors over the rounding bounds of the assembly (gamma_k |V| |C| |V|^T, k <=
 #: ~100 operations: ~1e-14) and of the Cholesky test (Rump: (n + 1) u tr Z).
 ASSEMBLY_MARGIN = 1e-12
@@ -59,12 +61,15 @@ def _assemble(x, coef_const, V, idx, S, C, T, Z, m):
         for a in range(2):
             for b in range(2):
                 C[idx[i, a], idx[i, b]] += w * S[i, a, b]
-    for j in range(nn):
-        for b in range(nv):
-            acc = 0j
-            for a in range(nv):
-                acc += V[j, a] * C[a, b]
-            T[j, b] = acc
+    # T = V C over the nonzeros of C (a few per damper)
+    T[:, :] = 0.0
+    for b in range(nv):
+        for a in range(nv):
+            cab = C[a, b]
+            if cab == 0:
+                continue
+            for j in range(nn):
+                T[j, b] += V[j, a] * cab
     for j in range(nn):
         for k in range(j, nn):
             acc = 0j
@@ -143,7 +148,7 @@ def verified(x, V, idx, S, m, pos, simplex, ws):
     rounding of the assembly is bounded by ``|V| |C| |V|^T`` entrywise and that of the
     Cholesky test by ``tr Z``; the test factorises ``Z - delta I`` with ``delta`` above
     both, by the margins."""
-    C, T, Z, L, Zi, W, Q, Hm, g, dx, xn, Cabs, Vabs, Zabs, Lh, yv = ws
+    C, T, Z, L, Zi, W, Q, Hm, g, dx, xn, Cabs, Vabs, Zabs, Lh, yv, P, R, Tabs, xb = ws
     nn = V.shape[0]
     ssum = 0.0
     for i in range(m):
@@ -160,14 +165,20 @@ def verified(x, V, idx, S, m, pos, simplex, ws):
         for a in range(2):
             for b in range(2):
                 Cabs[idx[i, a], idx[i, b]] += w * abs(S[i, a, b])
+    nv = V.shape[1]
+    Tabs[:, :] = 0.0
+    for b in range(nv):
+        for a in range(nv):
+            cab = Cabs[a, b]
+            if cab == 0.0:
+                continue
+            for j in range(nn):
+                Tabs[j, b] += Vabs[j, a] * cab
     for j in range(nn):
         for k in range(nn):
             acc = 0.0
-            for a in range(V.shape[1]):
-                if Vabs[j, a] == 0.0:
-                    continue
-                for b in range(V.shape[1]):
-                    acc += Vabs[j, a] * Cabs[a, b] * Vabs[k, b]
+            for b in range(nv):
+                acc += Tabs[j, b] * Vabs[k, b]
             Zabs[j, k] = acc
     frob = math.sqrt((Zabs ** 2).sum())
     trace = 0.0
@@ -189,7 +200,8 @@ def workspace(nn, nv, m):
             np.zeros((nn, nn), c), np.empty((nn, nn), c), np.empty((nn, nn), c),
             np.empty((nv, nv), c), np.empty((m, m)), np.empty(m), np.empty(m),
             np.empty(m), np.zeros((nv, nv)), np.empty((nn, nv)), np.empty((nn, nn)),
-            np.zeros((m, m)), np.empty(m))
+            np.zeros((m, m)), np.empty(m), np.empty((m, 2, 2), c), np.empty((m, 2, 2), c),
+            np.empty((nn, nv)), np.empty(m))
 
 
 @jit
@@ -236,14 +248,17 @@ def _solve_spd(Hm, Lh, yv, g, dx, m):
 
 
 @jit
-def _newton(x, mu, V, idx, S, cvec, pos, simplex, m, ws):
+def _newton(x, mu, V, idx, S, gstart, cvec, pos, simplex, m, ws):
     """The barrier's Newton direction at ``x`` (into ``dx``, from ``ws``); returns the
-    decrement squared (``-1`` if the system could not be solved)."""
-    C, T, Z, L, Zi, W, Q, Hm, g, dx, xn, Cabs, Vabs, Zabs, Lh, yv = ws
+    decrement squared (``-1`` if the system could not be solved) and the barrier's
+    value."""
+    C, T, Z, L, Zi, W, Q, Hm, g, dx, xn, Cabs, Vabs, Zabs, Lh, yv, P, R, Tabs, xb = ws
     nn, nv = V.shape
     _assemble(x, 1.0, V, idx, S, C, T, Z, m)
-    if np.isnan(cholesky(Z, L, nn)):
-        return -1.0
+    logdet = cholesky(Z, L, nn)
+    if np.isnan(logdet):
+        return -1.0, np.inf
+    f = _barrier(x, mu, cvec, pos, simplex, m) - logdet
     _inverse(L, Zi, W, nn)
     # Q = V^H Zi V: every trace below is a product of its 2 x 2 blocks
     for j in range(nn):
@@ -275,38 +290,45 @@ def _newton(x, mu, V, idx, S, cvec, pos, simplex, m, ws):
         if simplex[i]:
             gi += 1.0 / sgap
         g[i] = gi
-        for l in range(i, m):
-            la, lb = idx[l, 0], idx[l, 1]
-            # tr(Zi A_i Zi A_l) = sum_abcd S_i[a,b] Q[I_b, L_c] S_l[c,d] Q[L_d, I_a]
-            acc = 0j
-            for a in range(2):
-                ra = ia if a == 0 else ib
-                for b in range(2):
-                    sab = S[i, a, b]
-                    if sab == 0:
-                        continue
-                    rb = ia if b == 0 else ib
-                    for c in range(2):
-                        rc = la if c == 0 else lb
-                        for d in range(2):
-                            scd = S[l, c, d]
-                            if scd == 0:
-                                continue
-                            rd = la if d == 0 else lb
-                            acc += sab * Q[rb, rc] * scd * Q[rd, ra]
-            h = acc.real
-            if i == l and pos[i]:
-                h += 1.0 / x[i] ** 2
-            if simplex[i] and simplex[l]:
-                h += 1.0 / sgap ** 2
-            Hm[i, l] = h
-            Hm[l, i] = h
+    # tr(Zi A_i Zi A_l) = tr(S_i Q[I_i, I_l] S_l Q[I_l, I_i]); forms in a group share
+    # their basis pair, so the 2 x 2 products are formed once per group pair
+    ng = len(gstart) - 1
+    for gg in range(ng):
+        i0, i1 = gstart[gg], gstart[gg + 1]
+        ga, gb = idx[i0, 0], idx[i0, 1]
+        for hh in range(gg, ng):
+            l0, l1 = gstart[hh], gstart[hh + 1]
+            ha, hb = idx[l0, 0], idx[l0, 1]
+            q00, q01, q10, q11 = Q[ga, ha], Q[ga, hb], Q[gb, ha], Q[gb, hb]
+            for i in range(i0, i1):
+                P[i, 0, 0] = S[i, 0, 0] * q00 + S[i, 0, 1] * q10
+                P[i, 0, 1] = S[i, 0, 0] * q01 + S[i, 0, 1] * q11
+                P[i, 1, 0] = S[i, 1, 0] * q00 + S[i, 1, 1] * q10
+                P[i, 1, 1] = S[i, 1, 0] * q01 + S[i, 1, 1] * q11
+            # Q[I_l, I_i] is the conjugate transpose of Q[I_i, I_l]
+            r00, r01, r10, r11 = q00.conjugate(), q10.conjugate(), q01.conjugate(), \
+                q11.conjugate()
+            for l in range(l0, l1):
+                R[l, 0, 0] = S[l, 0, 0] * r00 + S[l, 0, 1] * r10
+                R[l, 0, 1] = S[l, 0, 0] * r01 + S[l, 0, 1] * r11
+                R[l, 1, 0] = S[l, 1, 0] * r00 + S[l, 1, 1] * r10
+                R[l, 1, 1] = S[l, 1, 0] * r01 + S[l, 1, 1] * r11
+            for i in range(i0, i1):
+                for l in range(max(l0, i), l1):
+                    h = (P[i, 0, 0] * R[l, 0, 0] + P[i, 0, 1] * R[l, 1, 0]
+                         + P[i, 1, 0] * R[l, 0, 1] + P[i, 1, 1] * R[l, 1, 1]).real
+                    if i == l and pos[i]:
+                        h += 1.0 / x[i] ** 2
+                    if simplex[i] and simplex[l]:
+                        h += 1.0 / sgap ** 2
+                    Hm[i, l] = h
+                    Hm[l, i] = h
     if not _solve_spd(Hm, Lh, yv, g, dx, m):
-        return -1.0
+        return -1.0, f
     lam2 = 0.0
     for i in range(m):
         lam2 -= g[i] * dx[i]
-    return lam2
+    return lam2, f
 
 
 @jit
@@ -324,7 +346,7 @@ def _value(x, mu, V, idx, S, cvec, pos, simplex, m, ws):
 
 
 @jit
-def solve(x, shift, V, idx, S, cvec, pos, simplex, grow, target, ws):
+def solve(x, shift, V, idx, S, cvec, pos, simplex, grow, target, ws, stats):
     """Improve the multipliers ``x`` (in place) and return the best *verified* value of
     the shift variable ``x[shift]`` (``nan`` if none verified).
 
@@ -344,11 +366,22 @@ def solve(x, shift, V, idx, S, cvec, pos, simplex, grow, target, ws):
         Multipliers kept positive, kept with a sum below 1, grown at the start.
     target : float
         Stop once the verified objective ``cvec[shift] x[shift]`` is at or below this.
+    stats : ndarray of int64, shape (2,)
+        Newton steps and barrier rounds are added to it.
     """
-    C, T, Z, L, Zi, W, Q, Hm, g, dx, xn, Cabs, Vabs, Zabs, Lh, yv = ws
+    C, T, Z, L, Zi, W, Q, Hm, g, dx, xn, Cabs, Vabs, Zabs, Lh, yv, P, R, Tabs, xb = ws
     nn, nv = V.shape
     m = len(x)
     sgn = S[shift, 0, 0].real
+    # groups: runs of forms on the same basis pair
+    gstart = np.empty(m + 1, np.int64)
+    ng = 0
+    for i in range(m):
+        if i == 0 or idx[i, 0] != idx[i - 1, 0] or idx[i, 1] != idx[i - 1, 1]:
+            gstart[ng] = i
+            ng += 1
+    gstart[ng] = m
+    gstart = gstart[:ng + 1]
     for j in range(nn):
         for a in range(nv):
             Vabs[j, a] = abs(V[j, a])
@@ -365,15 +398,7 @@ def solve(x, shift, V, idx, S, cvec, pos, simplex, grow, target, ws):
                 x[i] *= 2.0
     if not found:
         return np.nan
-    # Schur complement of the leading block: r = Z_ee - b^H P^-1 b, by L w = b
-    for i in range(nn - 1):
-        acc = Z[i, nn - 1]
-        for k in range(i):
-            acc -= L[i, k] * W[k, 0]
-        W[i, 0] = acc / L[i, i].real
-    r = Z[nn - 1, nn - 1].real
-    for i in range(nn - 1):
-        r -= W[i, 0].real ** 2 + W[i, 0].imag ** 2
+    r = _schur(Z, L, W, nn)
     # sgn x_shift + r > 0, with a margin
     x[shift] = (1.0 + abs(r) - r) / sgn
     nu = float(nn)
@@ -387,12 +412,12 @@ def solve(x, shift, V, idx, S, cvec, pos, simplex, grow, target, ws):
     steps = 0
     while steps < MAX_STEPS:
         for inner in range(STEPS_PER_ROUND):
-            lam2 = _newton(x, mu, V, idx, S, cvec, pos, simplex, m, ws)
+            lam2, f0 = _newton(x, mu, V, idx, S, gstart, cvec, pos, simplex, m, ws)
             steps += 1
+            stats[0] += 1
             if lam2 < 0.0:
                 steps = MAX_STEPS
                 break
-            f0 = _value(x, mu, V, idx, S, cvec, pos, simplex, m, ws)
             step = 1.0
             moved = False
             for back in range(40):
@@ -406,16 +431,60 @@ def solve(x, shift, V, idx, S, cvec, pos, simplex, grow, target, ws):
                 x[:] = xn
             if not moved or lam2 < CENTRED ** 2 or steps >= MAX_STEPS:
                 break
+        stats[1] += 1
         if verified(x, V, idx, S, m, pos, simplex, ws):
             val = cvec[shift] * x[shift]
             if np.isnan(best) or val < best:
                 best = val
+                xb[:] = x
             if best <= target:
                 break
         if mu * nu <= TOL * abs(x[shift]):
             break
-        mu *= 0.1
+        mu *= MU_FACTOR
+    if not np.isnan(best):
+        x[:] = xb
     return best
+
+
+@jit
+def shifted(x, shift, V, idx, S, pos, simplex, ws):
+    """Set ``x[shift]`` to (just past) the least value that makes ``Z`` positive definite
+    for the other multipliers as they are, and return the verified objective
+    ``S_shift x[shift]`` (``nan`` if the leading block is not definite or the
+    verification fails): a certificate from multipliers found for a neighbour."""
+    C, T, Z, L, W = ws[0], ws[1], ws[2], ws[3], ws[5]
+    nn = V.shape[0]
+    m = len(x)
+    sgn = S[shift, 0, 0].real
+    x[shift] = 0.0
+    _assemble(x, 1.0, V, idx, S, C, T, Z, m)
+    if np.isnan(cholesky(Z, L, nn - 1)):
+        return np.nan
+    r = _schur(Z, L, W, nn)
+    trace = 0.0
+    for j in range(nn):
+        trace += abs(Z[j, j].real)
+    for margin in (1e-9, 1e-6, 1e-3):
+        x[shift] = (-r + margin * (abs(r) + trace)) / sgn
+        if verified(x, V, idx, S, m, pos, simplex, ws):
+            return sgn * x[shift]
+    return np.nan
+
+
+@jit
+def _schur(Z, L, W, nn):
+    """``Z_ee - b^H P^-1 b`` for the last row and column ``b`` of ``Z`` and its leading
+    block ``P = L L^H``."""
+    for i in range(nn - 1):
+        acc = Z[i, nn - 1]
+        for k in range(i):
+            acc -= L[i, k] * W[k, 0]
+        W[i, 0] = acc / L[i, i].real
+    r = Z[nn - 1, nn - 1].real
+    for i in range(nn - 1):
+        r -= W[i, 0].real ** 2 + W[i, 0].imag ** 2
+    return r
 
 
 @jit
@@ -548,14 +617,16 @@ def n_forms(nd, nb, force, lower):
 
 
 @jit(nogil=True)
-def relax_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, floor, target, freqs, out):
+def relax_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, floor, target, freqs, out,
+                      stats):
     """Certified bounds over the whole box ``[0, kr] x [0, ki]`` at ``freqs``: ``out[k]``
     the upper bound of ``max_b |y_b|`` (``want_max``) or the lower one (m).
 
     The upper bound takes the beams in decreasing order of their force bound (Eq. 10)
     and stops at the first below the running maximum (``floor[k]`` to begin, a witness);
     each relaxation stops once it proves its beam below ``max(running maximum,
-    target[k])``. The lower bound stops once it reaches ``target[k]``.
+    target[k])``. The lower bound stops once it reaches ``target[k]``. ``stats``
+    (int64, shape (3,)): Newton steps, barrier rounds and relaxations are added to it.
     """
     n_f, nd = q0.shape
     nb = ylin.shape[1]
@@ -575,6 +646,7 @@ def relax_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, floor, target, fr
     lo = np.zeros(nd, np.complex128)
     hi = np.full(nd, complex(kr, ki))
     eq10 = np.empty(nb)
+    xprev = np.empty(m)
     for k in freqs:
         if want_max:
             for b in range(nb):
@@ -583,14 +655,30 @@ def relax_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, floor, target, fr
                     acc += F_lim * abs(H[k, b, j])
                 eq10[b] = acc
             R = floor[k]
+            have = False
             for b in np.argsort(-eq10):
                 if eq10[b] <= R:
                     break
                 shift, ys = forms(G[k], q0[k], ylin[k], H[k], lo, hi, F_lim, b, V, idx,
                                   S, x, cvec, pos, simplex, grow)
                 goal = max(R, target[k])
-                t = solve(x, shift, V, idx, S, cvec, pos, simplex, grow,
-                          goal * goal / ys, ws)
+                t = np.nan
+                if have:
+                    # the multipliers of the beam before often prove this one below
+                    # the running maximum already
+                    x[:] = xprev
+                    t = shifted(x, shift, V, idx, S, pos, simplex, ws)
+                    if not t <= goal * goal / ys:
+                        t = np.nan
+                        forms(G[k], q0[k], ylin[k], H[k], lo, hi, F_lim, b, V, idx, S, x,
+                              cvec, pos, simplex, grow)
+                if np.isnan(t):
+                    stats[2] += 1
+                    t = solve(x, shift, V, idx, S, cvec, pos, simplex, grow,
+                              goal * goal / ys, ws, stats)
+                    if not np.isnan(t):
+                        xprev[:] = x
+                        have = True
                 bound = eq10[b]
                 if not np.isnan(t):
                     bound = min(bound, math.sqrt(max(t, 0.0) * ys) * (1.0 + 1e-14))
@@ -599,6 +687,7 @@ def relax_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, floor, target, fr
         else:
             shift, ys = forms(G[k], q0[k], ylin[k], H[k], lo, hi, F_lim, -1, V, idx, S,
                               x, cvec, pos, simplex, grow)
+            stats[2] += 1
             s = solve(x, shift, V, idx, S, cvec, pos, simplex, grow,
-                      -target[k] * target[k] / ys, ws)
+                      -target[k] * target[k] / ys, ws, stats)
             out[k] = 0.0 if np.isnan(s) else math.sqrt(max(-s * ys, 0.0)) * (1.0 - 1e-14)
