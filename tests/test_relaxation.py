@@ -1,0 +1,123 @@
+"""The semidefinite relaxation's certificates (mcfric.core.relaxation).
+
+Checked independently of the solver: the multipliers it returns make ``Z`` positive
+semidefinite by numpy's eigenvalues (dense, from the forms), its bounds enclose random
+admissible points solved in physical space, and the verification rejects a ``Z`` that is
+indefinite by a relative 1e-12.
+"""
+
+import numpy as np
+import pytest
+
+import mcfric
+from mcfric.core import relaxation as rx
+from mcfric.core.receptance import contact_space
+
+from .test_certified import F_LIM, K_MAX, physical_grid
+
+
+def problem(model, freq, beam):
+    """The relaxation's arrays at one frequency: ``beam >= 0`` upper of that beam,
+    ``beam < 0`` the lower bound of the metric."""
+    a, b = model.dampers
+    G, q0, ylin, H = contact_space(model.receptances(2 * np.pi * np.array([freq]))[0],
+                                   model.force, a, b)
+    nd, nb = len(a), model.n_beams
+    nn, nv = nd + 1, 2 * nd + 1 + nb
+    m = rx.n_forms(nd, nb, True, beam < 0)
+    arrays = dict(V=np.empty((nn, nv), complex), idx=np.empty((m + 1, 2), np.int64),
+                  S=np.empty((m + 1, 2, 2), complex), x=np.empty(m), cvec=np.empty(m),
+                  pos=np.empty(m, bool), simplex=np.empty(m, bool), grow=np.empty(m, bool))
+    shift, ys = rx.forms(G[0], q0[0], ylin[0], H[0], np.zeros(nd, complex),
+                         np.full(nd, K_MAX + 1j * K_MAX), F_LIM, beam, *arrays.values())
+    return arrays, shift, ys, rx.workspace(nn, nv, m)
+
+
+def dense_Z(a):
+    """``Z = sum_i x_i A_i + A_const`` formed plainly in numpy."""
+    V, idx, S, x = a["V"], a["idx"], a["S"], a["x"]
+    Z = np.zeros((V.shape[0],) * 2, complex)
+    for i in range(len(idx)):
+        Vi = V[:, idx[i]]
+        Z += (x[i] if i < len(x) else 1.0) * Vi @ S[i] @ Vi.conj().T
+    return Z
+
+
+def random_admissible(model, freq, n, seed):
+    """``M`` and ``|y_b|`` (all beams) at ``n`` random points of the box that meet the
+    force limit (physical-space solves), log-spread in size."""
+    rng = np.random.default_rng(seed)
+    nd = model.n_dampers
+    s = 10.0 ** rng.uniform(-3, 0, (n, 1))
+    K = s * (rng.uniform(0, K_MAX, (n, nd)) + 1j * rng.uniform(0, K_MAX, (n, nd)))
+    M, force = physical_grid(model, freq, K)
+    return M[force <= 1.0]
+
+
+@pytest.mark.parametrize("freq", [17.0, 52.0, 90.0])
+def test_certificates_are_semidefinite_and_enclose_admissible_points(freq):
+    model = mcfric.eight_beam(0.25)
+    M = random_admissible(model, freq, 2000, 5)
+    assert len(M) > 100
+    upper = 0.0
+    for beam in range(model.n_beams):
+        a, shift, ys, ws = problem(model, freq, beam)
+        t = rx.solve(a["x"], shift, a["V"], a["idx"], a["S"], a["cvec"], a["pos"],
+                     a["simplex"], a["grow"], -np.inf, ws, np.zeros(2, np.int64))
+        assert np.isfinite(t) and t == a["x"][shift]
+        assert np.all(a["x"][:shift] > 0)
+        Z = dense_Z(a)
+        assert np.linalg.eigvalsh(Z).min() >= -1e-14 * np.abs(Z).max()
+        upper = max(upper, np.sqrt(t * ys))
+    a, shift, ys, ws = problem(model, freq, -1)
+    s = -rx.solve(a["x"], shift, a["V"], a["idx"], a["S"], a["cvec"], a["pos"],
+                  a["simplex"], a["grow"], -np.inf, ws, np.zeros(2, np.int64))
+    lam = a["x"][a["simplex"]]
+    assert np.all(lam > 0) and lam.sum() < 1
+    Z = dense_Z(a)
+    assert np.linalg.eigvalsh(Z).min() >= -1e-14 * np.abs(Z).max()
+    lower = np.sqrt(max(s, 0.0) * ys)
+    assert lower * (1 - 1e-9) <= M.min() and M.max() <= upper * (1 + 1e-9)
+    # not vacuous (tightness: the last test)
+    assert lower > 0.0
+
+
+def test_verification_rejects_an_indefinite_Z():
+    """At the least ``t`` that keeps ``Z`` semidefinite (the Schur complement, in numpy),
+    ``t`` a relative 1e-12 lower fails the verification and 1e-6 higher passes."""
+    model = mcfric.eight_beam(1.1)
+    a, shift, ys, ws = problem(model, 90.0, 3)
+    rx.solve(a["x"], shift, a["V"], a["idx"], a["S"], a["cvec"], a["pos"], a["simplex"],
+             a["grow"], -np.inf, ws, np.zeros(2, np.int64))
+    a["x"][shift] = 0.0
+    Z = dense_Z(a)
+    P, b = Z[:-1, :-1], Z[:-1, -1]
+    t_least = -(Z[-1, -1].real - (b.conj() @ np.linalg.solve(P, b)).real)
+    verify = (lambda: rx.verified(a["x"], a["V"], a["idx"], a["S"], len(a["x"]), a["pos"],
+                                  a["simplex"], ws))
+    a["x"][shift] = t_least * (1 - 1e-12)
+    assert not verify()
+    a["x"][shift] = t_least * (1 + 1e-6)
+    assert verify()
+    a["x"][0] = -1e-300
+    assert not verify()
+
+
+def test_relaxation_tightens_the_eight_beam_certificate():
+    """With the relaxation the certified bounds come closer to their witnesses than the
+    branch and bound alone, and still enclose the witnesses."""
+    import mcfric.bounds.certified as certified
+    from mcfric.bounds import compute_bounds
+
+    model = mcfric.eight_beam(0.25)
+    f = np.linspace(20, 140, 13)
+    on = compute_bounds(model, f, K_MAX, F_lim=F_LIM, budget=50).certificate
+    try:
+        certified.RELAX = False
+        off = compute_bounds(model, f, K_MAX, F_lim=F_LIM, budget=50).certificate
+    finally:
+        certified.RELAX = True
+    assert np.all(on.upper <= off.upper) and np.all(on.lower >= off.lower)
+    assert np.all(on.upper >= on.upper_witness) and np.all(on.lower <= on.lower_witness)
+    assert np.median(on.upper_gap) < 0.5 * np.median(off.upper_gap)
+    assert np.count_nonzero(on.lower_tight) > np.count_nonzero(off.lower_tight)
