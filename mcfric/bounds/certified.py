@@ -153,22 +153,43 @@ def default_budget(n_dampers):
     return BUDGET_ONE_DAMPER if n_dampers == 1 else BUDGET
 
 
-def joint_witnesses(args, kr, ki, F_lim, K_upper, seed=0):
-    """Admissible points of large ``M`` (N/m, shape (n_f, nd)): the best that
-    :func:`mcfric.core.joint_ascent.witnesses` climbs to per frequency, from the search's
-    box optimum ``K_upper`` (where admissible; its ``M``, admissible or not, ends the climb
-    once a witness reaches it), no damper and ``WITNESS_POOL`` random points. ``args``:
-    the contact-space arrays (contiguous)."""
-    n_f, nd = K_upper.shape
-    given = np.ascontiguousarray(np.stack([K_upper, np.zeros_like(K_upper)], axis=1))
+def joint_witnesses(args, kr, ki, F_lim, given, stop, freqs=None, pool=None, climb=None,
+                    seed=0):
+    """Admissible points of large ``M`` (N/m, shape (n_f, nd)) and their ``M`` (m): the
+    best that :func:`mcfric.core.joint_ascent.witnesses` climbs to per frequency, from
+    the rows of ``given`` (n_f, n_g, nd; pulled inside the force limit) and ``pool``
+    random points (default ``WITNESS_POOL``; ``climb``: how many of the best are climbed,
+    default ``WITNESS_STARTS``), until one comes within 1e-4 of ``stop`` (n_f,) m.
+    ``args``: the contact-space arrays (contiguous); ``freqs``: the frequencies to treat
+    (default all; elsewhere ``M = -inf``)."""
+    n_f, n_g, nd = given.shape
+    freqs = np.arange(n_f) if freqs is None else np.asarray(freqs)
+    pool = WITNESS_POOL if pool is None else pool
+    climb = WITNESS_STARTS if climb is None else climb
+    given = np.ascontiguousarray(given)
+    stop = np.ascontiguousarray(stop, dtype=float)
     K = np.zeros((n_f, nd), complex)
-    M = np.empty(n_f)
-    in_threads(lambda freqs: witnesses(*args, kr, ki, F_lim, given, WITNESS_POOL,
-                                       WITNESS_STARTS, WITNESS_BEAMS, WITNESS_SWEEPS,
-                                       WITNESS_GAIN, WITNESS_SAMPLES, seed,
-                                       np.asarray(freqs, np.int64), K, M),
-               _chunks(n_f))
-    return K
+    M = np.full(n_f, -np.inf)
+    if len(freqs):
+        in_threads(lambda fs: witnesses(*args, kr, ki, F_lim, given, pool, climb,
+                                        WITNESS_BEAMS, WITNESS_SWEEPS, WITNESS_GAIN,
+                                        WITNESS_SAMPLES, seed, stop,
+                                        np.asarray(fs, np.int64), K, M),
+                   [freqs[c] for c in _chunks(len(freqs))])
+    return K, M
+
+
+def _value(args, K):
+    """``M`` at ``K`` (n_f, nd) per frequency (m; ``inf`` where singular), in numpy."""
+    G, q0, ylin, H = args
+    nd = K.shape[1]
+    with np.errstate(all="ignore"):
+        try:
+            q = np.linalg.solve(np.eye(nd) + G * K[:, None, :], q0[..., None])[..., 0]
+        except np.linalg.LinAlgError:
+            return np.full(len(K), np.inf)
+        M = np.abs(ylin - np.einsum("fbj,fj->fb", H, K * q)).max(axis=1)
+    return np.where(np.isfinite(M), M, np.inf)
 
 
 def _relaxed(args, kr, ki, F_lim, want_max, cert, wit, rtol, atol):
@@ -182,17 +203,19 @@ def _relaxed(args, kr, ki, F_lim, want_max, cert, wit, rtol, atol):
         loose = np.flatnonzero(~((cert >= wit * (1 - rtol)) | (wit - cert <= atol)))
         target = np.maximum(wit * (1 - rtol), wit - atol)
     if not len(loose):
-        return cert
+        return cert, np.full((len(cert), args[1].shape[1]), np.nan + 0j)
     got = np.full(len(cert), np.inf if want_max else 0.0)
     floor = np.ascontiguousarray(wit)
     target = np.ascontiguousarray(target)
+    K_round = np.full((len(cert), args[1].shape[1]), np.nan + 0j)
     stats = np.zeros((64, 3), np.int64)
     in_threads(lambda item: relax_frequencies(*args, kr, ki, F_lim, want_max, floor,
                                               target, np.asarray(item[1], np.int64), got,
-                                              stats[item[0]]),
+                                              K_round, stats[item[0]]),
                enumerate(np.array_split(loose, min(len(loose), 64))))
     LAST_RELAXATION[int(not want_max)] = stats.sum(axis=0)
-    return np.fmin(cert, got) if want_max else np.fmax(cert, got)
+    cert = np.fmin(cert, got) if want_max else np.fmax(cert, got)
+    return cert, K_round
 
 
 def _pct(x):
@@ -236,8 +259,10 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
     init_lo = np.ascontiguousarray(np.concatenate([K_lower[:, None], corners], axis=1))
     args = [np.ascontiguousarray(a) for a in (G, q0, ylin, H)]
     if np.isfinite(F_lim) and nd <= MAX_DAMPERS:
-        # the box search ignores the force limit: climb to admissible witnesses as well
-        climbed = joint_witnesses(args, kr, ki, F_lim, K_upper)
+        # the box search ignores the force limit: climb to admissible witnesses as well,
+        # stopping at the box optimum's M (no admissible point is above it)
+        given = np.stack([K_upper, np.zeros_like(K_upper)], axis=1)
+        climbed, _ = joint_witnesses(args, kr, ki, F_lim, given, _value(args, K_upper))
         init_up = np.concatenate([init_up, climbed[:, None]], axis=1)
     out = {}
     # the relaxation needs the force limit (its multiplier makes the start definite)
@@ -258,7 +283,16 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
                                        np.asarray(freqs, np.int64), c, x, k, e, o),
                    _chunks(n_f))
         if relax:
-            cert = _relaxed(args, kr, ki, F_lim, want_max, cert, wit, rtol, atol)
+            cert, K_round = _relaxed(args, kr, ki, F_lim, want_max, cert, wit, rtol, atol)
+            if want_max:
+                # where the relaxation is (nearly) tight its primal point is (nearly) the
+                # maximiser: climb from it to a better witness
+                todo = np.flatnonzero(~np.isnan(K_round[:, 0]) & ~(cert <= wit * (1 + rtol)))
+                Kw, Mw = joint_witnesses(args, kr, ki, F_lim, K_round[:, None], cert, todo,
+                                         pool=0, climb=1)
+                better = Mw > wit
+                wit = np.where(better, Mw, wit)
+                K[better] = Kw[better]
         if want_max:
             cert = np.maximum(np.fmin(cert, force), wit)
         else:

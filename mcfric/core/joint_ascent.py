@@ -231,20 +231,20 @@ def ascend(G, q0, ylin, H, kr, ki, F_lim, b, K, max_sweeps, gain, n_samples, ws)
 
 @jit(nogil=True)
 def witnesses(G, q0, ylin, H, kr, ki, F_lim, K_given, n_pool, n_climb, n_beams, max_sweeps,
-              gain, n_samples, seed, freqs, K_out, M_out):
+              gain, n_samples, seed, stop, freqs, K_out, M_out):
     """The best admissible point :func:`ascend` reaches at each frequency of ``freqs``.
 
-    At frequency ``k`` the starts are the rows of ``K_given[k]`` (n_g, nd), the first of
-    them the box search's optimum, and ``n_pool`` random points of the box, each damper's
-    ``K`` uniform in the box scaled by one factor ``10^U(-3, 0)`` per point (drawn from
-    ``seed + k``: the same whatever the thread). The ``n_climb`` admissible starts of
-    largest ``M = max_b |y_b|`` are climbed, each for the ``n_beams`` beams with the
-    largest force bound ``|ylin_b| + F_lim sum_j |H_bj|`` (those that can set the
-    maximum), until a witness comes within ``1e-4`` of the smaller of that force bound
-    and ``M`` at the box optimum (admissible or not): no admissible point exceeds either
-    (the second as far as the box search is right), so climbing further is wasted. The
-    best point by ``M``, solved afresh and admissible, goes to ``K_out[k]`` (N/m) and its
-    ``M`` (m) to ``M_out[k]`` (``-inf`` if no start was admissible).
+    At frequency ``k`` the starts are the rows of ``K_given[k]`` (n_g, nd; each one
+    outside the force limit pulled towards ``K = 0`` until it is inside) and ``n_pool``
+    random points of the box, each damper's ``K`` uniform in the box scaled by one factor
+    ``10^U(-3, 0)`` per point (drawn from ``seed + k``: the same whatever the thread).
+    The ``n_climb`` admissible starts of largest ``M = max_b |y_b|`` are climbed, each
+    for the ``n_beams`` beams with the largest force bound ``|ylin_b| + F_lim sum_j
+    |H_bj|`` (those that can set the maximum), until a witness comes within ``1e-4`` of
+    the smaller of that force bound and ``stop[k]`` (m; the caller's bound on the
+    maximum, or the box optimum's ``M``): climbing further is wasted. The best point by
+    ``M``, solved afresh and admissible, goes to ``K_out[k]`` (N/m) and its ``M`` (m) to
+    ``M_out[k]`` (``-inf`` if no start was admissible).
     """
     nd = q0.shape[1]
     nb = ylin.shape[1]
@@ -264,7 +264,7 @@ def witnesses(G, q0, ylin, H, kr, ki, F_lim, K_given, n_pool, n_climb, n_beams, 
                 s += F_lim * abs(H[k, b, j])
             bound[b] = s
         order = np.argsort(-bound)
-        enough = bound[order[0]]
+        enough = min(bound[order[0]], stop[k]) * (1.0 - 1e-4)
         np.random.seed(seed + k)
         for r in range(n_g + n_pool):
             if r < n_g:
@@ -275,10 +275,21 @@ def witnesses(G, q0, ylin, H, kr, ki, F_lim, K_given, n_pool, n_climb, n_beams, 
                     pool[r, j] = complex(f * kr * np.random.random(),
                                          f * ki * np.random.random())
             v, ok = admissible_value(G[k], q0[k], ylin[k], H[k], pool[r], F_lim, T, piv, q)
+            if r < n_g:
+                # a given start beyond the force limit: the largest fraction of it inside
+                f = 1.0
+                for shrink in range(12):
+                    if ok or not math.isfinite(v):
+                        break
+                    worst = 0.0
+                    for j in range(nd):
+                        worst = max(worst, abs(pool[r, j] * q[j]) / F_lim)
+                    f = 0.999 / worst if shrink == 0 else 0.7
+                    for j in range(nd):
+                        pool[r, j] *= f
+                    v, ok = admissible_value(G[k], q0[k], ylin[k], H[k], pool[r], F_lim,
+                                             T, piv, q)
             value[r] = v if ok and math.isfinite(v) else -math.inf
-            if r == 0 and math.isfinite(v):
-                enough = min(enough, v)
-        enough *= 1.0 - 1e-4
         rank = np.argsort(-value)
         M_out[k] = -math.inf
         for c in range(min(n_climb, n_g + n_pool)):

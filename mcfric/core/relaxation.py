@@ -29,12 +29,14 @@ import numpy as np
 from ._jit import jit
 
 #: Relative accuracy at which :func:`solve` stops (in ``t``, a squared response).
-TOL = 1e-4
+TOL = 1e-3
 #: Newton steps per barrier weight and in all at most.
 STEPS_PER_ROUND = 40
 MAX_STEPS = 160
 #: Newton decrement below which a barrier weight counts as centred.
 CENTRED = 1.0
+#: A warm start's shift lies this far (relative) past the least definite value.
+WARM_MARGIN = 0.01
 #: Barrier weight factor per round.
 MU_FACTOR = 0.1
 #: Safety factors over the rounding bounds of the assembly (gamma_k |V| |C| |V|^T, k <=
@@ -346,7 +348,7 @@ def _value(x, mu, V, idx, S, cvec, pos, simplex, m, ws):
 
 
 @jit
-def solve(x, shift, V, idx, S, cvec, pos, simplex, grow, target, ws, stats):
+def solve(x, shift, V, idx, S, cvec, pos, simplex, grow, target, ws, stats, warm=False):
     """Improve the multipliers ``x`` (in place) and return the best *verified* value of
     the shift variable ``x[shift]`` (``nan`` if none verified).
 
@@ -368,6 +370,9 @@ def solve(x, shift, V, idx, S, cvec, pos, simplex, grow, target, ws, stats):
         Stop once the verified objective ``cvec[shift] x[shift]`` is at or below this.
     stats : ndarray of int64, shape (2,)
         Newton steps and barrier rounds are added to it.
+    warm : bool
+        ``x`` holds multipliers of a neighbouring problem: start from them, with the
+        shift just past the least definite value and the barrier weight to match.
     """
     C, T, Z, L, Zi, W, Q, Hm, g, dx, xn, Cabs, Vabs, Zabs, Lh, yv, P, R, Tabs, xb = ws
     nn, nv = V.shape
@@ -399,15 +404,21 @@ def solve(x, shift, V, idx, S, cvec, pos, simplex, grow, target, ws, stats):
     if not found:
         return np.nan
     r = _schur(Z, L, W, nn)
-    # sgn x_shift + r > 0, with a margin
-    x[shift] = (1.0 + abs(r) - r) / sgn
     nu = float(nn)
     for i in range(m):
         if pos[i]:
             nu += 1.0
     if simplex.any():
         nu += 1.0
-    mu = max(abs(x[shift]), 1e-300) / nu
+    if warm:
+        # centred in the shift's direction: Z^-1_ee = 1 / margin = 1 / mu
+        margin = WARM_MARGIN * abs(r) + 1e-300
+        x[shift] = (margin - r) / sgn
+        mu = margin
+    else:
+        # sgn x_shift + r > 0, with a margin
+        x[shift] = (1.0 + abs(r) - r) / sgn
+        mu = max(abs(x[shift]), 1e-300) / nu
     best = np.nan
     steps = 0
     while steps < MAX_STEPS:
@@ -470,6 +481,35 @@ def shifted(x, shift, V, idx, S, pos, simplex, ws):
         if verified(x, V, idx, S, m, pos, simplex, ws):
             return sgn * x[shift]
     return np.nan
+
+
+@jit
+def rounded(x, V, idx, S, kr, ki, ws, K):
+    """A candidate maximiser from the relaxation at ``x``: ``X = Z^-1`` is (a multiple
+    of) the barrier's primal point, and where the relaxation is tight it is ``z z^H``
+    for ``z = (p, 1)`` at the maximum. ``K_j = p_j / q_j`` from its leading
+    eigenvector, clipped to the box ``[0, kr] x [0, ki]`` (N/m), goes to ``K``; False
+    if ``Z`` is not definite."""
+    C, T, Z, L, Zi, W = ws[0], ws[1], ws[2], ws[3], ws[4], ws[5]
+    nn = V.shape[0]
+    nd = nn - 1
+    _assemble(x, 1.0, V, idx, S, C, T, Z, len(x))
+    if np.isnan(cholesky(Z, L, nn)):
+        return False
+    _inverse(L, Zi, W, nn)
+    u = np.linalg.eigh(Zi)[1][:, nn - 1]
+    if u[nd] == 0:
+        return False
+    z = u / u[nd]
+    for j in range(nd):
+        q = 0j
+        for i in range(nn):
+            q += V[i, j].conjugate() * z[i]
+        Kj = z[j] * V[j, nd + j] / q
+        if not np.isfinite(Kj.real) or not np.isfinite(Kj.imag):
+            return False
+        K[j] = complex(min(max(Kj.real, 0.0), kr), min(max(Kj.imag, 0.0), ki))
+    return True
 
 
 @jit
@@ -618,7 +658,7 @@ def n_forms(nd, nb, force, lower):
 
 @jit(nogil=True)
 def relax_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, floor, target, freqs, out,
-                      stats):
+                      K_round, stats):
     """Certified bounds over the whole box ``[0, kr] x [0, ki]`` at ``freqs``: ``out[k]``
     the upper bound of ``max_b |y_b|`` (``want_max``) or the lower one (m).
 
@@ -627,6 +667,8 @@ def relax_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, floor, target, fr
     each relaxation stops once it proves its beam below ``max(running maximum,
     target[k])``. The lower bound stops once it reaches ``target[k]``. ``stats``
     (int64, shape (3,)): Newton steps, barrier rounds and relaxations are added to it.
+    ``K_round[k]`` (upper bound only): the :func:`rounded` candidate of the beam with the
+    largest bound (N/m; left as it is where none was solved).
     """
     n_f, nd = q0.shape
     nb = ylin.shape[1]
@@ -647,6 +689,7 @@ def relax_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, floor, target, fr
     hi = np.full(nd, complex(kr, ki))
     eq10 = np.empty(nb)
     xprev = np.empty(m)
+    Kc = np.empty(nd, np.complex128)
     for k in freqs:
         if want_max:
             for b in range(nb):
@@ -670,18 +713,19 @@ def relax_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, floor, target, fr
                     t = shifted(x, shift, V, idx, S, pos, simplex, ws)
                     if not t <= goal * goal / ys:
                         t = np.nan
-                        forms(G[k], q0[k], ylin[k], H[k], lo, hi, F_lim, b, V, idx, S, x,
-                              cvec, pos, simplex, grow)
+                        x[:] = xprev
                 if np.isnan(t):
                     stats[2] += 1
                     t = solve(x, shift, V, idx, S, cvec, pos, simplex, grow,
-                              goal * goal / ys, ws, stats)
+                              goal * goal / ys, ws, stats, have)
                     if not np.isnan(t):
                         xprev[:] = x
                         have = True
                 bound = eq10[b]
                 if not np.isnan(t):
                     bound = min(bound, math.sqrt(max(t, 0.0) * ys) * (1.0 + 1e-14))
+                    if bound > R and rounded(x, V, idx, S, kr, ki, ws, Kc):
+                        K_round[k, :] = Kc
                 R = max(R, bound)
             out[k] = R
         else:
