@@ -231,7 +231,8 @@ def test_climbed_witness_beats_random_admissible_points(F0):
     K = scale * (rng.uniform(0, K_MAX, (3000, nd)) + 1j * rng.uniform(0, K_MAX, (3000, nd)))
     plain = certified.joint_witnesses
     try:
-        certified.joint_witnesses = lambda args, kr, ki, F_lim, K_upper: np.zeros_like(K_upper)
+        certified.joint_witnesses = (lambda args, kr, ki, F_lim, given, stop, *a, **k:
+                                     (np.zeros_like(given[:, 0]), np.full(len(stop), -np.inf)))
         C0 = compute_bounds(model, f, K_MAX, F_lim=F_LIM, budget=20).certificate
     finally:
         certified.joint_witnesses = plain

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..core.barrier_ascent import ascend_frequencies
 from ..core.branch_bound import certify_frequencies
 from ..core.joint_ascent import witnesses
 from ..core.relaxation import relax_frequencies
@@ -179,6 +180,24 @@ def joint_witnesses(args, kr, ki, F_lim, given, stop, freqs=None, pool=None, cli
     return K, M
 
 
+def _joint_ascent(args, kr, ki, F_lim, starts, cert, wit, K, rtol):
+    """Witnesses improved by :func:`mcfric.core.barrier_ascent.ascend_frequencies` (all
+    dampers at once) from ``starts`` (n_f, n_s, nd) where ``cert`` is not yet within
+    ``rtol`` of ``wit``; ``K`` is updated in place, the new witness values returned."""
+    todo = np.flatnonzero(~(cert <= wit * (1 + rtol)))
+    if not len(todo):
+        return wit
+    starts = np.ascontiguousarray(starts)
+    Kb = np.zeros_like(K)
+    Mb = np.full(len(wit), -np.inf)
+    in_threads(lambda fs: ascend_frequencies(*args, kr, ki, F_lim, starts,
+                                             np.asarray(fs, np.int64), Kb, Mb),
+               [todo[c] for c in _chunks(len(todo))])
+    better = Mb > wit
+    K[better] = Kb[better]
+    return np.where(better, Mb, wit)
+
+
 def _value(args, K):
     """``M`` at ``K`` (n_f, nd) per frequency (m; ``inf`` where singular), in numpy."""
     G, q0, ylin, H = args
@@ -293,6 +312,8 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
                 better = Mw > wit
                 wit = np.where(better, Mw, wit)
                 K[better] = Kw[better]
+                wit = _joint_ascent(args, kr, ki, F_lim, np.stack([K, K_round], axis=1),
+                                    cert, wit, K, rtol)
         if want_max:
             cert = np.maximum(np.fmin(cert, force), wit)
         else:

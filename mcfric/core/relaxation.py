@@ -35,8 +35,6 @@ STEPS_PER_ROUND = 40
 MAX_STEPS = 160
 #: Newton decrement below which a barrier weight counts as centred.
 CENTRED = 1.0
-#: A warm start's shift lies this far (relative) past the least definite value.
-WARM_MARGIN = 0.01
 #: Barrier weight factor per round.
 MU_FACTOR = 0.1
 #: Safety factors over the rounding bounds of the assembly (gamma_k |V| |C| |V|^T, k <=
@@ -348,7 +346,7 @@ def _value(x, mu, V, idx, S, cvec, pos, simplex, m, ws):
 
 
 @jit
-def solve(x, shift, V, idx, S, cvec, pos, simplex, grow, target, ws, stats, warm=False):
+def solve(x, shift, V, idx, S, cvec, pos, simplex, grow, target, ws, stats):
     """Improve the multipliers ``x`` (in place) and return the best *verified* value of
     the shift variable ``x[shift]`` (``nan`` if none verified).
 
@@ -370,9 +368,6 @@ def solve(x, shift, V, idx, S, cvec, pos, simplex, grow, target, ws, stats, warm
         Stop once the verified objective ``cvec[shift] x[shift]`` is at or below this.
     stats : ndarray of int64, shape (2,)
         Newton steps and barrier rounds are added to it.
-    warm : bool
-        ``x`` holds multipliers of a neighbouring problem: start from them, with the
-        shift just past the least definite value and the barrier weight to match.
     """
     C, T, Z, L, Zi, W, Q, Hm, g, dx, xn, Cabs, Vabs, Zabs, Lh, yv, P, R, Tabs, xb = ws
     nn, nv = V.shape
@@ -410,15 +405,9 @@ def solve(x, shift, V, idx, S, cvec, pos, simplex, grow, target, ws, stats, warm
             nu += 1.0
     if simplex.any():
         nu += 1.0
-    if warm:
-        # centred in the shift's direction: Z^-1_ee = 1 / margin = 1 / mu
-        margin = WARM_MARGIN * abs(r) + 1e-300
-        x[shift] = (margin - r) / sgn
-        mu = margin
-    else:
-        # sgn x_shift + r > 0, with a margin
-        x[shift] = (1.0 + abs(r) - r) / sgn
-        mu = max(abs(x[shift]), 1e-300) / nu
+    # sgn x_shift + r > 0, with a margin
+    x[shift] = (1.0 + abs(r) - r) / sgn
+    mu = max(abs(x[shift]), 1e-300) / nu
     best = np.nan
     steps = 0
     while steps < MAX_STEPS:
@@ -712,12 +701,14 @@ def relax_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, floor, target, fr
                     x[:] = xprev
                     t = shifted(x, shift, V, idx, S, pos, simplex, ws)
                     if not t <= goal * goal / ys:
+                        # a cold start: one from these multipliers often stalls higher
                         t = np.nan
-                        x[:] = xprev
+                        forms(G[k], q0[k], ylin[k], H[k], lo, hi, F_lim, b, V, idx, S, x,
+                              cvec, pos, simplex, grow)
                 if np.isnan(t):
                     stats[2] += 1
                     t = solve(x, shift, V, idx, S, cvec, pos, simplex, grow,
-                              goal * goal / ys, ws, stats, have)
+                              goal * goal / ys, ws, stats)
                     if not np.isnan(t):
                         xprev[:] = x
                         have = True
