@@ -74,8 +74,8 @@ class Certificate:
     K_upper, K_lower : ndarray of complex, shape (n_f, nd)
         The witnesses' describing functions, N/m.
     converged : ndarray of bool, shape (2, n_f)
-        Whether the upper (row 0) and lower (row 1) bound met the tolerance within the
-        budget.
+        Whether the upper (row 0) and lower (row 1) bound met the tolerance (by the
+        branch and bound within its budget, or after the relaxation).
     evaluations : ndarray of int, shape (2, n_f)
         Enclosures evaluated.
     budget : int
@@ -134,7 +134,7 @@ class Certificate:
         for row, name in enumerate(("upper", "lower")):
             out = ~self.converged[row]
             if out.any():
-                text += (f"; {name}: budget spent before the tolerance at "
+                text += (f"; {name}: tolerance not met within the budget at "
                          f"{np.count_nonzero(out)} frequencies in {f[out].min():.4g}-"
                          f"{f[out].max():.4g} Hz (valid there, looser)")
         return text
@@ -316,8 +316,10 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
                                     cert, wit, K, rtol)
         if want_max:
             cert = np.maximum(np.fmin(cert, force), wit)
+            ok = ok | (cert <= wit * (1 + rtol))
         else:
             cert = np.clip(cert, 0.0, wit)
+            ok = ok | (cert >= wit * (1 - rtol)) | (wit - cert <= atol)
         out[want_max] = (cert, wit, K, ev, ok)
     (up, wu, Ku, eu, ou), (lo, wl, Kl, el, ol) = out[True], out[False]
     return Certificate(up * scale, lo * scale, wu * scale, wl * scale, Ku, Kl,
