@@ -29,6 +29,12 @@ BUDGET = 400
 #: ... and with one damper, where each enclosure is cheap and the branch and bound closes
 #: the gap everywhere given enough of them (measured: the docs' bounds page).
 BUDGET_ONE_DAMPER = 4000
+#: ... and with six or more dampers where the relaxation follows, which then proves all the
+#: branch and bound did (seven dampers: the same bounds and witnesses at 50 as at 400, 0.6 s
+#: less per 1000 frequencies; five dampers: 20 instead of 400 left 5 % fewer lower bounds
+#: tight, so fewer dampers keep ``BUDGET``).
+BUDGET_RELAXED = 50
+RELAXED_FROM = 6
 #: Stop where the best open bound is within this of the witness (relative) ...
 RTOL = 5e-3
 #: ... or, for the minimum, within this fraction of the certified upper bound (absolute).
@@ -148,10 +154,13 @@ def within(metric, lower, upper, rtol):
         return (metric >= lower * (1 - rtol)) & (metric <= upper * (1 + rtol))
 
 
-def default_budget(n_dampers):
-    """The branch and bound's default budget: ``BUDGET_ONE_DAMPER`` for one damper, else
-    ``BUDGET``."""
-    return BUDGET_ONE_DAMPER if n_dampers == 1 else BUDGET
+def default_budget(n_dampers, relaxed=False):
+    """The branch and bound's default budget: ``BUDGET_ONE_DAMPER`` for one damper,
+    ``BUDGET_RELAXED`` for ``RELAXED_FROM`` dampers or more where the relaxation follows
+    (``relaxed``), else ``BUDGET``."""
+    if n_dampers == 1:
+        return BUDGET_ONE_DAMPER
+    return BUDGET_RELAXED if relaxed and n_dampers >= RELAXED_FROM else BUDGET
 
 
 def joint_witnesses(args, kr, ki, F_lim, given, stop, freqs=None, pool=None, climb=None,
@@ -268,8 +277,10 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
     Certificate
     """
     n_f, nd = q0.shape
+    # the relaxation needs the force limit (its multiplier makes the start definite)
+    relax = RELAX and np.isfinite(F_lim) and 2 <= nd <= MAX_DAMPERS
     if budget is None:
-        budget = default_budget(nd)
+        budget = default_budget(nd, relax)
     if nd > MAX_DAMPERS:
         budget = 0
     uniform = np.array([0.0, kr, kr + 1j * ki, 1j * ki, 0.5 * (kr + 1j * ki)])
@@ -284,8 +295,6 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
         climbed, _ = joint_witnesses(args, kr, ki, F_lim, given, _value(args, K_upper))
         init_up = np.concatenate([init_up, climbed[:, None]], axis=1)
     out = {}
-    # the relaxation needs the force limit (its multiplier makes the start definite)
-    relax = RELAX and np.isfinite(F_lim) and 2 <= nd <= MAX_DAMPERS
     force = (np.abs(ylin) + (F_lim * np.abs(H).sum(axis=2) if np.isfinite(F_lim) else np.inf)
              ).max(axis=1) * (1 + _FORCE_MARGIN)
     for want_max, init, atol in ((True, init_up, np.zeros(n_f)), (False, init_lo, None)):

@@ -217,7 +217,8 @@ def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity
         ``certificate`` attribute); False for a quick look.
     budget : int, optional
         Enclosures per frequency and bound of the certification; default 4000 for one
-        damper, 400 for more (:func:`.certified.default_budget`).
+        damper, 400 for more (50 from six dampers, where the relaxation follows:
+        :func:`.certified.default_budget`).
 
     Returns
     -------

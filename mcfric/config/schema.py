@@ -200,7 +200,7 @@ SPEC = {
                                "for a quick look"),
         "certify_budget": (auto_or_integer(1, 1000000), "enclosures per frequency and bound "
                            'of the certification at most; "auto": 4000 for one damper, 400 '
-                           "for more"),
+                           "for more (50 from six dampers with a force limit)"),
     },
 }
 SECTION_DOC = {

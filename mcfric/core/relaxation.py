@@ -159,7 +159,10 @@ def verified(x, V, idx, S, m, pos, simplex, ws):
     if simplex.any() and not ssum <= 1.0 - 1e-12:
         return False
     _assemble(x, 1.0, V, idx, S, C, T, Z, m)
-    # the same sum with absolute values: a bound on every entry's rounding
+    # the same sums in absolute values: a bound on every entry's rounding
+    for j in range(nn):
+        for a in range(V.shape[1]):
+            Vabs[j, a] = abs(V[j, a])
     for i in range(m + 1):
         w = abs(x[i]) if i < m else 1.0
         for a in range(2):
@@ -382,9 +385,6 @@ def solve(x, shift, V, idx, S, cvec, pos, simplex, grow, target, ws, stats):
             ng += 1
     gstart[ng] = m
     gstart = gstart[:ng + 1]
-    for j in range(nn):
-        for a in range(nv):
-            Vabs[j, a] = abs(V[j, a])
     # start: the leading block positive definite, then the shift from its Schur complement
     x[shift] = 0.0
     found = False
