@@ -18,6 +18,7 @@ import numpy as np
 
 from ._jit import jit
 from .branch_bound import admissible_value
+from .joint_ascent import pulled_inside
 from .linalg import lu_factor, lu_solve
 
 #: Barrier weights, one round each, and iterations per round at most.
@@ -161,19 +162,9 @@ def ascend_frequencies(G, q0, ylin, H, kr, ki, F_lim, K_start, freqs, K_out, M_o
             K[:] = K_start[k, s]
             if np.isnan(K[0].real):
                 continue
-            for shrink in range(12):
-                v, ok = admissible_value(G[k], q0[k], ylin[k], H[k], K, F_lim, T, piv, q)
-                if not math.isfinite(v):
-                    break
-                worst = 0.0
-                for j in range(nd):
-                    worst = max(worst, abs(K[j] * q[j]) / F_lim)
-                if worst < 0.999:
-                    break
-                f = 0.999 / worst if shrink == 0 else 0.7
-                for j in range(nd):
-                    K[j] *= f
-            if not math.isfinite(v):
+            # strictly inside the force limit: the barrier is finite there
+            v, ok = pulled_inside(G[k], q0[k], ylin[k], H[k], K, F_lim, 0.999, T, piv, q)
+            if not ok:
                 continue
             # the beam of largest response at the start
             beam = 0

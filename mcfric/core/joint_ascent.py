@@ -230,6 +230,29 @@ def ascend(G, q0, ylin, H, kr, ki, F_lim, b, K, max_sweeps, gain, n_samples, ws)
 
 
 @jit(nogil=True)
+def pulled_inside(G, q0, ylin, H, K, F_lim, limit, T, piv, q):
+    """Scale ``K`` (in place) towards 0 until every damper force is at most ``limit``
+    times ``F_lim``: first by ``0.999 limit`` over the largest ratio, then by 0.7 at a
+    time (forces are not linear in ``K``), at most 12 times. Returns ``M`` there and
+    whether it got inside (``nan`` if singular)."""
+    nd = len(K)
+    v, ok = admissible_value(G, q0, ylin, H, K, F_lim, T, piv, q)
+    for shrink in range(12):
+        if not math.isfinite(v):
+            return v, False
+        worst = 0.0
+        for j in range(nd):
+            worst = max(worst, abs(K[j] * q[j]) / F_lim)
+        if worst <= limit:
+            return v, True
+        f = 0.999 * limit / worst if shrink == 0 else 0.7
+        for j in range(nd):
+            K[j] *= f
+        v, ok = admissible_value(G, q0, ylin, H, K, F_lim, T, piv, q)
+    return v, False
+
+
+@jit(nogil=True)
 def witnesses(G, q0, ylin, H, kr, ki, F_lim, K_given, n_pool, n_climb, n_beams, max_sweeps,
               gain, n_samples, seed, stop, freqs, K_out, M_out):
     """The best admissible point :func:`ascend` reaches at each frequency of ``freqs``.
@@ -274,21 +297,13 @@ def witnesses(G, q0, ylin, H, kr, ki, F_lim, K_given, n_pool, n_climb, n_beams, 
                 for j in range(nd):
                     pool[r, j] = complex(f * kr * np.random.random(),
                                          f * ki * np.random.random())
-            v, ok = admissible_value(G[k], q0[k], ylin[k], H[k], pool[r], F_lim, T, piv, q)
             if r < n_g:
-                # a given start beyond the force limit: the largest fraction of it inside
-                f = 1.0
-                for shrink in range(12):
-                    if ok or not math.isfinite(v):
-                        break
-                    worst = 0.0
-                    for j in range(nd):
-                        worst = max(worst, abs(pool[r, j] * q[j]) / F_lim)
-                    f = 0.999 / worst if shrink == 0 else 0.7
-                    for j in range(nd):
-                        pool[r, j] *= f
-                    v, ok = admissible_value(G[k], q0[k], ylin[k], H[k], pool[r], F_lim,
-                                             T, piv, q)
+                # a given start beyond the force limit: a fraction of it inside
+                v, ok = pulled_inside(G[k], q0[k], ylin[k], H[k], pool[r], F_lim, 1.0, T,
+                                      piv, q)
+            else:
+                v, ok = admissible_value(G[k], q0[k], ylin[k], H[k], pool[r], F_lim, T, piv,
+                                         q)
             value[r] = v if ok and math.isfinite(v) else -math.inf
         rank = np.argsort(-value)
         M_out[k] = -math.inf

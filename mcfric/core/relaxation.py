@@ -51,6 +51,21 @@ def _pow2(x):
 
 
 @jit
+def _sparse_product(V, C, T):
+    """``T = V C`` over the nonzeros of ``C`` (a few per damper): complex, or the same
+    sums in absolute values for the rounding bound."""
+    nn, nv = V.shape
+    T[:, :] = 0.0
+    for b in range(nv):
+        for a in range(nv):
+            cab = C[a, b]
+            if cab == 0:
+                continue
+            for j in range(nn):
+                T[j, b] += V[j, a] * cab
+
+
+@jit
 def _assemble(x, coef_const, V, idx, S, C, T, Z, m):
     """``Z = V C V^H`` with ``C = sum_i x_i S_i`` (+ the constant form, weight
     ``coef_const``) scattered on the basis."""
@@ -61,15 +76,7 @@ def _assemble(x, coef_const, V, idx, S, C, T, Z, m):
         for a in range(2):
             for b in range(2):
                 C[idx[i, a], idx[i, b]] += w * S[i, a, b]
-    # T = V C over the nonzeros of C (a few per damper)
-    T[:, :] = 0.0
-    for b in range(nv):
-        for a in range(nv):
-            cab = C[a, b]
-            if cab == 0:
-                continue
-            for j in range(nn):
-                T[j, b] += V[j, a] * cab
+    _sparse_product(V, C, T)
     for j in range(nn):
         for k in range(j, nn):
             acc = 0j
@@ -169,14 +176,7 @@ def verified(x, V, idx, S, m, pos, simplex, ws):
             for b in range(2):
                 Cabs[idx[i, a], idx[i, b]] += w * abs(S[i, a, b])
     nv = V.shape[1]
-    Tabs[:, :] = 0.0
-    for b in range(nv):
-        for a in range(nv):
-            cab = Cabs[a, b]
-            if cab == 0.0:
-                continue
-            for j in range(nn):
-                Tabs[j, b] += Vabs[j, a] * cab
+    _sparse_product(Vabs, Cabs, Tabs)
     for j in range(nn):
         for k in range(nn):
             acc = 0.0
