@@ -85,6 +85,8 @@ class Certificate:
     evaluations : ndarray of int, shape (2, n_f)
         Enclosures evaluated.
     budget : int
+    relaxed : bool
+        Whether the semidefinite relaxation tightened the branch and bound's bounds.
     """
 
     upper: np.ndarray
@@ -96,6 +98,7 @@ class Certificate:
     converged: np.ndarray
     evaluations: np.ndarray
     budget: int
+    relaxed: bool = False
 
     @property
     def upper_gap(self):
@@ -332,4 +335,4 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
         out[want_max] = (cert, wit, K, ev, ok)
     (up, wu, Ku, eu, ou), (lo, wl, Kl, el, ol) = out[True], out[False]
     return Certificate(up * scale, lo * scale, wu * scale, wl * scale, Ku, Kl,
-                       np.stack([ou, ol]), np.stack([eu, el]), int(budget))
+                       np.stack([ou, ol]), np.stack([eu, el]), int(budget), bool(relax))

@@ -70,13 +70,15 @@ def to_group(B):
                 "units": "N/m", "long_name": "describing functions of the lower witness"}),
             "certified_converged": (("frequency",), (C.converged[0] + 2 * C.converged[1]
                                                      ).astype(np.int8), {
-                "long_name": "certification met its tolerance within the budget",
+                "long_name": "certification met its tolerance (within the budget, or after "
+                             "the relaxation)",
                 "flag_masks": [1, 2], "flag_meanings": "upper lower"}),
         })
         for row, name in enumerate(("upper", "lower")):
             variables[f"{name}_evaluations"] = (("frequency",), C.evaluations[row], {
                 "long_name": f"enclosures evaluated by the certification of the {name} bound"})
         attrs["certify_budget"] = np.int64(C.budget)
+        attrs["certify_relaxation"] = np.int8(C.relaxed)
     return variables, attrs
 
 
@@ -95,7 +97,7 @@ def read_bounds(path):
                            g["lower_witness"], g["K_upper_witness"], g["K_lower_witness"],
                            np.stack([(conv & 1) > 0, (conv & 2) > 0]),
                            np.stack([g["upper_evaluations"], g["lower_evaluations"]]),
-                           int(a["certify_budget"]))
+                           int(a["certify_budget"]), bool(a.get("certify_relaxation", 0)))
     return Bounds(read(path, "frequency"), g["upper"], g["lower"], g["upper_box"],
                   g["upper_force"], g["limited_by"], g["K_upper"], g["K_lower"],
                   float(a["k_max_re"]), float(a["k_max_im"]), float(a["F_lim"]),
