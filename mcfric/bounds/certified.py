@@ -226,7 +226,8 @@ def _value(args, K):
 def _relaxed(args, kr, ki, F_lim, want_max, cert, wit, rtol, atol):
     """``cert`` improved by the semidefinite relaxation of the whole box
     (:mod:`mcfric.core.relaxation`) where it is not yet within the tolerance of its
-    witness."""
+    witness, and the relaxation's rounded points (n_f, nd; N/m, NaN where none: the
+    upper bound's only, :func:`mcfric.core.relaxation.rounded`)."""
     if want_max:
         loose = np.flatnonzero(~(cert <= wit * (1 + rtol)))
         target = wit * (1 + rtol)
@@ -293,7 +294,8 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
     args = [np.ascontiguousarray(a) for a in (G, q0, ylin, H)]
     if np.isfinite(F_lim) and nd <= MAX_DAMPERS:
         # the box search ignores the force limit: climb to admissible witnesses as well,
-        # stopping at the box optimum's M (no admissible point is above it)
+        # stopping at the box optimum's M (no admissible point is above it, as far as the
+        # box search is right)
         given = np.stack([K_upper, np.zeros_like(K_upper)], axis=1)
         climbed, _ = joint_witnesses(args, kr, ki, F_lim, given, _value(args, K_upper))
         init_up = np.concatenate([init_up, climbed[:, None]], axis=1)
