@@ -19,7 +19,7 @@ import numpy as np
 
 from ..core.barrier_ascent import ascend_frequencies
 from ..core.branch_bound import certify_frequencies
-from ..core.joint_ascent import witnesses
+from ..core.joint_ascent import values, witnesses
 from ..core.relaxation import relax_frequencies
 from ..threads import in_threads
 from .search import _chunks
@@ -210,19 +210,6 @@ def _joint_ascent(args, kr, ki, F_lim, starts, cert, wit, K, rtol):
     return np.where(better, Mb, wit)
 
 
-def _value(args, K):
-    """``M`` at ``K`` (n_f, nd) per frequency (m; ``inf`` where singular), in numpy."""
-    G, q0, ylin, H = args
-    nd = K.shape[1]
-    with np.errstate(all="ignore"):
-        try:
-            q = np.linalg.solve(np.eye(nd) + G * K[:, None, :], q0[..., None])[..., 0]
-        except np.linalg.LinAlgError:
-            return np.full(len(K), np.inf)
-        M = np.abs(ylin - np.einsum("fbj,fj->fb", H, K * q)).max(axis=1)
-    return np.where(np.isfinite(M), M, np.inf)
-
-
 def _relaxed(args, kr, ki, F_lim, want_max, cert, wit, rtol, atol):
     """``cert`` improved by the semidefinite relaxation of the whole box
     (:mod:`mcfric.core.relaxation`) where it is not yet within the tolerance of its
@@ -297,7 +284,9 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
         # stopping at the box optimum's M (no admissible point is above it, as far as the
         # box search is right)
         given = np.stack([K_upper, np.zeros_like(K_upper)], axis=1)
-        climbed, _ = joint_witnesses(args, kr, ki, F_lim, given, _value(args, K_upper))
+        stop = np.empty(n_f)
+        values(*args, np.ascontiguousarray(K_upper), stop)
+        climbed, _ = joint_witnesses(args, kr, ki, F_lim, given, stop)
         init_up = np.concatenate([init_up, climbed[:, None]], axis=1)
     out = {}
     force = (np.abs(ylin) + (F_lim * np.abs(H).sum(axis=2) if np.isfinite(F_lim) else np.inf)

@@ -32,15 +32,15 @@ def workspace(nd):
     c = np.complex128
     return (np.empty((nd, nd), c), np.empty(nd, np.int64), np.empty(nd, c),
             np.empty((nd, nd), c), np.empty(nd, c), np.empty(2 * nd), np.empty(2 * nd),
-            np.empty(2 * nd), np.empty(2 * nd), np.empty(nd, c), np.empty(nd, c),
-            np.empty((nd, nd), c))
+            np.empty(2 * nd), np.empty(2 * nd), np.empty(nd, c), np.empty((nd, nd), c),
+            np.empty(nd))
 
 
 @jit
 def _phi(G, q0, ylin, H, K, F_lim, tau, beam, grad, ws, kr, ki):
     """The barrier objective at ``K`` and, if ``grad`` is not empty, its gradient in
     ``(Re K / kr, Im K / ki)`` (``-inf`` outside the force limit or where singular)."""
-    A, piv, q, W, p, _, _, _, _, dy, col, LU = ws
+    A, piv, q, W, p, _, _, _, _, col, LU, room = ws
     nd = len(K)
     for i in range(nd):
         for j in range(nd):
@@ -54,10 +54,10 @@ def _phi(G, q0, ylin, H, K, F_lim, tau, beam, grad, ws, kr, ki):
     bar = 0.0
     for i in range(nd):
         p[i] = K[i] * q[i]
-        room = F_lim * F_lim - (p[i].real ** 2 + p[i].imag ** 2)
-        if not room > 0.0:
+        room[i] = F_lim * F_lim - (p[i].real ** 2 + p[i].imag ** 2)
+        if not room[i] > 0.0:
             return -math.inf
-        bar += math.log(room)
+        bar += math.log(room[i])
     y = ylin[beam]
     for i in range(nd):
         y -= H[beam, i] * p[i]
@@ -81,10 +81,9 @@ def _phi(G, q0, ylin, H, K, F_lim, tau, beam, grad, ws, kr, ki):
             if i == j:
                 dp += q[j]
             dyj -= H[beam, i] * dp
-            room = F_lim * F_lim - (p[i].real ** 2 + p[i].imag ** 2)
             cp = p[i].conjugate() * dp
-            dr -= 2.0 * cp.real / room
-            di += 2.0 * cp.imag / room
+            dr -= 2.0 * cp.real / room[i]
+            di += 2.0 * cp.imag / room[i]
         f = dyj / y
         grad[j] = (f.real + tau * dr) * kr
         grad[nd + j] = (-f.imag + tau * di) * ki

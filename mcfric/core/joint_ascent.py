@@ -230,6 +230,19 @@ def ascend(G, q0, ylin, H, kr, ki, F_lim, b, K, max_sweeps, gain, n_samples, ws)
 
 
 @jit(nogil=True)
+def values(G, q0, ylin, H, K, out):
+    """``M`` at ``K[k]`` (N/m) per frequency into ``out`` (m; ``inf`` where singular):
+    the box optimum's, where the first climb stops."""
+    nd = q0.shape[1]
+    T = np.empty((nd, nd), np.complex128)
+    piv = np.empty(nd, np.int64)
+    q = np.empty(nd, np.complex128)
+    for k in range(len(out)):
+        v, ok = admissible_value(G[k], q0[k], ylin[k], H[k], K[k], math.inf, T, piv, q)
+        out[k] = v if math.isfinite(v) else math.inf
+
+
+@jit(nogil=True)
 def pulled_inside(G, q0, ylin, H, K, F_lim, limit, T, piv, q):
     """Scale ``K`` (in place) towards 0 until every damper force is at most ``limit``
     times ``F_lim``: first by ``0.999 limit`` over the largest ratio, then by 0.7 at a

@@ -678,6 +678,7 @@ def relax_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, floor, target, fr
     hi = np.full(nd, complex(kr, ki))
     eq10 = np.empty(nb)
     xprev = np.empty(m)
+    xw = np.empty(m)
     Kc = np.empty(nd, np.complex128)
     for k in freqs:
         if want_max:
@@ -697,14 +698,14 @@ def relax_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, floor, target, fr
                 t = np.nan
                 if have:
                     # the multipliers of the beam before often prove this one below
-                    # the running maximum already
-                    x[:] = xprev
-                    t = shifted(x, shift, V, idx, S, pos, simplex, ws)
-                    if not t <= goal * goal / ys:
-                        # a cold start: one from these multipliers often stalls higher
+                    # the running maximum already; if not, a cold start from x (one
+                    # from these multipliers often stalls higher)
+                    xw[:] = xprev
+                    t = shifted(xw, shift, V, idx, S, pos, simplex, ws)
+                    if t <= goal * goal / ys:
+                        x[:] = xw
+                    else:
                         t = np.nan
-                        forms(G[k], q0[k], ylin[k], H[k], lo, hi, F_lim, b, V, idx, S, x,
-                              cvec, pos, simplex, grow)
                 if np.isnan(t):
                     stats[2] += 1
                     t = solve(x, shift, V, idx, S, cvec, pos, simplex, grow,
