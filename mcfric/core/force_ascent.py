@@ -1,0 +1,293 @@
+"""A joint ascent of one beam's response with its own dampers' forces as variables.
+
+Near a resonance ``|y_b|`` is a sharp ridge in the describing functions of the beam's own
+dampers (the set ``A``: ``H[b, j] != 0``), but a linear function of their forces,
+``y_b = ylin_b - H_b p``. Here the variables are those forces ``p_A`` and the other
+dampers' ``K_O``; the rest follows from them:
+
+    (I + G_OO diag K_O) q_O = q0_O - G_OA p_A,   p_O = K_O q_O,
+    q_A = q0_A - G_A: p,                         K_A = p_A / q_A.
+
+Projected gradient ascent (Barzilai-Borwein steps with backtracking) of
+
+    log |y_b| + tau [ sum_j log(F_lim^2 - |p_j|^2) + sum_A log of the four box slacks of K_A ]
+
+with ``tau`` cut tenfold per round; ``K_O`` is projected onto the box, ``p_A`` (hence
+``K_A``) is kept strictly inside by the barrier. The gradient is exact, by the adjoint of
+the steps above.
+"""
+
+import math
+
+import numpy as np
+
+from ._jit import jit
+from .branch_bound import admissible_value
+from .joint_ascent import pulled_inside
+from .linalg import lu_factor, lu_solve, lu_solve_transposed
+
+#: Barrier weights, one round each, and iterations per round at most.
+TAUS = (1e-2, 1e-3, 1e-4, 1e-5, 1e-6)
+ITERATIONS = 40
+#: How far inside the box a start's own-damper ``K`` is moved (fraction of the box side).
+INSIDE = 1e-4
+#: Beams ascended per start, in decreasing order of their force-only bound.
+MAX_BEAMS = 2
+
+
+@jit
+def workspace(nd):
+    """Scratch arrays of :func:`ascend` for ``nd`` dampers."""
+    c = np.complex128
+    return (np.empty((nd, nd), c), np.empty(nd, np.int64), np.empty(nd, c),
+            np.empty(nd, c), np.empty(nd, c), np.empty(nd, c), np.empty(nd, c),
+            np.empty(nd, c), np.empty(nd, c), np.empty(nd), np.empty(2 * nd),
+            np.empty(2 * nd), np.empty(2 * nd), np.empty(2 * nd), np.empty(nd, c))
+
+
+@jit
+def _phi(G, q0, ylin, H, order, nA, u, F_lim, kr, ki, tau, beam, grad, ws):
+    """The barrier objective at ``u`` (``p`` of ``order[:nA]``, N; ``K`` of the rest,
+    N/m) and, if ``grad`` is not empty, its gradient in the scaled real coordinates
+    ``(Re u, Im u) / (F_lim | kr, ki)``; ``-inf`` outside or where singular. Leaves the
+    dampers' ``p``, ``q`` and ``K`` in ``ws``."""
+    LU, piv, p, q, K, cp, cK, cq, r, room = ws[:10]
+    nd = len(u)
+    nO = nd - nA
+    for a in range(nO):
+        i = order[nA + a]
+        for c in range(nO):
+            LU[a, c] = G[i, order[nA + c]] * u[nA + c]
+        LU[a, a] += 1.0
+    if lu_factor(LU, piv, nO) != 0:
+        return -math.inf
+    for a in range(nO):
+        i = order[nA + a]
+        acc = q0[i]
+        for m in range(nA):
+            acc -= G[i, order[m]] * u[m]
+        r[a] = acc
+    lu_solve(LU, piv, r, nO)
+    for a in range(nO):
+        i = order[nA + a]
+        q[i] = r[a]
+        K[i] = u[nA + a]
+        p[i] = K[i] * q[i]
+    for m in range(nA):
+        p[order[m]] = u[m]
+    for m in range(nA):
+        i = order[m]
+        acc = q0[i]
+        for j in range(nd):
+            acc -= G[i, j] * p[j]
+        if acc == 0:
+            return -math.inf
+        q[i] = acc
+        K[i] = p[i] / acc
+    bar = 0.0
+    for j in range(nd):
+        room[j] = F_lim * F_lim - (p[j].real ** 2 + p[j].imag ** 2)
+        if not room[j] > 0.0:
+            return -math.inf
+        bar += math.log(room[j])
+    for m in range(nA):
+        i = order[m]
+        sx = K[i].real / kr
+        sy = K[i].imag / ki
+        if not (0.0 < sx < 1.0 and 0.0 < sy < 1.0):
+            return -math.inf
+        bar += math.log(sx) + math.log(1.0 - sx) + math.log(sy) + math.log(1.0 - sy)
+    y = ylin[beam]
+    for j in range(nd):
+        y -= H[beam, j] * p[j]
+    if y == 0:
+        return -math.inf
+    value = math.log(abs(y)) + tau * bar
+    if len(grad) == 0:
+        return value
+    # d value = Re(sum cp dp + sum cK dK): collect the coefficients, then eliminate the
+    # dependent quantities in reverse order (K_A, q_A, p_O, q_O)
+    cy = 1.0 / y
+    for j in range(nd):
+        cp[j] = -2.0 * tau * p[j].conjugate() / room[j] - cy * H[beam, j]
+        cq[j] = 0.0
+    for m in range(nA):
+        i = order[m]
+        sx = K[i].real / kr
+        sy = K[i].imag / ki
+        cK[i] = complex(tau * (1.0 / sx - 1.0 / (1.0 - sx)) / kr,
+                        -tau * (1.0 / sy - 1.0 / (1.0 - sy)) / ki)
+        cp[i] += cK[i] / q[i]
+        cq[i] = -cK[i] * K[i] / q[i]
+    for j in range(nd):
+        acc = 0j
+        for m in range(nA):
+            acc += cq[order[m]] * G[order[m], j]
+        cp[j] -= acc
+    for a in range(nO):
+        i = order[nA + a]
+        r[a] = cp[i] * K[i]
+        cK[i] = cp[i] * q[i]
+    lu_solve_transposed(LU, piv, r, nO)
+    for s in range(nd):
+        j = order[s]
+        acc = 0j
+        for a in range(nO):
+            acc += r[a] * G[order[nA + a], j]
+        if s < nA:
+            c = cp[j] - acc
+            grad[s] = c.real * F_lim
+            grad[nd + s] = -c.imag * F_lim
+        else:
+            c = cK[j] - acc * q[j]
+            grad[s] = c.real * kr
+            grad[nd + s] = -c.imag * ki
+    return value
+
+
+@jit
+def _scale(s, nA, F_lim, kr, ki):
+    """The scales of slot ``s``'s real and imaginary parts."""
+    return (F_lim, F_lim) if s < nA else (kr, ki)
+
+
+@jit(nogil=True)
+def ascend(G, q0, ylin, H, kr, ki, F_lim, beam, K, ws):
+    """Climb ``K`` (N/m, strictly inside the box and the force limit, in place) towards
+    the largest ``|y_beam|`` over the admissible set; returns False if it did not start
+    inside."""
+    nd = len(K)
+    g, gold, x, xold, u = ws[10], ws[11], ws[12], ws[13], ws[14]
+    order = np.empty(nd, np.int64)
+    nA = 0
+    for j in range(nd):
+        if H[beam, j] != 0:
+            order[nA] = j
+            nA += 1
+    nO = nA
+    for j in range(nd):
+        if H[beam, j] == 0:
+            order[nO] = j
+            nO += 1
+    # the start's forces, from the full solve
+    LU, piv, q = ws[0], ws[1], ws[3]
+    for i in range(nd):
+        for j in range(nd):
+            LU[i, j] = G[i, j] * K[j]
+        LU[i, i] += 1.0
+    if lu_factor(LU, piv, nd) != 0:
+        return False
+    q[:] = q0
+    lu_solve(LU, piv, q, nd)
+    for s in range(nd):
+        j = order[s]
+        u[s] = K[j] * q[j] if s < nA else K[j]
+    empty = np.empty(0)
+    if _phi(G, q0, ylin, H, order, nA, u, F_lim, kr, ki, TAUS[0], beam, empty, ws,
+            ) == -math.inf:
+        return False
+    for s in range(nd):
+        sr, si = _scale(s, nA, F_lim, kr, ki)
+        x[s] = u[s].real / sr
+        x[nd + s] = u[s].imag / si
+    ut = np.empty(nd, np.complex128)
+    for tau in TAUS:
+        f = _phi(G, q0, ylin, H, order, nA, u, F_lim, kr, ki, tau, beam, g, ws)
+        step = 1e-3
+        for it in range(ITERATIONS):
+            # projected step (K_O onto the box), halved until inside and rising enough
+            moved = False
+            for back in range(30):
+                gain = 0.0
+                for s in range(nd):
+                    xr = x[s] + step * g[s]
+                    xi = x[nd + s] + step * g[nd + s]
+                    if s >= nA:
+                        xr = min(max(xr, 0.0), 1.0)
+                        xi = min(max(xi, 0.0), 1.0)
+                    gain += g[s] * (xr - x[s]) + g[nd + s] * (xi - x[nd + s])
+                    sr, si = _scale(s, nA, F_lim, kr, ki)
+                    ut[s] = complex(xr * sr, xi * si)
+                fn = _phi(G, q0, ylin, H, order, nA, ut, F_lim, kr, ki, tau, beam, empty,
+                          ws)
+                if fn >= f + 1e-4 * gain and fn > -math.inf:
+                    moved = True
+                    break
+                step *= 0.5
+            if not moved or gain <= 1e-14:
+                break
+            xold[:] = x
+            gold[:] = g
+            u[:] = ut
+            for s in range(nd):
+                sr, si = _scale(s, nA, F_lim, kr, ki)
+                x[s] = u[s].real / sr
+                x[nd + s] = u[s].imag / si
+            f = _phi(G, q0, ylin, H, order, nA, u, F_lim, kr, ki, tau, beam, g, ws)
+            # Barzilai-Borwein step for an ascent: s.s / -(s.dg)
+            ss = 0.0
+            sy = 0.0
+            for i in range(2 * nd):
+                d = x[i] - xold[i]
+                ss += d * d
+                sy -= d * (g[i] - gold[i])
+            step = ss / sy if sy > 0.0 else 10.0 * step
+            step = min(max(step, 1e-12), 1e6)
+    _phi(G, q0, ylin, H, order, nA, u, F_lim, kr, ki, TAUS[-1], beam, empty, ws)
+    K[:] = ws[4]
+    return True
+
+
+@jit(nogil=True)
+def ascend_frequencies(G, q0, ylin, H, kr, ki, F_lim, K_start, floor, stop, freqs, K_out,
+                       M_out):
+    """:func:`ascend` from each row of ``K_start[k]`` (n_s, nd; rows with a NaN are
+    skipped, others moved ``INSIDE`` into the box and scaled towards 0 until strictly
+    inside the force limit), for the first ``MAX_BEAMS`` beams in decreasing order of
+    their force-only bound (Eq. 10) while that is above the best ``M`` so far (at least
+    ``floor[k]``, m), until one reaches ``stop[k]`` (m). The best admissible result by
+    ``M`` to ``K_out[k]`` and ``M_out[k]`` (``-inf`` if none above ``floor[k]``)."""
+    nd = q0.shape[1]
+    nb = ylin.shape[1]
+    ws = workspace(nd)
+    K = np.empty(nd, np.complex128)
+    Kb = np.empty(nd, np.complex128)
+    T = np.empty((nd, nd), np.complex128)
+    piv = np.empty(nd, np.int64)
+    q = np.empty(nd, np.complex128)
+    eq10 = np.empty(nb)
+    lo = INSIDE
+    hi = 1.0 - INSIDE
+    for k in freqs:
+        M_out[k] = -math.inf
+        best = floor[k]
+        for b in range(nb):
+            eq10[b] = abs(ylin[k, b])
+            for j in range(nd):
+                eq10[b] += F_lim * abs(H[k, b, j])
+        by_bound = np.argsort(-eq10)
+        for s in range(K_start.shape[1]):
+            K[:] = K_start[k, s]
+            if np.isnan(K[0].real):
+                continue
+            for j in range(nd):
+                K[j] = complex(min(max(K[j].real / kr, lo), hi) * kr,
+                               min(max(K[j].imag / ki, lo), hi) * ki)
+            v, ok = pulled_inside(G[k], q0[k], ylin[k], H[k], K, F_lim, 0.999, T, piv, q)
+            if not ok:
+                continue
+            for r in range(min(nb, MAX_BEAMS)):
+                beam = by_bound[r]
+                if eq10[beam] <= best or best >= stop[k]:
+                    break
+                Kb[:] = K
+                if not ascend(G[k], q0[k], ylin[k], H[k], kr, ki, F_lim, beam, Kb, ws):
+                    continue
+                for j in range(nd):
+                    Kb[j] = complex(min(max(Kb[j].real, 0.0), kr),
+                                    min(max(Kb[j].imag, 0.0), ki))
+                v, ok = admissible_value(G[k], q0[k], ylin[k], H[k], Kb, F_lim, T, piv, q)
+                if ok and math.isfinite(v) and v > best:
+                    best = v
+                    M_out[k] = v
+                    K_out[k, :] = Kb
