@@ -121,3 +121,55 @@ def test_relaxation_tightens_the_eight_beam_certificate():
     assert np.all(on.upper >= on.upper_witness) and np.all(on.lower <= on.lower_witness)
     assert np.median(on.upper_gap) < 0.5 * np.median(off.upper_gap)
     assert np.count_nonzero(on.lower_tight) > np.count_nonzero(off.lower_tight)
+
+
+@pytest.mark.parametrize("freq", [52.0, 126.0])
+def test_rounded_candidates(freq):
+    """The rounded candidates at the relaxation's solution, eight beams, the beam of
+    largest bound: the first is ``p_j / q_j`` of the leading eigenvector of ``Z^-1``
+    (numpy's, from the dense ``Z``) clipped to the box; both lie in the box; and the
+    measure by which the second is chosen (how far ``p_j / q_j`` leaves the box and
+    ``p_j`` the force limit) agrees with numpy's at random points of the span of the
+    three leading eigenvectors."""
+    model = mcfric.eight_beam(1.1)
+    best = None
+    for beam in range(model.n_beams):
+        a, shift, ys, ws = problem(model, freq, beam)
+        t = rx.solve(a["x"], shift, a["V"], a["idx"], a["S"], a["cvec"], a["pos"],
+                     a["simplex"], a["grow"], -np.inf, ws, np.zeros(2, np.int64))
+        if best is None or t * ys > best[0]:
+            best = (t * ys, a, ws)
+    _, a, ws = best
+    V = a["V"]
+    nd = V.shape[0] - 1
+    K = np.empty((2, nd), complex)
+    assert rx.rounded(a["x"], V, a["idx"], a["S"], K_MAX, K_MAX, F_LIM, ws, K)
+    lam, U = np.linalg.eigh(np.linalg.inv(dense_Z(a)))
+
+    def unclipped(z):
+        z = z / z[nd]
+        p = z[:nd] * np.diag(V[:nd, nd:2 * nd])
+        return p / (V[:, :nd].conj().T @ z), p
+
+    def leaving(z):
+        Kz, p = unclipped(z)
+        out = (np.maximum(-Kz.real, 0) + np.maximum(Kz.real - K_MAX, 0)
+               + np.maximum(-Kz.imag, 0) + np.maximum(Kz.imag - K_MAX, 0)) / K_MAX
+        return out.sum() + np.maximum(np.abs(p) / F_LIM - 1, 0).sum()
+
+    K0, _ = unclipped(U[:, -1])
+    np.testing.assert_allclose(K[0], np.clip(K0.real, 0, K_MAX) + 1j * np.clip(K0.imag, 0,
+                                                                                 K_MAX),
+                               rtol=1e-6, atol=1e-6 * K_MAX)
+    assert np.all((K.real >= 0) & (K.real <= K_MAX) & (K.imag >= 0) & (K.imag <= K_MAX))
+    # the measure the second candidate minimises, at random points of the span
+    rng = np.random.default_rng(0)
+    W = U[:, -3:] * np.sqrt(np.maximum(lam[-3:], 0))
+    Kc = np.empty(nd, complex)
+    for _ in range(20):
+        z = W @ (rng.normal(size=3) + 1j * rng.normal(size=3))
+        v = rx._candidate(z.copy(), V, K_MAX, K_MAX, F_LIM, Kc)
+        Kz, _ = unclipped(z)
+        assert v == pytest.approx(leaving(z), rel=1e-9, abs=1e-12)
+        np.testing.assert_allclose(Kc, np.clip(Kz.real, 0, K_MAX)
+                                   + 1j * np.clip(Kz.imag, 0, K_MAX), rtol=1e-9)

@@ -229,7 +229,7 @@ def _improved(run, cert, wit, K, rtol):
 def _relaxed(args, kr, ki, F_lim, want_max, cert, wit, rtol, atol):
     """``cert`` improved by the semidefinite relaxation of the whole box
     (:mod:`mcfric.core.relaxation`) where it is not yet within the tolerance of its
-    witness, and the relaxation's rounded points (n_f, nd; N/m, NaN where none: the
+    witness, and the relaxation's rounded points (n_f, 2, nd; N/m, NaN where none: the
     upper bound's only, :func:`mcfric.core.relaxation.rounded`)."""
     if want_max:
         loose = np.flatnonzero(~(cert <= wit * (1 + rtol)))
@@ -238,11 +238,11 @@ def _relaxed(args, kr, ki, F_lim, want_max, cert, wit, rtol, atol):
         loose = np.flatnonzero(~((cert >= wit * (1 - rtol)) | (wit - cert <= atol)))
         target = np.maximum(wit * (1 - rtol), wit - atol)
     if not len(loose):
-        return cert, np.full((len(cert), args[1].shape[1]), np.nan + 0j)
+        return cert, np.full((len(cert), 2, args[1].shape[1]), np.nan + 0j)
     got = np.full(len(cert), np.inf if want_max else 0.0)
     floor = np.ascontiguousarray(wit)
     target = np.ascontiguousarray(target)
-    K_round = np.full((len(cert), args[1].shape[1]), np.nan + 0j)
+    K_round = np.full((len(cert), 2, args[1].shape[1]), np.nan + 0j)
     stats = np.zeros((64, 3), np.int64)
     in_threads(lambda item: relax_frequencies(*args, kr, ki, F_lim, want_max, floor,
                                               target, np.asarray(item[1], np.int64), got,
@@ -325,18 +325,17 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
             if want_max:
                 # where the relaxation is (nearly) tight its primal point is (nearly) the
                 # maximiser: climb from it to a better witness
-                todo = np.flatnonzero(~np.isnan(K_round[:, 0]) & ~(cert <= wit * (1 + rtol)))
-                Kw, Mw = joint_witnesses(args, kr, ki, F_lim, K_round[:, None], cert, todo,
+                todo = np.flatnonzero(~np.isnan(K_round[:, 0, 0]) & ~(cert <= wit * (1 + rtol)))
+                Kw, Mw = joint_witnesses(args, kr, ki, F_lim, K_round[:, :1], cert, todo,
                                          pool=0, climb=1)
                 better = Mw > wit
                 wit = np.where(better, Mw, wit)
                 K[better] = Kw[better]
-                # each beam's own dampers' forces as variables (no ridge near a
-                # resonance), then all K at once
                 # first in each beam's own dampers' forces (no ridge there near a
                 # resonance), then in every K at once
                 for ascent in (_force_ascent, _joint_ascent):
-                    starts = np.ascontiguousarray(np.stack([K, K_round], axis=1))
+                    starts = np.ascontiguousarray(np.concatenate([K[:, None], K_round],
+                                                                 axis=1))
                     wit = ascent(args, kr, ki, F_lim, starts, cert, wit, K, rtol)
         if want_max:
             cert = np.maximum(np.fmin(cert, force), wit)

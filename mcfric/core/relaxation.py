@@ -41,6 +41,10 @@ MU_FACTOR = 0.1
 #: ~100 operations: ~1e-14) and of the Cholesky test (Rump: (n + 1) u tr Z).
 ASSEMBLY_MARGIN = 1e-12
 CHOLESKY_MARGIN = 1e-11
+#: Leading eigenvectors of the primal point combined, and random combinations tried, by
+#: :func:`rounded` (a mixture of maximisers is not rank one).
+PURIFY_RANK = 3
+PURIFY_SAMPLES = 256
 
 
 @jit
@@ -473,12 +477,15 @@ def shifted(x, shift, V, idx, S, pos, simplex, ws):
 
 
 @jit
-def rounded(x, V, idx, S, kr, ki, ws, K):
-    """A candidate maximiser from the relaxation at ``x``: ``X = Z^-1`` is (a multiple
-    of) the barrier's primal point, and where the relaxation is tight it is ``z z^H``
-    for ``z = (p, 1)`` at the maximum. ``K_j = p_j / q_j`` from its leading
-    eigenvector, clipped to the box ``[0, kr] x [0, ki]`` (N/m), goes to ``K``; False
-    if ``Z`` is not definite."""
+def rounded(x, V, idx, S, kr, ki, F_lim, ws, K):
+    """Candidate maximisers from the relaxation at ``x``: ``X = Z^-1`` is (a multiple of)
+    the barrier's primal point, and where the relaxation is tight it is ``z z^H`` for
+    ``z = (p, 1)`` at the maximum, or a mixture of such. ``K[0]``: ``K_j = p_j / q_j``
+    from its leading eigenvector; ``K[1]``: from the combination of its ``PURIFY_RANK``
+    leading eigenvectors (scaled by the square roots of their eigenvalues) that leaves
+    the box and the force limit least, of that eigenvector and ``PURIFY_SAMPLES`` random
+    ones (the same at every call); both clipped to the box ``[0, kr] x [0, ki]`` (N/m).
+    False if ``Z`` is not definite."""
     C, T, Z, L, Zi, W = ws[0], ws[1], ws[2], ws[3], ws[4], ws[5]
     nn = V.shape[0]
     nd = nn - 1
@@ -486,19 +493,57 @@ def rounded(x, V, idx, S, kr, ki, ws, K):
     if np.isnan(cholesky(Z, L, nn)):
         return False
     _inverse(L, Zi, W, nn)
-    u = np.linalg.eigh(Zi)[1][:, nn - 1]
-    if u[nd] == 0:
+    lam, U = np.linalg.eigh(Zi)
+    z = U[:, nn - 1].copy()
+    best = _candidate(z, V, kr, ki, F_lim, K[0])
+    if not best < math.inf:
         return False
-    z = u / u[nd]
+    K[1, :] = K[0]
+    r = min(PURIFY_RANK, nn)
+    np.random.seed(0)
+    Kc = np.empty(nd, np.complex128)
+    for s in range(PURIFY_SAMPLES):
+        z[:] = 0.0
+        for i in range(r):
+            c = complex(np.random.standard_normal(), np.random.standard_normal())
+            c *= math.sqrt(max(lam[nn - 1 - i], 0.0))
+            for a in range(nn):
+                z[a] += c * U[a, nn - 1 - i]
+        v = _candidate(z, V, kr, ki, F_lim, Kc)
+        if v < best:
+            best = v
+            K[1, :] = Kc
+    return True
+
+
+@jit
+def _candidate(z, V, kr, ki, F_lim, K):
+    """``K_j = p_j / q_j`` (N/m, clipped to the box) at ``z`` scaled to ``z[nd] = 1``
+    (``p_j = V[j, nd + j] z_j``, ``q_j = V[:, j]^H z``), and how far it lies outside the
+    box (relative to its sides) and the force limit (relative to ``F_lim``), summed over
+    the dampers; ``inf`` if not finite."""
+    nn = V.shape[0]
+    nd = nn - 1
+    if z[nd] == 0:
+        return math.inf
+    scale = 1.0 / z[nd]
+    for i in range(nn):
+        z[i] *= scale
+    out = 0.0
     for j in range(nd):
         q = 0j
         for i in range(nn):
             q += V[i, j].conjugate() * z[i]
-        Kj = z[j] * V[j, nd + j] / q
+        p = z[j] * V[j, nd + j]
+        Kj = p / q
         if not np.isfinite(Kj.real) or not np.isfinite(Kj.imag):
-            return False
+            return math.inf
+        out += (max(-Kj.real, 0.0) + max(Kj.real - kr, 0.0)) / kr
+        out += (max(-Kj.imag, 0.0) + max(Kj.imag - ki, 0.0)) / ki
+        if np.isfinite(F_lim):
+            out += max(abs(p) / F_lim - 1.0, 0.0)
         K[j] = complex(min(max(Kj.real, 0.0), kr), min(max(Kj.imag, 0.0), ki))
-    return True
+    return out
 
 
 @jit
@@ -656,8 +701,8 @@ def relax_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, floor, target, fr
     each relaxation stops once it proves its beam below ``max(running maximum,
     target[k])``. The lower bound stops once it reaches ``target[k]``. ``stats``
     (int64, shape (3,)): Newton steps, barrier rounds and relaxations are added to it.
-    ``K_round[k]`` (upper bound only): the :func:`rounded` candidate of the beam with the
-    largest bound (N/m; left as it is where none was solved).
+    ``K_round[k]`` (shape (2, nd); upper bound only): the :func:`rounded` candidates of
+    the beam with the largest bound (N/m; left as they are where none was solved).
     """
     n_f, nd = q0.shape
     nb = ylin.shape[1]
@@ -679,7 +724,7 @@ def relax_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, floor, target, fr
     eq10 = np.empty(nb)
     xprev = np.empty(m)
     xw = np.empty(m)
-    Kc = np.empty(nd, np.complex128)
+    Kc = np.empty((2, nd), np.complex128)
     for k in freqs:
         if want_max:
             for b in range(nb):
@@ -716,8 +761,8 @@ def relax_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, floor, target, fr
                 bound = eq10[b]
                 if not np.isnan(t):
                     bound = min(bound, math.sqrt(max(t, 0.0) * ys) * (1.0 + 1e-14))
-                    if bound > R and rounded(x, V, idx, S, kr, ki, ws, Kc):
-                        K_round[k, :] = Kc
+                    if bound > R and rounded(x, V, idx, S, kr, ki, F_lim, ws, Kc):
+                        K_round[k] = Kc
                 R = max(R, bound)
             out[k] = R
         else:
