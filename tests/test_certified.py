@@ -229,16 +229,15 @@ def test_climbed_witness_beats_random_admissible_points(F0):
     rng = np.random.default_rng(3)
     scale = 10.0 ** rng.uniform(-3, 0, (3000, 1))
     K = scale * (rng.uniform(0, K_MAX, (3000, nd)) + 1j * rng.uniform(0, K_MAX, (3000, nd)))
-    plain = certified.joint_witnesses, certified._joint_ascent, certified._force_ascent
+    plain = certified.joint_witnesses, certified._force_ascent
     try:
-        # no climb and no joint ascents: the search's and the branch and bound's witnesses
+        # no climb and no force ascent: the search's and the branch and bound's witnesses
         certified.joint_witnesses = (lambda args, kr, ki, F_lim, given, stop, *a, **k:
                                      (np.zeros_like(given[:, 0]), np.full(len(stop), -np.inf)))
-        certified._joint_ascent = lambda args, kr, ki, F_lim, starts, cert, wit, K, rtol: wit
-        certified._force_ascent = certified._joint_ascent
+        certified._force_ascent = lambda args, kr, ki, F_lim, starts, cert, wit, K, rtol: wit
         C0 = compute_bounds(model, f, K_MAX, F_lim=F_LIM, budget=20).certificate
     finally:
-        certified.joint_witnesses, certified._joint_ascent, certified._force_ascent = plain
+        certified.joint_witnesses, certified._force_ascent = plain
     for k, fk in enumerate(f):
         W = C.K_upper[k]
         assert np.all((W.real >= 0) & (W.real <= K_MAX) & (W.imag >= 0) & (W.imag <= K_MAX))

@@ -18,7 +18,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..core import force_ascent
-from ..core.barrier_ascent import ascend_frequencies
 from ..core.branch_bound import certify_frequencies
 from ..core.joint_ascent import values, witnesses
 from ..core.relaxation import relax_frequencies
@@ -193,34 +192,22 @@ def joint_witnesses(args, kr, ki, F_lim, given, stop, freqs=None, pool=None, cli
     return K, M
 
 
-def _joint_ascent(args, kr, ki, F_lim, starts, cert, wit, K, rtol):
-    """Witnesses improved by :func:`mcfric.core.barrier_ascent.ascend_frequencies` (all
-    dampers at once) from ``starts`` (n_f, n_s, nd) where ``cert`` is not yet within
-    ``rtol`` of ``wit``; ``K`` is updated in place, the new witness values returned."""
-    return _improved(lambda fs, Kb, Mb: ascend_frequencies(*args, kr, ki, F_lim, starts, fs,
-                                                           Kb, Mb), cert, wit, K, rtol)
-
-
 def _force_ascent(args, kr, ki, F_lim, starts, cert, wit, K, rtol):
-    """As :func:`_joint_ascent`, by :func:`mcfric.core.force_ascent.ascend_frequencies`
-    (each beam's own dampers' forces as variables), stopping within ``rtol``."""
-    floor = np.ascontiguousarray(wit, dtype=float)
-    stop = np.ascontiguousarray(cert / (1 + rtol), dtype=float)
-    return _improved(lambda fs, Kb, Mb: force_ascent.ascend_frequencies(
-        *args, kr, ki, F_lim, starts, floor, stop, fs, Kb, Mb), cert, wit, K, rtol)
-
-
-def _improved(run, cert, wit, K, rtol):
-    """``run(freqs, K_out, M_out)`` on the frequencies where ``cert`` is not within
-    ``rtol`` of ``wit``; ``K`` updated where it found better, the new witness values
-    returned."""
+    """Witnesses improved by :func:`mcfric.core.force_ascent.ascend_frequencies` (each
+    beam's own dampers' forces as variables) from ``starts`` (n_f, n_s, nd) where
+    ``cert`` is not yet within ``rtol`` of ``wit``, stopping within it; ``K`` is updated
+    in place, the new witness values returned."""
     todo = np.flatnonzero(~(cert <= wit * (1 + rtol)))
     if not len(todo):
         return wit
+    starts = np.ascontiguousarray(starts)
+    floor = np.ascontiguousarray(wit, dtype=float)
+    stop = np.ascontiguousarray(cert / (1 + rtol), dtype=float)
     Kb = np.zeros_like(K)
     Mb = np.full(len(wit), -np.inf)
-    in_threads(lambda fs: run(np.asarray(fs, np.int64), Kb, Mb),
-               [todo[c] for c in _chunks(len(todo))])
+    in_threads(lambda fs: force_ascent.ascend_frequencies(
+        *args, kr, ki, F_lim, starts, floor, stop, np.asarray(fs, np.int64), Kb, Mb),
+        [todo[c] for c in _chunks(len(todo))])
     better = Mb > wit
     K[better] = Kb[better]
     return np.where(better, Mb, wit)
@@ -331,12 +318,11 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
                 better = Mw > wit
                 wit = np.where(better, Mw, wit)
                 K[better] = Kw[better]
-                # first in each beam's own dampers' forces (no ridge there near a
-                # resonance), then in every K at once
-                for ascent in (_force_ascent, _joint_ascent):
-                    starts = np.ascontiguousarray(np.concatenate([K[:, None], K_round],
-                                                                 axis=1))
-                    wit = ascent(args, kr, ki, F_lim, starts, cert, wit, K, rtol)
+                # then in each beam's own dampers' forces (no ridge there near a
+                # resonance), from the witness and both rounded points
+                wit = _force_ascent(args, kr, ki, F_lim,
+                                    np.concatenate([K[:, None], K_round], axis=1), cert,
+                                    wit, K, rtol)
         if want_max:
             cert = np.maximum(np.fmin(cert, force), wit)
             ok = ok | (cert <= wit * (1 + rtol))
