@@ -26,7 +26,7 @@ import numpy as np
 from ._jit import jit
 from .branch_bound import admissible_value
 from .joint_ascent import pulled_inside
-from .linalg import lu_factor, lu_solve, lu_solve_transposed
+from .linalg import contact_solve, lu_factor, lu_solve, lu_solve_transposed
 
 #: Barrier weights, one round each; iterations per round at most, and the rise of the
 #: objective below which a round ends.
@@ -213,15 +213,9 @@ def ascend(G, q0, ylin, H, kr, ki, F_lim, beam, K, ws):
             order[nO] = j
             nO += 1
     # the start's forces, from the full solve
-    LU, piv, q = ws[0], ws[1], ws[3]
-    for i in range(nd):
-        for j in range(nd):
-            LU[i, j] = G[i, j] * K[j]
-        LU[i, i] += 1.0
-    if lu_factor(LU, piv, nd) != 0:
+    q = ws[3]
+    if contact_solve(G, K, q0, ws[0], ws[1], q, nd) != 0:
         return False
-    q[:] = q0
-    lu_solve(LU, piv, q, nd)
     for s in range(nd):
         j = order[s]
         u[s] = K[j] * q[j] if s < nA else K[j]
