@@ -201,17 +201,18 @@ def ascend(G, q0, ylin, H, kr, ki, F_lim, beam, K, ws):
     inside."""
     nd = len(K)
     g, gold, x, xold, u = ws[10], ws[11], ws[12], ws[13], ws[14]
+    # the beam's own dampers first, then the others
     order = np.empty(nd, np.int64)
     nA = 0
     for j in range(nd):
         if H[beam, j] != 0:
             order[nA] = j
             nA += 1
-    nO = nA
+    slot = nA
     for j in range(nd):
         if H[beam, j] == 0:
-            order[nO] = j
-            nO += 1
+            order[slot] = j
+            slot += 1
     # the start's forces, from the full solve
     q = ws[3]
     if contact_solve(G, K, q0, ws[0], ws[1], q, nd) != 0:
@@ -220,8 +221,8 @@ def ascend(G, q0, ylin, H, kr, ki, F_lim, beam, K, ws):
         j = order[s]
         u[s] = K[j] * q[j] if s < nA else K[j]
     empty = np.empty(0)
-    if _phi(G, q0, ylin, H, order, nA, u, F_lim, kr, ki, TAUS[0], beam, empty, ws,
-            ) == -math.inf:
+    if _phi(G, q0, ylin, H, order, nA, u, F_lim, kr, ki, TAUS[0], beam, empty,
+            ws) == -math.inf:
         return False
     for s in range(nd):
         sr, si = _scale(s, nA, F_lim, kr, ki)
