@@ -192,12 +192,20 @@ def joint_witnesses(args, kr, ki, F_lim, given, stop, freqs=None, pool=None, cli
     return K, M
 
 
+def _met(want_max, cert, wit, rtol, atol):
+    """Where a certified bound is within the tolerance of its witness: ``rtol``
+    relative, or for the minimum also ``atol`` absolute (m)."""
+    if want_max:
+        return cert <= wit * (1 + rtol)
+    return (cert >= wit * (1 - rtol)) | (wit - cert <= atol)
+
+
 def _force_ascent(args, kr, ki, F_lim, starts, cert, wit, K, rtol):
     """Witnesses improved by :func:`mcfric.core.force_ascent.ascend_frequencies` (each
     beam's own dampers' forces as variables) from ``starts`` (n_f, n_s, nd) where
     ``cert`` is not yet within ``rtol`` of ``wit``, stopping within it; ``K`` is updated
     in place, the new witness values returned."""
-    todo = np.flatnonzero(~(cert <= wit * (1 + rtol)))
+    todo = np.flatnonzero(~_met(True, cert, wit, rtol, 0.0))
     if not len(todo):
         return wit
     starts = np.ascontiguousarray(starts)
@@ -218,12 +226,8 @@ def _relaxed(args, kr, ki, F_lim, want_max, cert, wit, rtol, atol):
     (:mod:`mcfric.core.relaxation`) where it is not yet within the tolerance of its
     witness, and the relaxation's rounded points (n_f, 2, nd; N/m, NaN where none: the
     upper bound's only, :func:`mcfric.core.relaxation.rounded`)."""
-    if want_max:
-        loose = np.flatnonzero(~(cert <= wit * (1 + rtol)))
-        target = wit * (1 + rtol)
-    else:
-        loose = np.flatnonzero(~((cert >= wit * (1 - rtol)) | (wit - cert <= atol)))
-        target = np.maximum(wit * (1 - rtol), wit - atol)
+    loose = np.flatnonzero(~_met(want_max, cert, wit, rtol, atol))
+    target = wit * (1 + rtol) if want_max else np.maximum(wit * (1 - rtol), wit - atol)
     if not len(loose):
         return cert, np.full((len(cert), 2, args[1].shape[1]), np.nan + 0j)
     got = np.full(len(cert), np.inf if want_max else 0.0)
@@ -312,7 +316,8 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
             if want_max:
                 # where the relaxation is (nearly) tight its primal point is (nearly) the
                 # maximiser: climb from it to a better witness
-                todo = np.flatnonzero(~np.isnan(K_round[:, 0, 0]) & ~(cert <= wit * (1 + rtol)))
+                todo = np.flatnonzero(~np.isnan(K_round[:, 0, 0])
+                                      & ~_met(True, cert, wit, rtol, atol))
                 Kw, Mw = joint_witnesses(args, kr, ki, F_lim, K_round[:, :1], cert, todo,
                                          pool=0, climb=1)
                 better = Mw > wit
@@ -325,10 +330,9 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
                                     wit, K, rtol)
         if want_max:
             cert = np.maximum(np.fmin(cert, force), wit)
-            ok = ok | (cert <= wit * (1 + rtol))
         else:
             cert = np.clip(cert, 0.0, wit)
-            ok = ok | (cert >= wit * (1 - rtol)) | (wit - cert <= atol)
+        ok = ok | _met(want_max, cert, wit, rtol, atol)
         out[want_max] = (cert, wit, K, ev, ok)
     (up, wu, Ku, eu, ou), (lo, wl, Kl, el, ol) = out[True], out[False]
     return Certificate(up * scale, lo * scale, wu * scale, wl * scale, Ku, Kl,

@@ -19,6 +19,17 @@ from .enclosure import INFEASIBLE, OK, enclosure, workspace
 from .linalg import contact_solve
 
 
+@jit
+def force_bounds(ylin, H, F_lim, out):
+    """Each beam's force-only bound (Eq. 10) at one frequency, ``|ylin_b| + F_lim
+    sum_j |H_bj|`` (m), into ``out``: no admissible point has a larger ``|y_b|``."""
+    for b in range(len(ylin)):
+        acc = abs(ylin[b])
+        for j in range(H.shape[1]):
+            acc += F_lim * abs(H[b, j])
+        out[b] = acc
+
+
 @jit(nogil=True)
 def admissible_value(G, q0, ylin, H, K, F_lim, T, piv, q):
     """``M`` at ``K`` (m), and whether ``K`` satisfies the force limit (the box is the

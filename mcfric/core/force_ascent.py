@@ -24,7 +24,7 @@ import math
 import numpy as np
 
 from ._jit import jit
-from .branch_bound import admissible_value
+from .branch_bound import admissible_value, force_bounds
 from .joint_ascent import pulled_inside
 from .linalg import contact_solve, lu_factor, lu_solve, lu_solve_transposed
 
@@ -319,10 +319,7 @@ def ascend_frequencies(G, q0, ylin, H, kr, ki, F_lim, K_start, floor, stop, freq
     for k in freqs:
         M_out[k] = -math.inf
         best = floor[k]
-        for b in range(nb):
-            eq10[b] = abs(ylin[k, b])
-            for j in range(nd):
-                eq10[b] += F_lim * abs(H[k, b, j])
+        force_bounds(ylin[k], H[k], F_lim, eq10)
         by_bound = np.argsort(-eq10)
         for s in range(K_start.shape[1]):
             K[:] = K_start[k, s]

@@ -29,7 +29,7 @@ import math
 import numpy as np
 
 from ._jit import jit
-from .branch_bound import admissible_value
+from .branch_bound import admissible_value, force_bounds
 from .linalg import contact_solve, lu_solve
 
 #: Candidates are kept this far inside the force limit (relative), so that rounding in
@@ -294,11 +294,7 @@ def witnesses(G, q0, ylin, H, kr, ki, F_lim, K_given, n_pool, n_climb, n_beams, 
     pool = np.empty((n_g + n_pool, nd), np.complex128)
     value = np.empty(n_g + n_pool)
     for k in freqs:
-        for b in range(nb):
-            s = abs(ylin[k, b])
-            for j in range(nd):
-                s += F_lim * abs(H[k, b, j])
-            bound[b] = s
+        force_bounds(ylin[k], H[k], F_lim, bound)
         order = np.argsort(-bound)
         enough = min(bound[order[0]], stop[k]) * (1.0 - 1e-4)
         np.random.seed(seed + k)

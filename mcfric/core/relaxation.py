@@ -27,6 +27,7 @@ import math
 import numpy as np
 
 from ._jit import jit
+from .branch_bound import force_bounds
 
 #: Relative accuracy at which :func:`solve` stops (in ``t``, a squared response).
 TOL = 1e-3
@@ -727,11 +728,7 @@ def relax_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, floor, target, fr
     Kc = np.empty((2, nd), np.complex128)
     for k in freqs:
         if want_max:
-            for b in range(nb):
-                acc = abs(ylin[k, b])
-                for j in range(nd):
-                    acc += F_lim * abs(H[k, b, j])
-                eq10[b] = acc
+            force_bounds(ylin[k], H[k], F_lim, eq10)
             R = floor[k]
             have = False
             for b in np.argsort(-eq10):
