@@ -234,7 +234,7 @@ def test_climbed_witness_beats_random_admissible_points(F0):
         # no climb and no force ascent: the search's and the branch and bound's witnesses
         certified.joint_witnesses = (lambda args, kr, ki, F_lim, given, stop, *a, **k:
                                      (np.zeros_like(given[:, 0]), np.full(len(stop), -np.inf)))
-        certified._force_ascent = lambda args, kr, ki, F_lim, starts, cert, wit, K, rtol: wit
+        certified._force_ascent = lambda args, kr, ki, F_lim, starts, stop, wit, K: wit
         C0 = compute_bounds(model, f, K_MAX, F_lim=F_LIM, budget=20).certificate
     finally:
         certified.joint_witnesses, certified._force_ascent = plain

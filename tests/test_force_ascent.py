@@ -135,7 +135,7 @@ def test_closes_witness_gaps_at_40_to_70_hz():
     C = compute_bounds(model, f, K_MAX, F_lim=F_LIM).certificate
     plain = certified._force_ascent
     try:
-        certified._force_ascent = lambda args, kr, ki, F_lim, starts, cert, wit, K, rtol: wit
+        certified._force_ascent = lambda args, kr, ki, F_lim, starts, stop, wit, K: wit
         C0 = compute_bounds(model, f, K_MAX, F_lim=F_LIM).certificate
     finally:
         certified._force_ascent = plain

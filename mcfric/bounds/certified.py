@@ -200,17 +200,17 @@ def _met(want_max, cert, wit, rtol, atol):
     return (cert >= wit * (1 - rtol)) | (wit - cert <= atol)
 
 
-def _force_ascent(args, kr, ki, F_lim, starts, cert, wit, K, rtol):
+def _force_ascent(args, kr, ki, F_lim, starts, stop, wit, K):
     """Witnesses improved by :func:`mcfric.core.force_ascent.ascend_frequencies` (each
     beam's own dampers' forces as variables) from ``starts`` (n_f, n_s, nd) where
-    ``cert`` is not yet within ``rtol`` of ``wit``, stopping within it; ``K`` is updated
-    in place, the new witness values returned."""
-    todo = np.flatnonzero(~_met(True, cert, wit, rtol, 0.0))
+    ``wit`` is below ``stop`` (m), stopping there; ``K`` is updated in place, the new
+    witness values returned."""
+    todo = np.flatnonzero(wit < stop)
     if not len(todo):
         return wit
     starts = np.ascontiguousarray(starts)
     floor = np.ascontiguousarray(wit, dtype=float)
-    stop = np.ascontiguousarray(cert / (1 + rtol), dtype=float)
+    stop = np.ascontiguousarray(stop, dtype=float)
     Kb = np.zeros_like(K)
     Mb = np.full(len(wit), -np.inf)
     in_threads(lambda fs: force_ascent.ascend_frequencies(
@@ -286,14 +286,14 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
     init_up = np.ascontiguousarray(np.concatenate([K_upper[:, None], corners], axis=1))
     init_lo = np.ascontiguousarray(np.concatenate([K_lower[:, None], corners], axis=1))
     args = [np.ascontiguousarray(a) for a in (G, q0, ylin, H)]
+    # M at the box search's maximum: no admissible point is above it, as far as the box
+    # search is right, so the witnesses' climbs stop there
+    box_max = np.empty(n_f)
+    values(*args, np.ascontiguousarray(K_upper), box_max)
     if np.isfinite(F_lim) and nd <= MAX_DAMPERS:
-        # the box search ignores the force limit: climb to admissible witnesses as well,
-        # stopping at the box optimum's M (no admissible point is above it, as far as the
-        # box search is right)
+        # the box search ignores the force limit: climb to admissible witnesses as well
         given = np.stack([K_upper, np.zeros_like(K_upper)], axis=1)
-        stop = np.empty(n_f)
-        values(*args, np.ascontiguousarray(K_upper), stop)
-        climbed, _ = joint_witnesses(args, kr, ki, F_lim, given, stop)
+        climbed, _ = joint_witnesses(args, kr, ki, F_lim, given, box_max)
         init_up = np.concatenate([init_up, climbed[:, None]], axis=1)
     out = {}
     force = (np.abs(ylin) + (F_lim * np.abs(H).sum(axis=2) if np.isfinite(F_lim) else np.inf)
@@ -316,9 +316,9 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
             if want_max:
                 # where the relaxation is (nearly) tight its primal point is (nearly) the
                 # maximiser: climb from it to a better witness
-                todo = np.flatnonzero(~np.isnan(K_round[:, 0, 0])
-                                      & ~_met(True, cert, wit, rtol, atol))
-                Kw, Mw = joint_witnesses(args, kr, ki, F_lim, K_round[:, :1], cert, todo,
+                stop = np.fmin(cert / (1 + rtol), box_max)
+                todo = np.flatnonzero(~np.isnan(K_round[:, 0, 0]) & (wit < stop))
+                Kw, Mw = joint_witnesses(args, kr, ki, F_lim, K_round[:, :1], stop, todo,
                                          pool=0, climb=1)
                 better = Mw > wit
                 wit = np.where(better, Mw, wit)
@@ -326,8 +326,8 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
                 # then in each beam's own dampers' forces (no ridge there near a
                 # resonance), from the witness and both rounded points
                 wit = _force_ascent(args, kr, ki, F_lim,
-                                    np.concatenate([K[:, None], K_round], axis=1), cert,
-                                    wit, K, rtol)
+                                    np.concatenate([K[:, None], K_round], axis=1), stop,
+                                    wit, K)
         if want_max:
             cert = np.maximum(np.fmin(cert, force), wit)
         else:
