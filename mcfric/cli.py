@@ -6,14 +6,15 @@
     mcfric run [PRESET|CONFIG.toml] [-o FILE] [--samples N] [--seed S] [--resume]
                [--force] [--threads T] [--chunk N] [--scheduler ADDRESS] [--peaks N]
                [--peak-rtol X] [--no-peaks] [--F0 N] [--f-min HZ] [--f-max HZ] [--n-freq N]
-               [--no-certify] [--no-progress] [--no-figure] [--skip-space-check]
+               [--no-certify] [--moments] [--no-progress] [--no-figure]
+               [--skip-space-check]
     mcfric config [PRESET|CONFIG.toml]       # complete, commented TOML on stdout
     mcfric info FILE                         # summary of a results file
     mcfric hbm [PRESET|CONFIG.toml] [--mu0 X] [--kc N_PER_M] [--N0 N] [--F0 N]
                [--f-min HZ] [--f-max HZ] [--n-freq N] [-o OUT.csv] [--no-figure]
     mcfric bounds [PRESET|CONFIG.toml] [-o FILE] [--F0 N] [--f-min HZ] [--f-max HZ]
                [--n-freq N] [--k-max N_PER_M] [--F-lim N] [--threads T] [--no-certify]
-               [--no-figure]
+               [--moments] [--no-figure]
     mcfric plot FILE [-o FIG.png|pdf] [--quantity Q] [--f-min HZ] [--f-max HZ]
                [--member I] [--measured DATA ...] [--nodes N1,N2,...] [--no-indicator]
     mcfric verify [PRESET|CONFIG.toml] --f HZ [HZ ...] [--mu0 X] [--kc N_PER_M] [--N0 N]
@@ -41,6 +42,8 @@ from pathlib import Path
 DEFAULT_DIR = Path("mcfric-results")
 EXIT_OK, EXIT_FAIL, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
 COMMANDS = ("run", "config", "info", "hbm", "bounds", "plot", "verify")
+MOMENTS_HELP = ("also tighten the certified upper bound by a second-order moment "
+                'relaxation (chains; slow; needs pip install "mcfric[moments]")')
 
 
 class UsageError(Exception):
@@ -94,6 +97,7 @@ def _parser():
                    help="do not refine peaks or look for folds")
     r.add_argument("--no-certify", action="store_true",
                    help="skip the certification of the bounds (searched bounds only)")
+    r.add_argument("--moments", action="store_true", help=MOMENTS_HELP)
     _model_flags(r)
     _harmonic_flags(r)
     r.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -142,6 +146,7 @@ def _parser():
     b.add_argument("--no-certify", action="store_true",
                    help="skip the certification of the bounds (a quick look: the searched "
                         "bounds alone)")
+    b.add_argument("--moments", action="store_true", help=MOMENTS_HELP)
     b.add_argument("--no-figure", action="store_true", help="do not draw the figure")
 
     pl = sub.add_parser("plot", help="figure of a results or bounds file",
@@ -255,6 +260,8 @@ def _overrides(args):
         o["peaks.enabled"] = (False, "--no-peaks")
     if getattr(args, "no_certify", False):
         o["bounds.certify"] = (False, "--no-certify")
+    if getattr(args, "moments", False):
+        o["bounds.certify_moments"] = (True, "--moments")
     return o
 
 

@@ -77,6 +77,9 @@ class BoundsSpec:
     budget : int or None
         Enclosures per frequency and bound of the certification; None: 4000 for one
         damper, 400 for more.
+    moments : bool
+        Whether the certified upper bound is tightened by the second-order moment
+        relaxation (slow; chains only).
     """
 
     k_max_re: float
@@ -85,6 +88,7 @@ class BoundsSpec:
     n_starts: int
     certify: bool = True
     budget: int | None = None
+    moments: bool = False
 
 
 @dataclass(frozen=True)

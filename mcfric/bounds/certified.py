@@ -13,11 +13,11 @@ proof) and the lower one never below 0.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..core import force_ascent
+from ..core import force_ascent, force_newton
 from ..core.branch_bound import certify_frequencies
 from ..core.joint_ascent import values, witnesses
 from ..core.relaxation import relax_frequencies
@@ -87,6 +87,9 @@ class Certificate:
     budget : int
     relaxed : bool
         Whether the semidefinite relaxation tightened the branch and bound's bounds.
+    second_order : ndarray of int, shape (2,)
+        Second-order moment relaxations (:mod:`.moments`) of the upper bound solved, and
+        of those failed (solver or verification; the first-order bound kept there).
     """
 
     upper: np.ndarray
@@ -99,6 +102,7 @@ class Certificate:
     evaluations: np.ndarray
     budget: int
     relaxed: bool = False
+    second_order: np.ndarray = field(default_factory=lambda: np.zeros(2, np.int64))
 
     @property
     def upper_gap(self):
@@ -146,6 +150,9 @@ class Certificate:
                 text += (f"; {name}: tolerance not met within the budget at "
                          f"{np.count_nonzero(out)} frequencies in {f[out].min():.4g}-"
                          f"{f[out].max():.4g} Hz (valid there, looser)")
+        if self.second_order[1]:
+            text += (f"; second-order relaxation failed in {self.second_order[1]} of "
+                     f"{self.second_order[0]} (first-order bound kept there)")
         return text
 
 
@@ -192,6 +199,21 @@ def joint_witnesses(args, kr, ki, F_lim, given, stop, freqs=None, pool=None, cli
     return K, M
 
 
+def check_moments(chain, n_dampers, F_lim):
+    """Raise a one-line ValueError unless the second-order relaxation can run: Clarabel
+    installed, a chain (``chain``) of 2 to ``MAX_DAMPERS`` dampers, a finite force limit
+    (N)."""
+    from .moments import available
+
+    if not available():
+        raise ValueError('moments: needs Clarabel: pip install "mcfric[moments]"')
+    if not (chain and 2 <= n_dampers <= MAX_DAMPERS and np.isfinite(F_lim)):
+        raise ValueError(f"moments: only for a chain of 2 to {MAX_DAMPERS} dampers with a "
+                         f"force limit (this one: {n_dampers} damper"
+                         f"{'s' if n_dampers != 1 else ''}, {'a chain' if chain else 'not a chain'}"
+                         f", F_lim = {F_lim:g} N)")
+
+
 def _met(want_max, cert, wit, rtol, atol):
     """Where a certified bound is within the tolerance of its witness: ``rtol``
     relative, or for the minimum also ``atol`` absolute (m)."""
@@ -201,47 +223,89 @@ def _met(want_max, cert, wit, rtol, atol):
 
 
 def _force_ascent(args, kr, ki, F_lim, starts, stop, wit, K):
-    """Witnesses improved by :func:`mcfric.core.force_ascent.ascend_frequencies` (each
-    beam's own dampers' forces as variables) from ``starts`` (n_f, n_s, nd) where
-    ``wit`` is below ``stop`` (m), stopping there; ``K`` is updated in place, the new
-    witness values returned."""
-    todo = np.flatnonzero(wit < stop)
-    if not len(todo):
-        return wit
+    """Witnesses improved in the damper forces from ``starts`` (n_f, n_s, nd) where
+    ``wit`` is below ``stop`` (m), stopping there: first by
+    :func:`mcfric.core.force_ascent.ascend_frequencies` (each beam's own dampers' forces),
+    then, where still below, by :func:`mcfric.core.force_newton.climb_frequencies` (all
+    forces at once). ``K`` is updated in place, the new witness values returned."""
     starts = np.ascontiguousarray(starts)
-    floor = np.ascontiguousarray(wit, dtype=float)
     stop = np.ascontiguousarray(stop, dtype=float)
-    Kb = np.zeros_like(K)
-    Mb = np.full(len(wit), -np.inf)
-    in_threads(lambda fs: force_ascent.ascend_frequencies(
-        *args, kr, ki, F_lim, starts, floor, stop, np.asarray(fs, np.int64), Kb, Mb),
-        [todo[c] for c in _chunks(len(todo))])
-    better = Mb > wit
-    K[better] = Kb[better]
-    return np.where(better, Mb, wit)
+    for kernel in (force_ascent.ascend_frequencies, force_newton.climb_frequencies):
+        todo = np.flatnonzero(wit < stop)
+        if not len(todo):
+            break
+        floor = np.ascontiguousarray(wit, dtype=float)
+        Kb = np.zeros_like(K)
+        Mb = np.full(len(wit), -np.inf)
+        in_threads(lambda fs, kernel=kernel, floor=floor, Kb=Kb, Mb=Mb: kernel(
+            *args, kr, ki, F_lim, starts, floor, stop, np.asarray(fs, np.int64), Kb, Mb),
+            [todo[c] for c in _chunks(len(todo))])
+        better = Mb > wit
+        K[better] = Kb[better]
+        wit = np.where(better, Mb, wit)
+    return wit
 
 
 def _relaxed(args, kr, ki, F_lim, want_max, cert, wit, rtol, atol):
     """``cert`` improved by the semidefinite relaxation of the whole box
     (:mod:`mcfric.core.relaxation`) where it is not yet within the tolerance of its
-    witness, and the relaxation's rounded points (n_f, 2, nd; N/m, NaN where none: the
-    upper bound's only, :func:`mcfric.core.relaxation.rounded`)."""
+    witness; the relaxation's rounded points (n_f, 2, nd; N/m, NaN where none: the upper
+    bound's only, :func:`mcfric.core.relaxation.rounded`) and each beam's proven bound
+    (n_f, nb; m, ``inf`` where not relaxed; the upper bound's only)."""
+    n_f, nd = args[1].shape
     loose = np.flatnonzero(~_met(want_max, cert, wit, rtol, atol))
     target = wit * (1 + rtol) if want_max else np.maximum(wit * (1 - rtol), wit - atol)
+    K_round = np.full((n_f, 2, nd), np.nan + 0j)
+    beam_bounds = np.full((n_f, args[2].shape[1]), np.inf)
     if not len(loose):
-        return cert, np.full((len(cert), 2, args[1].shape[1]), np.nan + 0j)
-    got = np.full(len(cert), np.inf if want_max else 0.0)
+        return cert, K_round, beam_bounds
+    got = np.full(n_f, np.inf if want_max else 0.0)
     floor = np.ascontiguousarray(wit)
     target = np.ascontiguousarray(target)
-    K_round = np.full((len(cert), 2, args[1].shape[1]), np.nan + 0j)
     stats = np.zeros((64, 3), np.int64)
     in_threads(lambda item: relax_frequencies(*args, kr, ki, F_lim, want_max, floor,
                                               target, np.asarray(item[1], np.int64), got,
-                                              K_round, stats[item[0]]),
+                                              K_round, beam_bounds, stats[item[0]]),
                enumerate(np.array_split(loose, min(len(loose), 64))))
     LAST_RELAXATION[int(not want_max)] = stats.sum(axis=0)
     cert = np.fmin(cert, got) if want_max else np.fmax(cert, got)
-    return cert, K_round
+    return cert, K_round, beam_bounds
+
+
+def _second_order(args, kr, ki, F_lim, cert, wit, beam_bounds, rtol):
+    """The upper ``cert`` improved by the second-order moment relaxation
+    (:mod:`.moments`) where it is not yet within ``rtol`` of ``wit``: per frequency the
+    beams in decreasing order of ``beam_bounds`` until the next is proven no higher than
+    the bounds found (or the witness's tolerance). Returns the new ``cert`` and the
+    number of relaxations solved and failed."""
+    from . import moments
+
+    G, q0, ylin, H = args
+    todo = np.flatnonzero(~_met(True, cert, wit, rtol, 0.0) & np.isfinite(cert))
+    counts = np.zeros((len(todo), 2), np.int64)
+
+    new = cert.copy()
+
+    def one(i):
+        k = todo[i]
+        if not np.isfinite(beam_bounds[k]).any():
+            return
+        order = np.argsort(-beam_bounds[k])
+        done = -np.inf
+        rest = -np.inf
+        for b in order:
+            if beam_bounds[k, b] <= max(done, wit[k] * (1 + rtol)):
+                rest = beam_bounds[k, b]
+                break
+            value = moments.beam_bound(G[k], q0[k], ylin[k], H[k], kr, ki, F_lim, b)
+            counts[i, 0] += 1
+            counts[i, 1] += not np.isfinite(value)
+            done = max(done, min(beam_bounds[k, b], value))
+        new[k] = min(cert[k], max(done, rest, wit[k]))
+
+    # Clarabel releases the GIL: one frequency per thread
+    in_threads(one, range(len(todo)))
+    return new, counts.sum(axis=0)
 
 
 def _pct(x):
@@ -249,7 +313,7 @@ def _pct(x):
 
 
 def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
-            rtol=RTOL):
+            rtol=RTOL, moments=False):
     """Certified bounds from contact-space arrays (all beams of the metric).
 
     Parameters
@@ -269,6 +333,11 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
         witnesses).
     rtol : float
         Relative tolerance of the branch and bound.
+    moments : bool
+        Also tighten the upper bound by the second-order moment relaxation
+        (:mod:`.moments`; chains only, needs ``pip install "mcfric[moments]"``): about
+        1.5 s per relaxation, one or two per frequency where the first-order one is
+        loose.
 
     Returns
     -------
@@ -277,6 +346,10 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
     n_f, nd = q0.shape
     # the relaxation needs the force limit (its multiplier makes the start definite)
     relax = RELAX and np.isfinite(F_lim) and 2 <= nd <= MAX_DAMPERS
+    if moments:
+        from .moments import is_chain
+        check_moments(is_chain(G), nd, F_lim)
+    second_order = np.zeros(2, np.int64)
     if budget is None:
         budget = default_budget(nd, relax)
     if nd > MAX_DAMPERS:
@@ -312,7 +385,8 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
                                        np.asarray(freqs, np.int64), c, x, k, e, o),
                    _chunks(n_f))
         if relax:
-            cert, K_round = _relaxed(args, kr, ki, F_lim, want_max, cert, wit, rtol, atol)
+            cert, K_round, beam_bounds = _relaxed(args, kr, ki, F_lim, want_max, cert, wit,
+                                                  rtol, atol)
             if want_max:
                 # where the relaxation is (nearly) tight its primal point is (nearly) the
                 # maximiser: climb from it to a better witness
@@ -328,6 +402,9 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
                 wit = _force_ascent(args, kr, ki, F_lim,
                                     np.concatenate([K[:, None], K_round], axis=1), stop,
                                     wit, K)
+                if moments:
+                    cert, second_order = _second_order(args, kr, ki, F_lim, cert, wit,
+                                                       beam_bounds, rtol)
         if want_max:
             cert = np.maximum(np.fmin(cert, force), wit)
         else:
@@ -336,4 +413,5 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
         out[want_max] = (cert, wit, K, ev, ok)
     (up, wu, Ku, eu, ou), (lo, wl, Kl, el, ol) = out[True], out[False]
     return Certificate(up * scale, lo * scale, wu * scale, wl * scale, Ku, Kl,
-                       np.stack([ou, ol]), np.stack([eu, el]), int(budget), bool(relax))
+                       np.stack([ou, ol]), np.stack([eu, el]), int(budget), bool(relax),
+                       second_order)

@@ -43,7 +43,7 @@ from ..model import Model
 from ..threads import threads
 from ..validators import frequencies as check_frequencies
 from ..validators import real
-from .certified import Certificate, certify, within
+from .certified import Certificate, certify, check_moments, within
 from .search import box_extreme, starts
 
 #: ``limited_by`` codes: which constraint sets the upper bound.
@@ -182,7 +182,7 @@ def rotation_invariant(model):
 
 def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity="displacement",
                    beams=None, n_starts=N_STARTS, max_sweeps=MAX_SWEEPS, seed=0, n_threads=None,
-                   certified=True, budget=None):
+                   certified=True, budget=None, moments=False):
     """Equivalent-linear bounds on the response metric of ``model``.
 
     Parameters
@@ -219,6 +219,10 @@ def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity
         Enclosures per frequency and bound of the certification; default 4000 for one
         damper, 400 for more (50 from six dampers, where the relaxation follows:
         :func:`.certified.default_budget`).
+    moments : bool
+        Also tighten the certified upper bound by the second-order moment relaxation
+        (chains of 2-7 dampers with a force limit; ``pip install "mcfric[moments]"``;
+        slow: about 1.5 s per relaxation where the first-order one is loose).
 
     Returns
     -------
@@ -239,6 +243,8 @@ def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity
         raise ValueError(f"n_starts: expected an integer >= 1, got {n_starts!r}")
     if budget is not None and not (isinstance(budget, (int, np.integer)) and budget >= 1):
         raise ValueError(f"budget: expected an integer >= 1, got {budget!r}")
+    if certified and moments:
+        check_moments(model.topology == "linear", model.n_dampers, F_lim)
 
     omega = 2 * np.pi * f
     rec = model.receptances(omega)[0]
@@ -268,8 +274,8 @@ def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity
                                      max_sweeps=int(max_sweeps), gradient=not invariant)
         lower, K_lower = lower[0], K_lower[0]
         scale = omega ** QUANTITIES.index(quantity)
-        cert = (certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget)
-                if certified else None)
+        cert = (certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget,
+                        moments=moments) if certified else None)
     return Bounds(f, upper * scale, lower * scale, upper_box * scale, upper_force * scale,
                   limited_by, K_upper, K_lower, kr, ki, F_lim, quantity, beams, cert)
 
@@ -286,4 +292,5 @@ def from_spec(spec, n_threads=None):
                           F_lim=None if np.isinf(b.F_lim) else b.F_lim,
                           quantity=spec.metric.quantity, beams=spec.metric.beams,
                           n_starts=b.n_starts, certified=b.certify, budget=b.budget,
+                          moments=b.moments,
                           n_threads=spec.execution.threads if n_threads is None else n_threads)

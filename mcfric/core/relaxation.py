@@ -693,7 +693,7 @@ def n_forms(nd, nb, force, lower):
 
 @jit(nogil=True)
 def relax_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, floor, target, freqs, out,
-                      K_round, stats):
+                      K_round, beam_bounds, stats):
     """Certified bounds over the whole box ``[0, kr] x [0, ki]`` at ``freqs``: ``out[k]``
     the upper bound of ``max_b |y_b|`` (``want_max``) or the lower one (m).
 
@@ -703,7 +703,9 @@ def relax_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, floor, target, fr
     target[k])``. The lower bound stops once it reaches ``target[k]``. ``stats``
     (int64, shape (3,)): Newton steps, barrier rounds and relaxations are added to it.
     ``K_round[k]`` (shape (2, nd); upper bound only): the :func:`rounded` candidates of
-    the beam with the largest bound (N/m; left as they are where none was solved).
+    the beam with the largest bound (N/m; left as they are where none was solved);
+    ``beam_bounds[k]`` (shape (nb,), m; upper bound only): a proven bound of each beam's
+    ``|y_b|``, its force bound where it was not relaxed.
     """
     n_f, nd = q0.shape
     nb = ylin.shape[1]
@@ -729,6 +731,7 @@ def relax_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, floor, target, fr
     for k in freqs:
         if want_max:
             force_bounds(ylin[k], H[k], F_lim, eq10)
+            beam_bounds[k, :] = eq10
             R = floor[k]
             have = False
             for b in np.argsort(-eq10):
@@ -760,6 +763,7 @@ def relax_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, floor, target, fr
                     bound = min(bound, math.sqrt(max(t, 0.0) * ys) * (1.0 + 1e-14))
                     if bound > R and rounded(x, V, idx, S, kr, ki, F_lim, ws, Kc):
                         K_round[k] = Kc
+                beam_bounds[k, b] = bound
                 R = max(R, bound)
             out[k] = R
         else:

@@ -1,0 +1,273 @@
+"""A second-order moment relaxation of a chain's largest response, with a verified bound.
+
+The relaxation of :mod:`mcfric.core.relaxation` (one matrix of products of the damper
+forces, first order) is loose on long chains near resonances: there the bound can be
+twice the largest admissible response. This is the next level of the same hierarchy
+(Lasserre's moment relaxations), kept small by the chain's structure: in the real
+coordinates ``x = (Re p, Im p) / F_lim`` every constraint of damper ``j``
+(:mod:`mcfric.core.quadratic_forms`) involves only dampers ``j - 1 .. j + 1``, and a
+beam's response only its own two, so the moments are those of monomials of degree <= 4
+within each *clique* of three neighbouring dampers (six variables): one moment matrix
+(28 x 28) per clique and one localising matrix (7 x 7) per constraint (Waki, Kim, Kojima
+and Muramatsu's correlative sparsity).
+
+It is solved by Clarabel (an interior-point conic solver; ``pip install
+"mcfric[moments]"``), whose answer is a floating-point approximation and proves nothing
+by itself. The bound is therefore rebuilt from its dual, a sum-of-squares certificate:
+with the dual blocks ``Z_i`` made positive semidefinite with a margin (checked by their
+eigenvalues), ``r = q + A^T z`` the residual of the dual equations and ``s(x) = b - A
+y(x)`` the constraint blocks at the moments ``y(x)`` of an admissible point,
+
+    0 <= z . s(x) = z . b - (r - q) . y(x)   =>   f(x) <= c_0 + z . b + ||r||_1,
+
+since every moment of an admissible point is at most 1 in modulus (``|x_i| <= 1``).
+Rounding of the constraint coefficients is covered by a relative margin.
+"""
+
+from __future__ import annotations
+
+import functools
+import itertools
+import math
+
+import numpy as np
+
+from ..core.quadratic_forms import PER_DAMPER, admissible_forms, response_form
+
+#: Relative margin for the rounding of the constraint coefficients and of the sums that
+#: make the bound (the same spirit as the first-order relaxation's assembly margin).
+MARGIN = 1e-10
+#: Margin by which the dual blocks are made positive definite, relative to their norm.
+PSD_MARGIN = 1e-9
+#: Dampers per clique (neighbours of a chain).
+WIDTH = 3
+
+
+def available():
+    """Whether Clarabel (the ``moments`` extra) is installed."""
+    try:
+        import clarabel  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def is_chain(G):
+    """Whether the contact-space receptance ``G`` (nd, nd) couples only neighbouring
+    dampers (a chain; rings and other graphs are not treated here)."""
+    nd = G.shape[-1]
+    band = np.abs(np.subtract.outer(np.arange(nd), np.arange(nd))) <= 1
+    return bool(np.all(G[..., ~band] == 0))
+
+
+def _monomials(variables, degree, nv):
+    out = []
+    for d in range(degree + 1):
+        for c in itertools.combinations_with_replacement(variables, d):
+            e = [0] * nv
+            for i in c:
+                e[i] += 1
+            out.append(tuple(e))
+    return out
+
+
+def _svec_index(n):
+    """Clarabel's PSD-triangle order: the upper triangle column by column."""
+    ii, jj = [], []
+    for j in range(n):
+        for i in range(j + 1):
+            ii.append(i)
+            jj.append(j)
+    return np.array(ii), np.array(jj)
+
+
+@functools.lru_cache(maxsize=8)
+def structure(nd):
+    """Index tables of the relaxation for ``nd`` dampers (cached: they depend on nd only).
+
+    Returns a dict: ``cliques`` (dampers), ``n_moments``, ``moment`` (per clique, the
+    moment index of each entry of its moment matrix in svec order), ``local`` (per
+    clique, shape (n_svec7, n_loc, n_loc): the moment index of basis_i * basis_j * z_a *
+    z_b for the clique's local coordinates ``a, b`` (its six variables and the constant)),
+    ``coords`` (per clique, the global coordinates of those, the constant last), and
+    ``clique_of`` (per damper, the clique holding its constraints)."""
+    nv = 2 * nd
+    if nd <= WIDTH:
+        cliques = [list(range(nd))]
+    else:
+        cliques = [list(range(c, c + WIDTH)) for c in range(nd - WIDTH + 1)]
+    zero = (0,) * nv
+    unit = [tuple(int(i == k) for i in range(nv)) for k in range(nv)] + [zero]
+
+    def add(*es):
+        return tuple(map(sum, zip(*es)))
+
+    variables = [d + [nd + j for j in d] for d in cliques]
+    index = {zero: 0}
+
+    def idx(e):
+        if e not in index:
+            index[e] = len(index)
+        return index[e]
+
+    moment, local, coords = [], [], []
+    for v in variables:
+        b2 = _monomials(v, 2, nv)
+        ii, jj = _svec_index(len(b2))
+        moment.append(np.array([idx(add(b2[i], b2[j])) for i, j in zip(ii, jj)]))
+        b1 = _monomials(v, 1, nv)
+        ii, jj = _svec_index(len(b1))
+        co = v + [nv]
+        table = np.empty((len(ii), len(co), len(co)), np.int64)
+        for r, (i, j) in enumerate(zip(ii, jj)):
+            for a, ca in enumerate(co):
+                for b, cb in enumerate(co):
+                    table[r, a, b] = idx(add(b1[i], b1[j], unit[ca], unit[cb]))
+        local.append(table)
+        coords.append(np.array(co))
+    clique_of = [min(max(j - 1, 0), len(cliques) - 1) for j in range(nd)]
+    return dict(cliques=cliques, n_moments=len(index), moment=moment, local=local,
+                coords=coords, clique_of=clique_of)
+
+
+def _blocks(st, Mc, nd):
+    """The constraint blocks ``s = b - A y'`` (``y'``: the moments but the constant one)
+    as a sparse ``A``, the vector ``b`` and the block sizes."""
+    import scipy.sparse as sp
+
+    rows, cols, vals, sizes = [], [], [], []
+    offset = 0
+    for c, mom in enumerate(st["moment"]):
+        n = int(round((math.sqrt(8 * len(mom) + 1) - 1) / 2))
+        ii, jj = _svec_index(n)
+        rows.append(offset + np.arange(len(mom)))
+        cols.append(mom)
+        vals.append(np.where(ii == jj, 1.0, math.sqrt(2.0)))
+        sizes.append(n)
+        offset += len(mom)
+    for j in range(nd):
+        c = st["clique_of"][j]
+        table, co = st["local"][c], st["coords"][c]
+        n = int(round((math.sqrt(8 * table.shape[0] + 1) - 1) / 2))
+        ii, jj = _svec_index(n)
+        scale = np.where(ii == jj, 1.0, math.sqrt(2.0))
+        for f in range(PER_DAMPER * j, PER_DAMPER * (j + 1)):
+            M = Mc[f][np.ix_(co, co)]
+            rows.append(offset + np.repeat(np.arange(len(ii)), M.size))
+            cols.append(table.reshape(len(ii), -1).ravel())
+            vals.append((scale[:, None] * M.ravel()[None, :]).ravel())
+            sizes.append(n)
+            offset += len(ii)
+    S = sp.csc_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                      shape=(offset, st["n_moments"]))
+    b = np.asarray(S[:, 0].todense()).ravel()
+    return -S[:, 1:].tocsc(), b, sizes
+
+
+def _objective(st, My, H_beam):
+    """``|y_b|^2`` as moments: its coefficients (constant first), in a clique holding
+    the beam's own dampers (``H_beam != 0``)."""
+    own = set(np.flatnonzero(H_beam != 0).tolist())
+    c = next((i for i, d in enumerate(st["cliques"]) if own <= set(d)), None)
+    if c is None:
+        raise ValueError("moments: a beam's own dampers are not neighbours (not a chain)")
+    table, co = st["local"][c], st["coords"][c]
+    # row 0 of the local table: basis_0 * basis_0 = 1, so entry (a, b) is z_a z_b
+    coef = np.zeros(st["n_moments"])
+    np.add.at(coef, table[0].ravel(), My[np.ix_(co, co)].ravel())
+    return coef
+
+
+def _unsvec(v, n):
+    ii, jj = _svec_index(n)
+    Z = np.zeros((n, n))
+    w = np.where(ii == jj, v, v / math.sqrt(2.0))
+    Z[ii, jj] = w
+    Z[jj, ii] = w
+    return Z
+
+
+def _svec(Z):
+    ii, jj = _svec_index(Z.shape[0])
+    return np.where(ii == jj, Z[ii, jj], Z[ii, jj] * math.sqrt(2.0))
+
+
+def _verified_dual(z, sizes):
+    """The dual blocks made positive definite: negative eigenvalues clipped, then a shift
+    of ``PSD_MARGIN`` times the block's norm; returns the vector, or None if a block's
+    smallest computed eigenvalue is not clearly positive (a backward-stable eigensolver
+    errs by a small multiple of n u ||Z||, far below the shift)."""
+    out, o = [], 0
+    for n in sizes:
+        m = n * (n + 1) // 2
+        Z = _unsvec(z[o:o + m], n)
+        w, V = np.linalg.eigh(Z)
+        norm = max(np.abs(w).max(), 1e-300)
+        Zp = (V * np.maximum(w, 0.0)) @ V.T + PSD_MARGIN * norm * np.eye(n)
+        Zp = 0.5 * (Zp + Zp.T)
+        if np.linalg.eigvalsh(Zp).min() < 0.5 * PSD_MARGIN * norm:
+            return None
+        out.append(_svec(Zp))
+        o += m
+    return np.concatenate(out)
+
+
+def problem(G, q0, ylin, H, kr, ki, F_lim, beam):
+    """The relaxation at one frequency for beam ``beam``, in Clarabel's form: maximise
+    ``c_0 - q . y'`` subject to ``b - A y'`` in the PSD cones of ``sizes``; returns
+    ``(A, b, q, c_0, sizes, sy)``, the objective scaled by ``1 / sy`` (m^2)."""
+    nd = q0.shape[0]
+    n = 2 * nd + 1
+    st = structure(nd)
+    Mc = np.empty((PER_DAMPER * nd, n, n))
+    admissible_forms(G, q0, kr, ki, F_lim, Mc)
+    My = np.empty((n, n))
+    response_form(ylin, H, F_lim, beam, My)
+    sy = np.abs(My).max()
+    coef = _objective(st, My / sy, H[beam])
+    A, b, sizes = _blocks(st, Mc, nd)
+    return A, b, -coef[1:], coef[0], sizes, sy
+
+
+def beam_bound(G, q0, ylin, H, kr, ki, F_lim, beam):
+    """A verified upper bound of ``|y_b|`` (m) over the admissible set at one frequency,
+    or ``inf`` where the solver or the verification fails.
+
+    Parameters
+    ----------
+    G, q0, ylin, H : ndarray of complex
+        One frequency's contact-space arrays; ``G`` must be a chain's (:func:`is_chain`).
+    kr, ki, F_lim : float
+        The box (N/m) and the force limit (N, finite).
+    beam : int
+    """
+    import clarabel
+
+    if not np.abs(H[beam]).max() > 0:
+        return abs(ylin[beam])
+    A, b, q, c0, sizes, sy = problem(G, q0, ylin, H, kr, ki, F_lim, beam)
+    settings = clarabel.DefaultSettings()
+    settings.verbose = False
+    settings.max_threads = 1
+    P = A[:0].T @ A[:0]  # an all-zero (n_moments - 1)^2 sparse matrix
+    solver = clarabel.DefaultSolver(P.tocsc(), q, A, b,
+                                    [clarabel.PSDTriangleConeT(s) for s in sizes], settings)
+    sol = solver.solve()
+    if str(sol.status) not in ("Solved", "AlmostSolved"):
+        return math.inf
+    value = dual_bound(A, b, q, c0, np.asarray(sol.z), sizes)
+    return math.sqrt(max(value, 0.0) * sy) * (1 + MARGIN)
+
+
+def dual_bound(A, b, q, c0, z, sizes):
+    """The verified bound ``c_0 + z . b + ||r||_1`` (plus rounding margins) of the scaled
+    objective from any dual vector ``z`` (``inf`` if its blocks cannot be made positive
+    definite): valid whatever ``z`` is, only tighter the closer it is to optimal."""
+    z = _verified_dual(z, sizes)
+    if z is None:
+        return math.inf
+    r = A.T @ z + q
+    # rounding of the coefficients (s(x) may be off by this much) and of the sums below
+    slack = MARGIN * (np.abs(z) @ (np.abs(b) + abs(A) @ np.ones(A.shape[1]))
+                      + np.abs(q).sum() + abs(c0))
+    return c0 + z @ b + np.abs(r).sum() + slack

@@ -1,0 +1,79 @@
+"""The admissible set and a beam's response as quadratic forms in the damper forces.
+
+With every damper force ``p`` as the variable, ``q = q0 - G p`` and ``y_b = ylin_b -
+H_b p`` are affine, and ``K_j = p_j / q_j`` lies in the box ``[0, kr] x [0, ki]`` and in
+the rectangle's circumscribed disc (centre ``m``, radius ``rho``), with ``|p_j| <=
+F_lim``, if and only if (for ``q_j != 0``)
+
+    Re(p_j conj q_j) >= 0,          kr |q_j|^2 - Re(p_j conj q_j) >= 0,
+    Im(p_j conj q_j) >= 0,          ki |q_j|^2 - Im(p_j conj q_j) >= 0,
+    rho^2 |q_j|^2 - |p_j - m q_j|^2 >= 0,   F_lim^2 - |p_j|^2 >= 0.
+
+(The disc is implied by the box; it is kept because relaxations are tighter with it.)
+In the real coordinates ``x = (Re p, Im p) / F_lim`` (each in [-1, 1] under the force
+limit) each is ``z^T M z`` with ``z = (x, 1)``.
+"""
+
+import numpy as np
+
+from ._jit import jit
+
+#: Forms per damper: the four box sides, the disc and the force limit.
+PER_DAMPER = 6
+
+
+@jit
+def admissible_forms(G, q0, kr, ki, F_lim, Mc):
+    """Fill ``Mc`` (``PER_DAMPER`` nd, 2 nd + 1, 2 nd + 1) with the forms of every damper
+    (in the order of the module docstring), each scaled to a largest entry of 1."""
+    nd = q0.shape[0]
+    n = 2 * nd + 1
+    al = np.zeros(n, np.complex128)
+    be = np.zeros(n, np.complex128)
+    m = 0.5 * complex(kr, ki)
+    rho2 = 0.25 * (kr * kr + ki * ki)
+    Mc[:] = 0.0
+    for j in range(nd):
+        # p_j = al . z and q_j = be . z
+        al[:] = 0.0
+        al[j] = F_lim
+        al[nd + j] = 1j * F_lim
+        for k in range(nd):
+            be[k] = -G[j, k] * F_lim
+            be[nd + k] = -1j * G[j, k] * F_lim
+        be[n - 1] = q0[j]
+        c = PER_DAMPER * j
+        for a in range(n):
+            for b in range(n):
+                # p conj(q), |q|^2 and |p - m q|^2, each symmetrised
+                pq = 0.5 * (al[a] * be[b].conjugate() + al[b] * be[a].conjugate())
+                qq = be[a].real * be[b].real + be[a].imag * be[b].imag
+                da = al[a] - m * be[a]
+                db = al[b] - m * be[b]
+                Mc[c, a, b] = pq.real
+                Mc[c + 1, a, b] = kr * qq - pq.real
+                Mc[c + 2, a, b] = pq.imag
+                Mc[c + 3, a, b] = ki * qq - pq.imag
+                Mc[c + 4, a, b] = rho2 * qq - (da.real * db.real + da.imag * db.imag)
+        Mc[c + 5, n - 1, n - 1] = 1.0
+        Mc[c + 5, j, j] = -1.0
+        Mc[c + 5, nd + j, nd + j] = -1.0
+        for i in range(5):
+            s = np.abs(Mc[c + i]).max()
+            if s > 0.0:
+                Mc[c + i] /= s
+
+
+@jit
+def response_form(ylin, H, F_lim, beam, My):
+    """Fill ``My`` (2 nd + 1, 2 nd + 1) with ``|y_b|^2`` (m^2) of beam ``beam``."""
+    nd = H.shape[1]
+    n = 2 * nd + 1
+    ga = np.zeros(n, np.complex128)
+    for j in range(nd):
+        ga[j] = -H[beam, j] * F_lim
+        ga[nd + j] = -1j * H[beam, j] * F_lim
+    ga[n - 1] = ylin[beam]
+    for a in range(n):
+        for b in range(n):
+            My[a, b] = ga[a].real * ga[b].real + ga[a].imag * ga[b].imag
