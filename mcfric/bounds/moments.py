@@ -89,8 +89,9 @@ def structure(nd):
     moment index of each entry of its moment matrix in svec order), ``local`` (per
     clique, shape (n_svec7, n_loc, n_loc): the moment index of basis_i * basis_j * z_a *
     z_b for the clique's local coordinates ``a, b`` (its six variables and the constant)),
-    ``coords`` (per clique, the global coordinates of those, the constant last), and
-    ``clique_of`` (per damper, the clique holding its constraints)."""
+    ``coords`` (per clique, the global coordinates of those, the constant last),
+    ``clique_of`` (per damper, the clique holding its constraints) and ``first`` (the
+    moment index of each variable ``x_i``)."""
     nv = 2 * nd
     if nd <= WIDTH:
         cliques = [list(range(nd))]
@@ -126,8 +127,9 @@ def structure(nd):
         local.append(table)
         coords.append(np.array(co))
     clique_of = [min(max(j - 1, 0), len(cliques) - 1) for j in range(nd)]
+    first = np.array([index[unit[i]] for i in range(nv)])
     return dict(cliques=cliques, n_moments=len(index), moment=moment, local=local,
-                coords=coords, clique_of=clique_of)
+                coords=coords, clique_of=clique_of, first=first)
 
 
 def _blocks(st, Mc, nd):
@@ -230,8 +232,9 @@ def problem(G, q0, ylin, H, kr, ki, F_lim, beam):
 
 
 def beam_bound(G, q0, ylin, H, kr, ki, F_lim, beam):
-    """A verified upper bound of ``|y_b|`` (m) over the admissible set at one frequency,
-    or ``inf`` where the solver or the verification fails.
+    """A verified upper bound of ``|y_b|`` (m) over the admissible set at one frequency
+    (``inf`` where the solver or the verification fails), and the relaxation's first
+    moments as damper forces (N; a start for a witness, NaN where none).
 
     Parameters
     ----------
@@ -243,8 +246,10 @@ def beam_bound(G, q0, ylin, H, kr, ki, F_lim, beam):
     """
     import clarabel
 
+    nd = q0.shape[0]
+    p = np.full(nd, np.nan + 0j)
     if not np.abs(H[beam]).max() > 0:
-        return abs(ylin[beam])
+        return abs(ylin[beam]), p
     A, b, q, c0, sizes, sy = problem(G, q0, ylin, H, kr, ki, F_lim, beam)
     settings = clarabel.DefaultSettings()
     settings.verbose = False
@@ -254,9 +259,11 @@ def beam_bound(G, q0, ylin, H, kr, ki, F_lim, beam):
                                     [clarabel.PSDTriangleConeT(s) for s in sizes], settings)
     sol = solver.solve()
     if str(sol.status) not in ("Solved", "AlmostSolved"):
-        return math.inf
+        return math.inf, p
+    x = np.asarray(sol.x)[structure(nd)["first"] - 1]
+    p = F_lim * (x[:nd] + 1j * x[nd:])
     value = dual_bound(A, b, q, c0, np.asarray(sol.z), sizes)
-    return math.sqrt(max(value, 0.0) * sy) * (1 + MARGIN)
+    return math.sqrt(max(value, 0.0) * sy) * (1 + MARGIN), p
 
 
 def dual_bound(A, b, q, c0, z, sizes):
