@@ -25,7 +25,7 @@ import numpy as np
 
 from ._jit import jit
 from .branch_bound import admissible_value, force_bounds
-from .joint_ascent import pulled_inside
+from .joint_ascent import strictly_inside
 from .linalg import contact_solve, lu_factor, lu_solve, lu_solve_transposed
 
 #: Barrier weights, one round each; iterations per round at most, and the rise of the
@@ -314,8 +314,6 @@ def ascend_frequencies(G, q0, ylin, H, kr, ki, F_lim, K_start, floor, stop, freq
     piv = np.empty(nd, np.int64)
     q = np.empty(nd, np.complex128)
     eq10 = np.empty(nb)
-    lo = INSIDE
-    hi = 1.0 - INSIDE
     for k in freqs:
         M_out[k] = -math.inf
         best = floor[k]
@@ -325,11 +323,8 @@ def ascend_frequencies(G, q0, ylin, H, kr, ki, F_lim, K_start, floor, stop, freq
             K[:] = K_start[k, s]
             if np.isnan(K[0].real):
                 continue
-            for j in range(nd):
-                K[j] = complex(min(max(K[j].real / kr, lo), hi) * kr,
-                               min(max(K[j].imag / ki, lo), hi) * ki)
-            v, ok = pulled_inside(G[k], q0[k], ylin[k], H[k], K, F_lim, 0.999, T, piv, q)
-            if not ok:
+            if not strictly_inside(G[k], q0[k], ylin[k], H[k], K, kr, ki, F_lim, INSIDE, T,
+                                   piv, q):
                 continue
             for r in range(min(nb, MAX_BEAMS)):
                 beam = by_bound[r]

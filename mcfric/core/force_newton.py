@@ -26,8 +26,7 @@ import numpy as np
 
 from ._jit import jit
 from .branch_bound import admissible_value, force_bounds
-from .joint_ascent import pulled_inside
-from .linalg import contact_solve
+from .joint_ascent import strictly_inside
 from .quadratic_forms import PER_DAMPER, admissible_forms, response_form
 
 #: Barrier weights, one round each; Newton steps per round at most; the Newton
@@ -228,8 +227,6 @@ def climb_frequencies(G, q0, ylin, H, kr, ki, F_lim, K_start, floor, stop, freqs
     piv = np.empty(nd, np.int64)
     q = np.empty(nd, np.complex128)
     eq10 = np.empty(nb)
-    lo = INSIDE
-    hi = 1.0 - INSIDE
     for k in freqs:
         M_out[k] = -math.inf
         best = floor[k]
@@ -248,12 +245,8 @@ def climb_frequencies(G, q0, ylin, H, kr, ki, F_lim, K_start, floor, stop, freqs
                 K[:] = K_start[k, s]
                 if np.isnan(K[0].real):
                     continue
-                for j in range(nd):
-                    K[j] = complex(min(max(K[j].real / kr, lo), hi) * kr,
-                                   min(max(K[j].imag / ki, lo), hi) * ki)
-                v, ok = pulled_inside(G[k], q0[k], ylin[k], H[k], K, F_lim, 0.999, T, piv,
-                                      q)
-                if not ok or contact_solve(G[k], K, q0[k], T, piv, q, nd) != 0:
+                if not strictly_inside(G[k], q0[k], ylin[k], H[k], K, kr, ki, F_lim, INSIDE,
+                                       T, piv, q):
                     continue
                 for j in range(nd):
                     p = K[j] * q[j] / F_lim

@@ -266,6 +266,19 @@ def pulled_inside(G, q0, ylin, H, K, F_lim, limit, T, piv, q):
 
 
 @jit(nogil=True)
+def strictly_inside(G, q0, ylin, H, K, kr, ki, F_lim, inside, T, piv, q):
+    """Move ``K`` (in place) at least ``inside`` (a fraction of the side) into the box
+    ``[0, kr] x [0, ki]``, then pull it strictly inside the force limit
+    (:func:`pulled_inside` to 0.999): a start for a barrier ascent. Returns whether it
+    got there (``q`` then holds its contact solve)."""
+    for j in range(len(K)):
+        K[j] = complex(min(max(K[j].real / kr, inside), 1.0 - inside) * kr,
+                       min(max(K[j].imag / ki, inside), 1.0 - inside) * ki)
+    v, ok = pulled_inside(G, q0, ylin, H, K, F_lim, 0.999, T, piv, q)
+    return ok
+
+
+@jit(nogil=True)
 def witnesses(G, q0, ylin, H, kr, ki, F_lim, K_given, n_pool, n_climb, n_beams, max_sweeps,
               gain, n_samples, seed, stop, freqs, K_out, M_out):
     """The best admissible point :func:`ascend` reaches at each frequency of ``freqs``.
