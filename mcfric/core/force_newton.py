@@ -27,6 +27,7 @@ import numpy as np
 from ._jit import jit
 from .branch_bound import admissible_value, force_bounds
 from .joint_ascent import strictly_inside
+from .linalg import ridge_solve
 from .quadratic_forms import PER_DAMPER, admissible_forms, response_form
 
 #: Barrier weights, one round each; Newton steps per round at most; the Newton
@@ -106,51 +107,15 @@ def _phi(z, Mc, sup, ns, My, tau, g, Hs, need, w):
 
 
 @jit
-def _cholesky(A, L, nx):
-    """Cholesky factor of ``A`` into ``L``; False if not positive definite."""
-    for j in range(nx):
-        s = A[j, j]
-        for k in range(j):
-            s -= L[j, k] * L[j, k]
-        if not s > 0.0:
-            return False
-        L[j, j] = math.sqrt(s)
-        for i in range(j + 1, nx):
-            t = A[i, j]
-            for k in range(j):
-                t -= L[i, k] * L[j, k]
-            L[i, j] = t / L[j, j]
-    return True
-
-
-@jit
-def _direction(g, Hs, A, L, d, nx):
+def _direction(g, Hs, A, L, y, d, nx):
     """``d = (lambda I - Hs)^-1 g`` with the smallest tried ``lambda >= 0`` that makes
-    the matrix positive definite; returns the Newton decrement ``g . d``."""
-    scale = 0.0
+    the matrix positive definite; returns the Newton decrement ``g . d`` (-1 if none)."""
     for a in range(nx):
-        scale = max(scale, abs(Hs[a, a]))
-    lam = 0.0
-    for attempt in range(60):
-        for a in range(nx):
-            for b in range(nx):
-                A[a, b] = -Hs[a, b]
-            A[a, a] += lam
-        if _cholesky(A, L, nx):
-            break
-        lam = 1e-10 * scale if lam == 0.0 else 10.0 * lam
-    else:
+        for b in range(nx):
+            A[a, b] = -Hs[a, b]
+        y[a] = g[a]
+    if not ridge_solve(A, L, y, d, nx, 1e-10, 10.0, 60):
         return -1.0
-    for a in range(nx):
-        s = g[a]
-        for k in range(a):
-            s -= L[a, k] * d[k]
-        d[a] = s / L[a, a]
-    for a in range(nx - 1, -1, -1):
-        s = d[a]
-        for k in range(a + 1, nx):
-            s -= L[k, a] * d[k]
-        d[a] = s / L[a, a]
     dec = 0.0
     for a in range(nx):
         dec += g[a] * d[a]
@@ -162,14 +127,14 @@ def ascend(Mc, sup, ns, My, z, stop2, ws):
     """Barrier Newton ascent of ``z^T My z`` from the strictly feasible ``z`` (in place)
     over ``TAUS``; stops early once ``z^T My z >= stop2``. Returns False if the start is
     not strictly feasible."""
-    g, Hs, A, L, d, zn, w = ws
+    g, Hs, A, L, y, d, zn, w = ws
     nx = len(z) - 1
     if not math.isfinite(_phi(z, Mc, sup, ns, My, TAUS[0], g, Hs, False, w)):
         return False
     for tau in TAUS:
         for step in range(STEPS):
             f0 = _phi(z, Mc, sup, ns, My, tau, g, Hs, True, w)
-            dec = _direction(g, Hs, A, L, d, nx)
+            dec = _direction(g, Hs, A, L, y, d, nx)
             if not dec > DECREMENT:
                 break
             t = 1.0
@@ -199,7 +164,7 @@ def workspace(nd):
     """Scratch arrays of :func:`ascend` for ``nd`` dampers."""
     nx = 2 * nd
     return (np.empty(nx), np.empty((nx, nx)), np.empty((nx, nx)), np.empty((nx, nx)),
-            np.empty(nx), np.empty(nx + 1), np.empty(nx + 1))
+            np.empty(nx), np.empty(nx), np.empty(nx + 1), np.empty(nx + 1))
 
 
 @jit(nogil=True)

@@ -357,3 +357,47 @@ def banded(G, gr, nd):
         return 1
     return 2 if is_cyclic(G, nd) else 0
 
+
+@jit
+def ridge_solve(A, L, b, x, m, first, growth, attempts):
+    """``x = (A + ridge I)^-1 b`` for real symmetric ``A`` (m, m) by Cholesky into ``L``,
+    with the smallest ``ridge`` of ``0, first max|A_jj|, growth`` times that, ... (at most
+    ``attempts`` tries) that makes the matrix positive definite; ``b`` is overwritten.
+    Returns False if none does."""
+    scale = 0.0
+    for j in range(m):
+        scale = max(scale, abs(A[j, j]))
+    ridge = 0.0
+    ok = False
+    for attempt in range(attempts):
+        ok = True
+        for j in range(m):
+            d = A[j, j] + ridge
+            for k in range(j):
+                d -= L[j, k] ** 2
+            if not d > 0.0:
+                ok = False
+                break
+            d = math.sqrt(d)
+            L[j, j] = d
+            for i in range(j + 1, m):
+                acc = A[i, j]
+                for k in range(j):
+                    acc -= L[i, k] * L[j, k]
+                L[i, j] = acc / d
+        if ok:
+            break
+        ridge = first * scale if ridge == 0.0 else growth * ridge
+    if not ok:
+        return False
+    for i in range(m):
+        acc = b[i]
+        for k in range(i):
+            acc -= L[i, k] * b[k]
+        b[i] = acc / L[i, i]
+    for i in range(m - 1, -1, -1):
+        acc = b[i]
+        for k in range(i + 1, m):
+            acc -= L[k, i] * x[k]
+        x[i] = acc / L[i, i]
+    return True

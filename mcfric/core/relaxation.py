@@ -28,6 +28,7 @@ import numpy as np
 
 from ._jit import jit
 from .branch_bound import force_bounds
+from .linalg import ridge_solve
 
 #: Relative accuracy at which :func:`solve` stops (in ``t``, a squared response).
 TOL = 1e-3
@@ -213,49 +214,6 @@ def workspace(nn, nv, m):
 
 
 @jit
-def _solve_spd(Hm, Lh, yv, g, dx, m):
-    """``dx = -Hm^-1 g`` by Cholesky (a growing ridge where rounding makes ``Hm``
-    indefinite); False if that fails too."""
-    scale = 0.0
-    for j in range(m):
-        scale = max(scale, Hm[j, j])
-    ridge = 0.0
-    ok = False
-    for attempt in range(8):
-        ok = True
-        for j in range(m):
-            d = Hm[j, j] + ridge
-            for k in range(j):
-                d -= Lh[j, k] ** 2
-            if not d > 0.0:
-                ok = False
-                break
-            d = math.sqrt(d)
-            Lh[j, j] = d
-            for i in range(j + 1, m):
-                acc = Hm[i, j]
-                for k in range(j):
-                    acc -= Lh[i, k] * Lh[j, k]
-                Lh[i, j] = acc / d
-        if ok:
-            break
-        ridge = 1e-12 * scale if ridge == 0.0 else 100.0 * ridge
-    if not ok:
-        return False
-    for i in range(m):
-        acc = -g[i]
-        for k in range(i):
-            acc -= Lh[i, k] * yv[k]
-        yv[i] = acc / Lh[i, i]
-    for i in range(m - 1, -1, -1):
-        acc = yv[i]
-        for k in range(i + 1, m):
-            acc -= Lh[k, i] * dx[k]
-        dx[i] = acc / Lh[i, i]
-    return True
-
-
-@jit
 def _newton(x, mu, V, idx, S, gstart, cvec, pos, simplex, m, ws):
     """The barrier's Newton direction at ``x`` (into ``dx``, from ``ws``); returns the
     decrement squared (``-1`` if the system could not be solved) and the barrier's
@@ -331,7 +289,10 @@ def _newton(x, mu, V, idx, S, gstart, cvec, pos, simplex, m, ws):
                         h += 1.0 / sgap ** 2
                     Hm[i, l] = h
                     Hm[l, i] = h
-    if not _solve_spd(Hm, Lh, yv, g, dx, m):
+    # dx = -Hm^-1 g (a growing ridge where rounding makes Hm indefinite)
+    for i in range(m):
+        yv[i] = -g[i]
+    if not ridge_solve(Hm, Lh, yv, dx, m, 1e-12, 100.0, 8):
         return -1.0, f
     lam2 = 0.0
     for i in range(m):
