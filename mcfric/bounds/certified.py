@@ -311,8 +311,17 @@ def _second_order(args, kr, ki, F_lim, cert, wit, beam_bounds, rtol):
             done = max(done, min(beam_bounds[k, b], value))
         new[k] = min(cert[k], max(done, rest, wit[k]))
 
-    # Clarabel releases the GIL: one frequency per thread
-    in_threads(one, range(len(todo)))
+    from tqdm import tqdm
+
+    # about a second per relaxation: a bar on stderr (shown on a terminal only)
+    with tqdm(total=len(todo), unit="frequency", desc="second-order relaxations",
+              disable=None, leave=False) as bar:
+        def step(i):
+            one(i)
+            bar.update()
+
+        # Clarabel releases the GIL: one frequency per thread
+        in_threads(step, range(len(todo)))
     return new, K_first, counts.sum(axis=0)
 
 
