@@ -353,8 +353,7 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
     moments : bool
         Also tighten the upper bound by the second-order moment relaxation
         (:mod:`.moments`; chains only, needs ``pip install "mcfric[moments]"``): about
-        1.5 s per relaxation, one or two per frequency where the first-order one is
-        loose.
+        1.5 s per relaxation, a few per frequency where the first-order one is loose.
 
     Returns
     -------
