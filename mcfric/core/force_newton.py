@@ -170,12 +170,12 @@ def workspace(nd):
 @jit(nogil=True)
 def climb_frequencies(G, q0, ylin, H, kr, ki, F_lim, K_start, floor, stop, freqs, K_out,
                       M_out):
-    """:func:`ascend` from each row of ``K_start[k]`` (n_s, nd; rows with a NaN are
-    skipped, others moved ``INSIDE`` into the box and scaled towards 0 until strictly
-    inside the force limit), for the first ``MAX_BEAMS`` beams in decreasing order of
-    their force-only bound (Eq. 10) while that is above the best ``M`` so far (at least
-    ``floor[k]``, m), until one reaches ``stop[k]`` (m). The best admissible result by
-    ``M`` to ``K_out[k]`` and ``M_out[k]`` (``-inf`` if none above ``floor[k]``)."""
+    """:func:`ascend` (all forces) with the contract of
+    :func:`mcfric.core.force_ascent.ascend_frequencies`: the same starts (rows of
+    ``K_start[k]``, NaN rows skipped), beams (the first ``MAX_BEAMS`` by Eq. 10 while
+    above the best ``M`` so far, at least ``floor[k]``), stop (``stop[k]``, m) and
+    outputs (the best admissible ``K_out[k]``, ``M_out[k]``; ``-inf`` if none above
+    ``floor[k]``)."""
     nd = q0.shape[1]
     nb = ylin.shape[1]
     n = 2 * nd + 1
