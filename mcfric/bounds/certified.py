@@ -280,6 +280,8 @@ def _second_order(args, kr, ki, F_lim, cert, wit, beam_bounds, rtol):
     relaxation's first moments of the beam of largest bound as describing functions
     (n_f, 1, nd; N/m, clipped to the box; NaN where none: starts for the witness) and the
     number of relaxations solved and failed."""
+    from tqdm import tqdm
+
     from . import moments
 
     G, q0, ylin, H = args
@@ -310,8 +312,6 @@ def _second_order(args, kr, ki, F_lim, cert, wit, beam_bounds, rtol):
                                  + 1j * np.clip(np.nan_to_num(K.imag), 0, ki))
             done = max(done, min(beam_bounds[k, b], value))
         new[k] = min(cert[k], max(done, rest, wit[k]))
-
-    from tqdm import tqdm
 
     # about a second per relaxation: a bar on stderr (shown on a terminal only)
     with tqdm(total=len(todo), unit="frequency", desc="second-order relaxations",

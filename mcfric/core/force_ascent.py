@@ -24,8 +24,8 @@ import math
 import numpy as np
 
 from ._jit import jit
-from .branch_bound import admissible_value, force_bounds
-from .joint_ascent import strictly_inside
+from .branch_bound import force_bounds
+from .joint_ascent import boxed_value, strictly_inside
 from .linalg import contact_solve, lu_factor, lu_solve, lu_solve_transposed
 
 #: Barrier weights, one round each; iterations per round at most, and the rise of the
@@ -333,11 +333,8 @@ def ascend_frequencies(G, q0, ylin, H, kr, ki, F_lim, K_start, floor, stop, freq
                 Kb[:] = K
                 if not ascend(G[k], q0[k], ylin[k], H[k], kr, ki, F_lim, beam, Kb, ws):
                     continue
-                for j in range(nd):
-                    Kb[j] = complex(min(max(Kb[j].real, 0.0), kr),
-                                    min(max(Kb[j].imag, 0.0), ki))
-                v, ok = admissible_value(G[k], q0[k], ylin[k], H[k], Kb, F_lim, T, piv, q)
-                if ok and math.isfinite(v) and v > best:
+                v = boxed_value(G[k], q0[k], ylin[k], H[k], Kb, kr, ki, F_lim, T, piv, q)
+                if v > best:
                     best = v
                     M_out[k] = v
                     K_out[k, :] = Kb

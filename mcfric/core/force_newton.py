@@ -25,8 +25,8 @@ import math
 import numpy as np
 
 from ._jit import jit
-from .branch_bound import admissible_value, force_bounds
-from .joint_ascent import strictly_inside
+from .branch_bound import force_bounds
+from .joint_ascent import boxed_value, strictly_inside
 from .linalg import ridge_solve
 from .quadratic_forms import PER_DAMPER, admissible_forms, response_form
 
@@ -185,7 +185,6 @@ def climb_frequencies(G, q0, ylin, H, kr, ki, F_lim, K_start, floor, stop, freqs
     ns = np.empty(PER_DAMPER * nd, np.int64)
     My = np.empty((n, n))
     z = np.empty(n)
-    z0 = np.empty(n)
     K = np.empty(nd, np.complex128)
     Kb = np.empty(nd, np.complex128)
     T = np.empty((nd, nd), np.complex128)
@@ -215,22 +214,20 @@ def climb_frequencies(G, q0, ylin, H, kr, ki, F_lim, K_start, floor, stop, freqs
                     continue
                 for j in range(nd):
                     p = K[j] * q[j] / F_lim
-                    z0[j] = p.real
-                    z0[nd + j] = p.imag
-                z0[n - 1] = 1.0
-                z[:] = z0
+                    z[j] = p.real
+                    z[nd + j] = p.imag
+                z[n - 1] = 1.0
                 if not ascend(Mc, sup, ns, My, z, stop[k] * stop[k], ws):
                     continue
-                # back to describing functions, clipped to the box, and checked
+                # back to describing functions, checked
                 for j in range(nd):
                     pj = F_lim * complex(z[j], z[nd + j])
                     qj = q0[k, j]
                     for i in range(nd):
                         qj -= G[k, j, i] * F_lim * complex(z[i], z[nd + i])
-                    Kj = pj / qj if qj != 0 else 0.0j
-                    Kb[j] = complex(min(max(Kj.real, 0.0), kr), min(max(Kj.imag, 0.0), ki))
-                v, ok = admissible_value(G[k], q0[k], ylin[k], H[k], Kb, F_lim, T, piv, q)
-                if ok and math.isfinite(v) and v > best:
+                    Kb[j] = pj / qj if qj != 0 else 0.0j
+                v = boxed_value(G[k], q0[k], ylin[k], H[k], Kb, kr, ki, F_lim, T, piv, q)
+                if v > best:
                     best = v
                     M_out[k] = v
                     K_out[k, :] = Kb

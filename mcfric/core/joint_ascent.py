@@ -279,6 +279,16 @@ def strictly_inside(G, q0, ylin, H, K, kr, ki, F_lim, inside, T, piv, q):
 
 
 @jit(nogil=True)
+def boxed_value(G, q0, ylin, H, K, kr, ki, F_lim, T, piv, q):
+    """Clip ``K`` (in place) to the box ``[0, kr] x [0, ki]``; ``M`` there (m) if it is
+    within the force limit, else ``-inf``: the end of a barrier ascent, checked."""
+    for j in range(len(K)):
+        K[j] = complex(min(max(K[j].real, 0.0), kr), min(max(K[j].imag, 0.0), ki))
+    v, ok = admissible_value(G, q0, ylin, H, K, F_lim, T, piv, q)
+    return v if ok and math.isfinite(v) else -math.inf
+
+
+@jit(nogil=True)
 def witnesses(G, q0, ylin, H, kr, ki, F_lim, K_given, n_pool, n_climb, n_beams, max_sweeps,
               gain, n_samples, seed, stop, freqs, K_out, M_out):
     """The best admissible point :func:`ascend` reaches at each frequency of ``freqs``.
