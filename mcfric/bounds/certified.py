@@ -21,6 +21,7 @@ from ..core import force_ascent, force_newton
 from ..core.branch_bound import certify_frequencies
 from ..core.joint_ascent import values, witnesses
 from ..core.relaxation import relax_frequencies
+from ..core.relaxation_branch import branch_frequencies
 from ..threads import in_threads
 from .search import _chunks
 
@@ -59,9 +60,13 @@ WITNESS_SAMPLES = 12
 #: Whether the semidefinite relaxation of the whole box tightens the branch and bound's
 #: bounds where they are not yet within the tolerance (two or more dampers, a force limit).
 RELAX = True
+#: Relaxations of parts of the box per frequency and bound at most, where the relaxation
+#: of the whole box leaves the bound loose (:mod:`mcfric.core.relaxation_branch`).
+SPLIT_BUDGET = 200
 #: Newton steps, barrier rounds and relaxations of the last call, upper and lower (for
 #: the docs' measurements).
 LAST_RELAXATION = np.zeros((2, 3), np.int64)
+LAST_SPLIT = np.zeros((2, 3), np.int64)
 #: Relative margin on the force bound (a sum of non-negative products: (nd + 2) u).
 _FORCE_MARGIN = 1e-12
 
@@ -90,6 +95,11 @@ class Certificate:
     second_order : ndarray of int, shape (2,)
         Second-order moment relaxations (:mod:`.moments`) of the upper bound solved, and
         of those failed (solver or verification; the first-order bound kept there).
+    split : int
+        Relaxations of parts of the box per frequency and bound at most
+        (:mod:`mcfric.core.relaxation_branch`; 0: none).
+    split_used : ndarray of int, shape (2,)
+        Relaxations of parts of the box made for the upper and the lower bound.
     """
 
     upper: np.ndarray
@@ -103,6 +113,8 @@ class Certificate:
     budget: int
     relaxed: bool = False
     second_order: np.ndarray = field(default_factory=lambda: np.zeros(2, np.int64))
+    split: int = 0
+    split_used: np.ndarray = field(default_factory=lambda: np.zeros(2, np.int64))
 
     @property
     def upper_gap(self):
@@ -272,6 +284,35 @@ def _relaxed(args, kr, ki, F_lim, want_max, cert, wit, rtol, atol):
     return cert, K_round, beam_bounds
 
 
+def _split(args, kr, ki, F_lim, want_max, cert, wit, rtol, atol, beam_bounds, budget):
+    """``cert`` tightened, where it is not yet within the tolerance of ``wit``, by the
+    branch and bound over relaxations of parts of the box
+    (:mod:`mcfric.core.relaxation_branch`), ``budget`` relaxations per frequency at most;
+    ``beam_bounds`` (the upper bound's) is updated in place. Returns the new ``cert``
+    and the number of relaxations."""
+    loose = np.flatnonzero(~_met(want_max, cert, wit, rtol, atol) & np.isfinite(cert))
+    if not len(loose) or budget <= 0:
+        return cert, 0
+    target = wit * (1 + rtol) if want_max else np.maximum(wit * (1 - rtol), wit - atol)
+    from tqdm import tqdm
+
+    got = cert.copy()
+    stats = np.zeros((64, 3), np.int64)
+    args_ = (*args, kr, ki, F_lim, want_max, np.ascontiguousarray(cert),
+             np.ascontiguousarray(target), int(budget))
+    # up to a second per frequency: a bar on stderr (shown on a terminal only)
+    with tqdm(total=len(loose), unit="frequency", disable=None, leave=False,
+              desc=f"splitting the box ({'upper' if want_max else 'lower'})") as bar:
+        def step(item):
+            branch_frequencies(*args_, np.asarray(item[1], np.int64), beam_bounds, got,
+                               stats[item[0]])
+            bar.update(len(item[1]))
+
+        in_threads(step, enumerate(np.array_split(loose, min(len(loose), 64))))
+    LAST_SPLIT[int(not want_max)] = stats.sum(axis=0)
+    return (np.fmin(cert, got) if want_max else np.fmax(cert, got)), int(stats[:, 2].sum())
+
+
 def _second_order(args, kr, ki, F_lim, cert, wit, beam_bounds, rtol):
     """The upper ``cert`` improved by the second-order moment relaxation
     (:mod:`.moments`) where it is not yet within ``rtol`` of ``wit``: per frequency the
@@ -330,7 +371,7 @@ def _pct(x):
 
 
 def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
-            rtol=RTOL, moments=False):
+            rtol=RTOL, split=None, moments=False):
     """Certified bounds from contact-space arrays (all beams of the metric).
 
     Parameters
@@ -350,6 +391,10 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
         witnesses).
     rtol : float
         Relative tolerance of the branch and bound.
+    split : int, optional
+        Relaxations of parts of the box per frequency and bound where the relaxation of
+        the whole box leaves the bound loose (:mod:`mcfric.core.relaxation_branch`);
+        default ``SPLIT_BUDGET``, 0: none.
     moments : bool
         Also tighten the upper bound by the second-order moment relaxation
         (:mod:`.moments`; chains only, needs ``pip install "mcfric[moments]"``): about
@@ -366,8 +411,10 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
         from .moments import is_chain
         check_moments(is_chain(G), nd, F_lim)
     second_order = np.zeros(2, np.int64)
+    split_used = np.zeros(2, np.int64)
     if budget is None:
         budget = default_budget(nd, relax)
+    split = SPLIT_BUDGET if split is None else int(split)
     if nd > MAX_DAMPERS:
         budget = 0
     uniform = np.array([0.0, kr, kr + 1j * ki, 1j * ki, 0.5 * (kr + 1j * ki)])
@@ -418,6 +465,10 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
                 wit = _force_ascent(args, kr, ki, F_lim,
                                     np.concatenate([K[:, None], K_round], axis=1), stop,
                                     wit, K)
+            cert, used = _split(args, kr, ki, F_lim, want_max, cert, wit, rtol, atol,
+                                beam_bounds, split)
+            split_used[int(not want_max)] = used
+            if want_max:
                 if moments:
                     cert, K_first, second_order = _second_order(args, kr, ki, F_lim, cert,
                                                                 wit, beam_bounds, rtol)
@@ -433,4 +484,4 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
     (up, wu, Ku, eu, ou), (lo, wl, Kl, el, ol) = out[True], out[False]
     return Certificate(up * scale, lo * scale, wu * scale, wl * scale, Ku, Kl,
                        np.stack([ou, ol]), np.stack([eu, el]), int(budget), bool(relax),
-                       second_order)
+                       second_order, split if relax else 0, split_used)

@@ -182,7 +182,7 @@ def rotation_invariant(model):
 
 def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity="displacement",
                    beams=None, n_starts=N_STARTS, max_sweeps=MAX_SWEEPS, seed=0, n_threads=None,
-                   certified=True, budget=None, moments=False):
+                   certified=True, budget=None, split=None, moments=False):
     """Equivalent-linear bounds on the response metric of ``model``.
 
     Parameters
@@ -219,6 +219,10 @@ def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity
         Enclosures per frequency and bound of the certification; default 4000 for one
         damper, 400 for more (50 from six dampers, where the relaxation follows:
         :func:`.certified.default_budget`).
+    split : int, optional
+        Relaxations of parts of the box per frequency and bound where the relaxation of
+        the whole box leaves the certificate loose (0: none; default
+        :data:`.certified.SPLIT_BUDGET`, 200: :mod:`mcfric.core.relaxation_branch`).
     moments : bool
         Also tighten the certified upper bound by the second-order moment relaxation
         (chains of 2-7 dampers with a force limit; ``pip install "mcfric[moments]"``;
@@ -243,6 +247,8 @@ def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity
         raise ValueError(f"n_starts: expected an integer >= 1, got {n_starts!r}")
     if budget is not None and not (isinstance(budget, (int, np.integer)) and budget >= 1):
         raise ValueError(f"budget: expected an integer >= 1, got {budget!r}")
+    if split is not None and not (isinstance(split, (int, np.integer)) and split >= 0):
+        raise ValueError(f"split: expected an integer >= 0, got {split!r}")
     if certified and moments:
         check_moments(model.topology == "linear", model.n_dampers, F_lim)
 
@@ -275,7 +281,7 @@ def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity
         lower, K_lower = lower[0], K_lower[0]
         scale = omega ** QUANTITIES.index(quantity)
         cert = (certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget,
-                        moments=moments) if certified else None)
+                        split=split, moments=moments) if certified else None)
     return Bounds(f, upper * scale, lower * scale, upper_box * scale, upper_force * scale,
                   limited_by, K_upper, K_lower, kr, ki, F_lim, quantity, beams, cert)
 
@@ -292,5 +298,5 @@ def from_spec(spec, n_threads=None):
                           F_lim=None if np.isinf(b.F_lim) else b.F_lim,
                           quantity=spec.metric.quantity, beams=spec.metric.beams,
                           n_starts=b.n_starts, certified=b.certify, budget=b.budget,
-                          moments=b.moments,
+                          split=b.split, moments=b.moments,
                           n_threads=spec.execution.threads if n_threads is None else n_threads)

@@ -67,7 +67,7 @@ class Config:
         bounds = (BoundsSpec(*limits, n_starts=b["n_starts"],
                              certify=b["certify"],
                              budget=None if b["certify_budget"] == "auto" else b["certify_budget"],
-                             moments=b["certify_moments"])
+                             split=b["certify_split"], moments=b["certify_moments"])
                   if b["enabled"] else None)
         r = d["run"]
         metric = MetricSpec(d["metric"]["quantity"],

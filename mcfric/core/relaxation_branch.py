@@ -1,0 +1,232 @@
+"""A branch and bound whose bounds are semidefinite relaxations of sub-boxes.
+
+The relaxation of the whole box (:mod:`.relaxation`) is exact for one damper but can be
+loose on a chain: its rectangle forms hold each damper separately, not their coupling.
+Over a smaller box the forms are tighter, and the extreme over the box is the extreme of
+the extremes over its parts. So the box is split, one side of one damper's rectangle in
+half at a time, and each part is relaxed (its forms built from the part's rectangles,
+:func:`.relaxation.forms`). Every bound is a verified relaxation (or its parent's, where
+the part's relaxation verifies nothing: a part lies inside its parent), so the extreme
+over the open parts is as valid as the whole box's.
+
+Which side to split decides how fast this closes. It is chosen by *pseudo-costs*: the
+mean gain per unit width each split of that side brought so far, times the side's
+width in the part; the gains are started by splitting every side of the whole box once
+(four relaxations per damper).
+"""
+
+import math
+
+import numpy as np
+
+from ._jit import jit
+from .relaxation import forms, n_forms, solve, workspace
+
+#: The branch and bound gives up where no single split of the whole box closes this
+#: fraction of the gap between its bound and the goal.
+STALL = 0.02
+
+
+@jit
+def _split(lo, hi, j, side, lo2, hi2):
+    """The two halves of the part ``[lo, hi]``: ``lo``/``hi`` become the lower half and
+    ``lo2``/``hi2`` the upper one, split at the middle of damper ``j``'s real
+    (``side == 0``) or imaginary side."""
+    lo2[:] = lo
+    hi2[:] = hi
+    if side == 0:
+        mid = 0.5 * (lo[j].real + hi[j].real)
+        hi[j] = complex(mid, hi[j].imag)
+        lo2[j] = complex(mid, lo2[j].imag)
+    else:
+        mid = 0.5 * (lo[j].imag + hi[j].imag)
+        hi[j] = complex(hi[j].real, mid)
+        lo2[j] = complex(lo2[j].real, mid)
+
+
+@jit
+def _relax(G, q0, ylin, H, lo, hi, F_lim, beam, goal, V, idx, S, x, cvec, pos, simplex,
+           grow, ws, stats):
+    """The verified bound of the part ``[lo, hi]`` (m): of ``|y_beam|`` from above
+    (``beam >= 0``), of ``max_b |y_b|`` from below (``beam < 0``); ``nan`` where nothing
+    verified. The solver stops once it proves ``goal`` (m)."""
+    shift, ys = forms(G, q0, ylin, H, lo, hi, F_lim, beam, V, idx, S, x, cvec, pos,
+                      simplex, grow)
+    stats[2] += 1
+    if beam >= 0:
+        t = solve(x, shift, V, idx, S, cvec, pos, simplex, grow, goal * goal / ys, ws,
+                  stats)
+        if np.isnan(t):
+            return np.nan
+        return math.sqrt(max(t, 0.0) * ys) * (1.0 + 1e-14)
+    s = solve(x, shift, V, idx, S, cvec, pos, simplex, grow, -goal * goal / ys, ws, stats)
+    if np.isnan(s):
+        return np.nan
+    return math.sqrt(max(-s * ys, 0.0)) * (1.0 - 1e-14)
+
+
+@jit
+def _bounded(b, parent, upper):
+    """A part's bound: its relaxation's ``b``, or its parent's where that is better or
+    ``b`` is ``nan`` (the part lies inside its parent)."""
+    if np.isnan(b):
+        return parent
+    return min(b, parent) if upper else max(b, parent)
+
+
+@jit
+def branch(G, q0, ylin, H, kr, ki, F_lim, beam, root, goal, budget, V, idx, S, x, cvec,
+           pos, simplex, grow, ws, stats):
+    """A bound over the box ``[0, kr] x [0, ki]`` proved by relaxing its parts: of
+    ``|y_beam|`` from above (``beam >= 0``) or of ``max_b |y_b|`` from below (``beam <
+    0``), m. ``root`` is a bound of the whole box already proved (m); the branch and
+    bound stops once the extreme over the open parts reaches ``goal`` or after
+    ``budget`` relaxations. Returns the bound and the relaxations used."""
+    nd = len(q0)
+    upper = beam >= 0
+    sgn = 1.0 if upper else -1.0
+    n_max = max(budget + 2, 4)
+    los = np.zeros((n_max, nd), np.complex128)
+    his = np.empty((n_max, nd), np.complex128)
+    val = np.empty(n_max)
+    for j in range(nd):
+        his[0, j] = complex(kr, ki)
+    val[0] = root
+    n = 1
+    used = 0
+    gain = np.zeros((nd, 2))
+    count = np.zeros((nd, 2))
+    lo2 = np.empty(nd, np.complex128)
+    hi2 = np.empty(nd, np.complex128)
+    # the pseudo-costs' start: every side of the whole box split once (widths 1); the
+    # best split's halves are the first open parts
+    if budget >= 4 * nd + 2:
+        pick = -1.0
+        for j in range(nd):
+            for side in range(2):
+                los[2] = los[0]
+                his[2] = his[0]
+                _split(los[2], his[2], j, side, lo2, hi2)
+                b1 = _bounded(_relax(G, q0, ylin, H, los[2], his[2], F_lim, beam, goal,
+                                     V, idx, S, x, cvec, pos, simplex, grow, ws, stats),
+                              root, upper)
+                b2 = _bounded(_relax(G, q0, ylin, H, lo2, hi2, F_lim, beam, goal, V, idx,
+                                     S, x, cvec, pos, simplex, grow, ws, stats),
+                              root, upper)
+                used += 2
+                g = max(sgn * (root - sgn * max(sgn * b1, sgn * b2)), 0.0) / max(root, 1e-300)
+                gain[j, side] = g + 1e-6
+                count[j, side] = 1.0
+                if g > pick:
+                    pick = g
+                    los[1] = los[2]
+                    his[1] = his[2]
+                    val[1] = b1
+                    los[3] = lo2
+                    his[3] = hi2
+                    val[3] = b2
+        if pick < STALL * sgn * (root - goal) / max(root, 1e-300):
+            # no side's split gains: more of them will not either (measured)
+            return root, used
+        los[0] = los[1]
+        his[0] = his[1]
+        val[0] = val[1]
+        los[1] = los[3]
+        his[1] = his[3]
+        val[1] = val[3]
+        n = 2
+    while used + 2 <= budget:
+        # the open part with the extreme bound
+        best = 0
+        for i in range(1, n):
+            if sgn * val[i] > sgn * val[best]:
+                best = i
+        if sgn * val[best] <= sgn * goal:
+            break
+        if n + 1 >= n_max:
+            break
+        width = np.empty((nd, 2))
+        pick_j = 0
+        pick_s = 0
+        score = -1.0
+        for j in range(nd):
+            width[j, 0] = (his[best, j].real - los[best, j].real) / kr
+            width[j, 1] = (his[best, j].imag - los[best, j].imag) / ki
+            for side in range(2):
+                sc = gain[j, side] / max(count[j, side], 1.0) * width[j, side]
+                if sc > score:
+                    score = sc
+                    pick_j = j
+                    pick_s = side
+        parent = val[best]
+        _split(los[best], his[best], pick_j, pick_s, los[n], his[n])
+        for i in (best, n):
+            val[i] = _bounded(_relax(G, q0, ylin, H, los[i], his[i], F_lim, beam, goal, V,
+                                     idx, S, x, cvec, pos, simplex, grow, ws, stats),
+                              parent, upper)
+        used += 2
+        worst = sgn * max(sgn * val[best], sgn * val[n])
+        n += 1
+        gain[pick_j, pick_s] += (max(sgn * (parent - worst), 0.0) / max(parent, 1e-300)
+                                 / max(width[pick_j, pick_s], 1e-12))
+        count[pick_j, pick_s] += 1.0
+    out = val[0]
+    for i in range(1, n):
+        if sgn * val[i] > sgn * out:
+            out = val[i]
+    return out, used
+
+
+@jit(nogil=True)
+def branch_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, cert, target, budget,
+                       freqs, beam_bounds, out, stats):
+    """Certified bounds at ``freqs`` tightened by :func:`branch`: ``out[k]`` the upper
+    bound of ``max_b |y_b|`` (``want_max``) or the lower one (m), never looser than
+    ``cert[k]``, aiming at ``target[k]``, with at most ``budget`` relaxations per
+    frequency.
+
+    The upper bound takes the beams in decreasing order of ``beam_bounds[k]`` (each
+    beam's proven bound, m, updated in place) and stops at the first at or below the
+    running maximum or ``target[k]``; each beam's branch and bound stops once it proves
+    the beam below both. ``stats`` (int64, shape (3,)): Newton steps, barrier rounds
+    and relaxations are added to it.
+    """
+    n_f, nd = q0.shape
+    nb = ylin.shape[1]
+    nn = nd + 1
+    nv = 2 * nd + 1 + nb
+    force = np.isfinite(F_lim)
+    m = n_forms(nd, nb, force, not want_max)
+    V = np.empty((nn, nv), np.complex128)
+    idx = np.empty((m + 1, 2), np.int64)
+    S = np.empty((m + 1, 2, 2), np.complex128)
+    x = np.empty(m)
+    cvec = np.empty(m)
+    pos = np.empty(m, np.bool_)
+    simplex = np.empty(m, np.bool_)
+    grow = np.empty(m, np.bool_)
+    ws = workspace(nn, nv, m)
+    for k in freqs:
+        if not want_max:
+            b, _ = branch(G[k], q0[k], ylin[k], H[k], kr, ki, F_lim, -1, cert[k],
+                          target[k], budget, V, idx, S, x, cvec, pos, simplex, grow, ws,
+                          stats)
+            out[k] = max(cert[k], b)
+            continue
+        left = budget
+        R = 0.0
+        for b in np.argsort(-beam_bounds[k]):
+            bound = beam_bounds[k, b]
+            goal = max(R, target[k])
+            if bound <= goal:
+                R = max(R, bound)
+                continue
+            if left >= 6:
+                got, used = branch(G[k], q0[k], ylin[k], H[k], kr, ki, F_lim, b, bound,
+                                   goal, left, V, idx, S, x, cvec, pos, simplex, grow,
+                                   ws, stats)
+                left -= used
+                bound = min(bound, got)
+                beam_bounds[k, b] = bound
+            R = max(R, bound)
+        out[k] = min(cert[k], R)
