@@ -21,6 +21,9 @@ from .conftest import naive_beams, naive_pairs
 K_MAX = 15000.0
 N0 = 0.5
 F_LIM = force_limit(1.0, N0)          # mu0 ~ U(0, 1), N0 = 0.5 N
+#: The searched bounds only: the certified ones are tests/test_certified.py's (the
+#: certification's time is not spent again here).
+SEARCHED = dict(certified=False)
 
 
 class PhysicalMetric:
@@ -61,7 +64,7 @@ def _dense_box_extremes(metric, n_grid=121, n_edge=4001):
 def test_one_damper_equals_dense_grid(F0):
     model = mcfric.two_beam(F0)
     f = np.array([12.0, 17.0, 30.0, 40.0, 55.0, 64.0, 90.0, 112.0, 140.0])
-    B = compute_bounds(model, f, K_MAX)        # box only: the box search is not capped
+    B = compute_bounds(model, f, K_MAX, **SEARCHED)   # box only: the search is not capped
     for k, fk in enumerate(f):
         lo, hi = _dense_box_extremes(PhysicalMetric(model, fk))
         # valid: no admissible K outside, and tight: within 0.5 % of the grid
@@ -75,8 +78,8 @@ def test_upper_bound_is_the_largest_beam_bound_of_box_and_eq_10():
     """One damper (exact search): upper = max over beams of min(box max, Eq. 10 bound)."""
     model = mcfric.two_beam(1.1)
     f = np.linspace(10, 150, 29)
-    B = compute_bounds(model, f, K_MAX, F_lim=F_LIM)
-    box_beam = np.array([compute_bounds(model, f, K_MAX, beams=[b]).upper_box
+    B = compute_bounds(model, f, K_MAX, F_lim=F_LIM, **SEARCHED)
+    box_beam = np.array([compute_bounds(model, f, K_MAX, beams=[b], **SEARCHED).upper_box
                          for b in range(model.n_beams)]).T
     force_beam = np.array([naive.force_bound(2 * np.pi * fk, naive_beams(model),
                                              naive_pairs(model), model.force, F_LIM)
@@ -92,8 +95,8 @@ def test_upper_bound_never_above_the_papers(F0):
     """Never above min(box maximum of M, force bound of M) (paper Section 3.2, step 4)."""
     model = mcfric.eight_beam(F0)
     f = np.linspace(10, 150, 57)
-    B = compute_bounds(model, f, K_MAX, F_lim=F_LIM)
-    box = compute_bounds(model, f, K_MAX)
+    B = compute_bounds(model, f, K_MAX, F_lim=F_LIM, **SEARCHED)
+    box = compute_bounds(model, f, K_MAX, **SEARCHED)
     force = [naive.force_bound(2 * np.pi * fk, naive_beams(model), naive_pairs(model),
                                model.force, F_LIM).max() for fk in f]
     np.testing.assert_allclose(B.upper_force, force, rtol=1e-12)
@@ -105,7 +108,7 @@ def _ensemble_check(model, n_members, freq, seed):
     nd = model.n_dampers
     r = mcfric.solve(model, freq, rng.uniform(0, 1, (n_members, nd)),
                      rng.uniform(0, K_MAX, (n_members, nd)), N0)
-    B = compute_bounds(model, freq, K_MAX, F_lim=F_LIM)
+    B = compute_bounds(model, freq, K_MAX, F_lim=F_LIM, **SEARCHED)
     M = r.metric()
     ok = r.converged
     inside = B.contains(M, rtol=1e-9)
@@ -139,7 +142,7 @@ def test_seven_dampers_random_and_multistart_search_stay_inside(F0):
     frequencies)."""
     model = mcfric.eight_beam(F0)
     grid = np.linspace(10, 150, 281)
-    B = compute_bounds(model, grid, K_MAX)      # the box alone: what the search must cover
+    B = compute_bounds(model, grid, K_MAX, **SEARCHED)   # the box alone: what the search must cover
     rng = np.random.default_rng(7)
     nd = model.n_dampers
     for k in np.linspace(4, 276, 10).astype(int):
@@ -170,7 +173,7 @@ def test_scipy_slsqp_from_the_minimum_finds_nothing_lower(F0):
     and 3.4 %; after it, measured, by at most 5e-9."""
     model = mcfric.eight_beam(F0)
     grid = np.linspace(10, 150, 281)
-    B = compute_bounds(model, grid, K_MAX, F_lim=F_LIM)
+    B = compute_bounds(model, grid, K_MAX, F_lim=F_LIM, **SEARCHED)
     nd = model.n_dampers
     gaps = []
     for k in np.flatnonzero((grid >= 41) & (grid <= 62))[::3]:
@@ -269,7 +272,8 @@ def test_bounds_do_not_depend_on_the_thread_count():
     # the searches run as tasks on Python threads that write disjoint parts of the output
     model = mcfric.eight_beam(0.25)
     f = np.linspace(30, 140, 40)
-    one, two = (compute_bounds(model, f, K_MAX, F_lim=F_LIM, n_threads=n) for n in (1, 2))
+    one, two = (compute_bounds(model, f, K_MAX, F_lim=F_LIM, n_threads=n, **SEARCHED)
+                for n in (1, 2))
     for name in ("upper", "lower", "limited_by", "K_upper", "K_lower"):
         assert np.array_equal(getattr(one, name), getattr(two, name)), name
     assert np.all(np.isfinite(one.upper)) and np.all(one.lower < one.upper)
@@ -278,8 +282,9 @@ def test_bounds_do_not_depend_on_the_thread_count():
 def test_bounds_scale_with_the_metric_quantity():
     model = mcfric.two_beam(0.22)
     f = np.linspace(20, 120, 6)
-    d = compute_bounds(model, f, K_MAX, F_lim=F_LIM, n_starts=2)
-    a = compute_bounds(model, f, K_MAX, F_lim=F_LIM, n_starts=2, quantity="acceleration")
+    d = compute_bounds(model, f, K_MAX, F_lim=F_LIM, n_starts=2, **SEARCHED)
+    a = compute_bounds(model, f, K_MAX, F_lim=F_LIM, n_starts=2, quantity="acceleration",
+                       **SEARCHED)
     np.testing.assert_allclose(a.upper, d.upper * (2 * np.pi * f) ** 2, rtol=1e-12)
     np.testing.assert_allclose(a.lower, d.lower * (2 * np.pi * f) ** 2, rtol=1e-12)
 
