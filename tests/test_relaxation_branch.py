@@ -9,7 +9,7 @@ import pytest
 
 import mcfric
 from mcfric.bounds import compute_bounds
-from mcfric.core.relaxation import n_forms, workspace
+from mcfric.core.relaxation import buffers
 from mcfric.core.relaxation_branch import _relax, branch
 
 from .test_certified import F_LIM, K_MAX, chain, grid_points, physical_grid
@@ -17,11 +17,8 @@ from .test_force_ascent import arrays
 
 
 def _buffers(nd, nb, lower):
-    m = n_forms(nd, nb, True, lower)
-    return (np.empty((nd + 1, 2 * nd + 1 + nb), complex), np.empty((m + 1, 2), np.int64),
-            np.empty((m + 1, 2, 2), complex), np.empty(m), np.empty(m),
-            np.empty(m, np.bool_), np.empty(m, np.bool_), np.empty(m, np.bool_),
-            workspace(nd + 1, 2 * nd + 1 + nb, m), np.zeros(3, np.int64))
+    """The kernels' buffers with a force limit, and a ``stats`` counter."""
+    return (*buffers(nd, nb, True, lower), np.zeros(3, np.int64))
 
 
 def _in_part(lo, hi, n, rng):

@@ -214,6 +214,19 @@ def workspace(nn, nv, m):
 
 
 @jit
+def buffers(nd, nb, force, lower):
+    """The arrays :func:`forms` fills and :func:`solve` works in, for ``nd`` dampers and
+    ``nb`` beams: ``(V, idx, S, x, cvec, pos, simplex, grow, ws)``."""
+    nn = nd + 1
+    nv = 2 * nd + 1 + nb
+    m = n_forms(nd, nb, force, lower)
+    return (np.empty((nn, nv), np.complex128), np.empty((m + 1, 2), np.int64),
+            np.empty((m + 1, 2, 2), np.complex128), np.empty(m), np.empty(m),
+            np.empty(m, np.bool_), np.empty(m, np.bool_), np.empty(m, np.bool_),
+            workspace(nn, nv, m))
+
+
+@jit
 def _newton(x, mu, V, idx, S, gstart, cvec, pos, simplex, m, ws):
     """The barrier's Newton direction at ``x`` (into ``dx``, from ``ws``); returns the
     decrement squared (``-1`` if the system could not be solved) and the barrier's
@@ -670,19 +683,9 @@ def relax_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, floor, target, fr
     """
     n_f, nd = q0.shape
     nb = ylin.shape[1]
-    nn = nd + 1
-    nv = 2 * nd + 1 + nb
-    force = np.isfinite(F_lim)
-    m = n_forms(nd, nb, force, not want_max)
-    V = np.empty((nn, nv), np.complex128)
-    idx = np.empty((m + 1, 2), np.int64)
-    S = np.empty((m + 1, 2, 2), np.complex128)
-    x = np.empty(m)
-    cvec = np.empty(m)
-    pos = np.empty(m, np.bool_)
-    simplex = np.empty(m, np.bool_)
-    grow = np.empty(m, np.bool_)
-    ws = workspace(nn, nv, m)
+    V, idx, S, x, cvec, pos, simplex, grow, ws = buffers(nd, nb, np.isfinite(F_lim),
+                                                         not want_max)
+    m = len(x)
     lo = np.zeros(nd, np.complex128)
     hi = np.full(nd, complex(kr, ki))
     eq10 = np.empty(nb)

@@ -20,7 +20,7 @@ import math
 import numpy as np
 
 from ._jit import jit
-from .relaxation import forms, n_forms, solve, workspace
+from .relaxation import buffers, forms, solve
 
 #: The branch and bound gives up where no single split of the whole box closes this
 #: fraction of the gap between its bound and the goal.
@@ -192,20 +192,8 @@ def branch_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, cert, target, bu
     and relaxations are added to it.
     """
     n_f, nd = q0.shape
-    nb = ylin.shape[1]
-    nn = nd + 1
-    nv = 2 * nd + 1 + nb
-    force = np.isfinite(F_lim)
-    m = n_forms(nd, nb, force, not want_max)
-    V = np.empty((nn, nv), np.complex128)
-    idx = np.empty((m + 1, 2), np.int64)
-    S = np.empty((m + 1, 2, 2), np.complex128)
-    x = np.empty(m)
-    cvec = np.empty(m)
-    pos = np.empty(m, np.bool_)
-    simplex = np.empty(m, np.bool_)
-    grow = np.empty(m, np.bool_)
-    ws = workspace(nn, nv, m)
+    V, idx, S, x, cvec, pos, simplex, grow, ws = buffers(nd, ylin.shape[1],
+                                                         np.isfinite(F_lim), not want_max)
     for k in freqs:
         if not want_max:
             b, _ = branch(G[k], q0[k], ylin[k], H[k], kr, ki, F_lim, -1, cert[k],
