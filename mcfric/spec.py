@@ -77,9 +77,9 @@ class BoundsSpec:
     budget : int or None
         Enclosures per frequency and bound of the certification; None: 4000 for one
         damper, 400 for more.
-    split : int
+    split : int or None
         Relaxations of parts of the box per frequency and bound where the relaxation of
-        the whole box is loose (0: none).
+        the whole box is loose (0: none); None: the default, 200.
     moments : bool
         Whether the certified upper bound is tightened by the second-order moment
         relaxation (slow; chains only).
@@ -91,7 +91,7 @@ class BoundsSpec:
     n_starts: int
     certify: bool = True
     budget: int | None = None
-    split: int = 200
+    split: int | None = None
     moments: bool = False
 
 

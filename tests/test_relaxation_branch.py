@@ -9,8 +9,8 @@ import pytest
 
 import mcfric
 from mcfric.bounds import compute_bounds
-from mcfric.core.relaxation import buffers
-from mcfric.core.relaxation_branch import _relax, branch
+from mcfric.core.relaxation import buffers, relaxed_bound
+from mcfric.core.relaxation_branch import branch
 
 from .test_certified import F_LIM, K_MAX, chain, grid_points, physical_grid
 from .test_force_ascent import arrays
@@ -52,9 +52,10 @@ def test_each_part_encloses_its_admissible_points(freq):
             continue
         checked += 1
         buf = _buffers(nd, nb, False)
-        upper = max(_relax(G, q0, ylin, H, lo, hi, F_LIM, b, 0.0, *buf) for b in range(nb))
+        upper = max(relaxed_bound(G, q0, ylin, H, lo, hi, F_LIM, b, 0.0, *buf)
+                    for b in range(nb))
         buf = _buffers(nd, nb, True)
-        lower = _relax(G, q0, ylin, H, lo, hi, F_LIM, -1, np.inf, *buf)
+        lower = relaxed_bound(G, q0, ylin, H, lo, hi, F_LIM, -1, np.inf, *buf)
         assert np.isfinite(upper) and np.isfinite(lower)
         assert lower <= M[ok].min() and M[ok].max() <= upper
     assert checked >= 2
@@ -75,13 +76,13 @@ def test_three_dampers_enclose_an_exhaustive_grid(freq):
     uppers = []
     for b in range(nb):
         buf = _buffers(nd, nb, False)
-        whole = _relax(G, q0, ylin, H, lo, hi, F_LIM, b, 0.0, *buf)
+        whole = relaxed_bound(G, q0, ylin, H, lo, hi, F_LIM, b, 0.0, *buf)
         bound, used = branch(G, q0, ylin, H, K_MAX, K_MAX, F_LIM, b, whole, 0.0, 120, *buf)
         assert used <= 120 and bound <= whole
         uppers.append(bound)
     assert M[ok].max() <= max(uppers)
     buf = _buffers(nd, nb, True)
-    whole = _relax(G, q0, ylin, H, lo, hi, F_LIM, -1, np.inf, *buf)
+    whole = relaxed_bound(G, q0, ylin, H, lo, hi, F_LIM, -1, np.inf, *buf)
     lower, used = branch(G, q0, ylin, H, K_MAX, K_MAX, F_LIM, -1, whole, np.inf, 120, *buf)
     assert used <= 120 and whole <= lower <= M[ok].min()
 

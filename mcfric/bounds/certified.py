@@ -234,6 +234,11 @@ def _met(want_max, cert, wit, rtol, atol):
     return (cert >= wit * (1 - rtol)) | (wit - cert <= atol)
 
 
+def _target(want_max, wit, rtol, atol):
+    """What a certified bound must reach to meet the tolerance of :func:`_met` (m)."""
+    return wit * (1 + rtol) if want_max else np.maximum(wit * (1 - rtol), wit - atol)
+
+
 def _force_ascent(args, kr, ki, F_lim, starts, stop, wit, K):
     """Witnesses improved in the damper forces from ``starts`` (n_f, n_s, nd) where
     ``wit`` is below ``stop`` (m), stopping there: first by
@@ -266,7 +271,7 @@ def _relaxed(args, kr, ki, F_lim, want_max, cert, wit, rtol, atol):
     (n_f, nb; m, ``inf`` where not relaxed; the upper bound's only)."""
     n_f, nd = args[1].shape
     loose = np.flatnonzero(~_met(want_max, cert, wit, rtol, atol))
-    target = wit * (1 + rtol) if want_max else np.maximum(wit * (1 - rtol), wit - atol)
+    target = _target(want_max, wit, rtol, atol)
     K_round = np.full((n_f, 2, nd), np.nan + 0j)
     beam_bounds = np.full((n_f, args[2].shape[1]), np.inf)
     if not len(loose):
@@ -293,7 +298,7 @@ def _split(args, kr, ki, F_lim, want_max, cert, wit, rtol, atol, beam_bounds, bu
     loose = np.flatnonzero(~_met(want_max, cert, wit, rtol, atol) & np.isfinite(cert))
     if not len(loose) or budget <= 0:
         return cert, 0
-    target = wit * (1 + rtol) if want_max else np.maximum(wit * (1 - rtol), wit - atol)
+    target = _target(want_max, wit, rtol, atol)
     from tqdm import tqdm
 
     got = cert.copy()

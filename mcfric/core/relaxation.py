@@ -665,6 +665,29 @@ def n_forms(nd, nb, force, lower):
     return nd * (6 if force else 5) + 1 + (nb - 1 if lower else 0)
 
 
+@jit
+def relaxed_bound(G, q0, ylin, H, lo, hi, F_lim, beam, goal, V, idx, S, x, cvec, pos,
+                  simplex, grow, ws, stats):
+    """The verified bound over the dampers in ``[lo_j, hi_j]`` (N/m) and the force limit
+    (m): of ``|y_beam|`` from above (``beam >= 0``), of ``max_b |y_b|`` from below
+    (``beam < 0``); ``nan`` where nothing verified (rounded outwards). The solver stops
+    once it proves ``goal`` (m); ``stats[2]`` counts the relaxation."""
+    shift, ys = forms(G, q0, ylin, H, lo, hi, F_lim, beam, V, idx, S, x, cvec, pos,
+                      simplex, grow)
+    stats[2] += 1
+    if beam >= 0:
+        t = solve(x, shift, V, idx, S, cvec, pos, simplex, grow, goal * goal / ys, ws,
+                  stats)
+        if np.isnan(t):
+            return np.nan
+        return math.sqrt(max(t, 0.0) * ys) * (1.0 + 1e-14)
+    s = solve(x, shift, V, idx, S, cvec, pos, simplex, grow, -goal * goal / ys, ws, stats)
+    if np.isnan(s):
+        return np.nan
+    return math.sqrt(max(-s * ys, 0.0)) * (1.0 - 1e-14)
+
+
+
 @jit(nogil=True)
 def relax_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, floor, target, freqs, out,
                       K_round, beam_bounds, stats):
@@ -731,9 +754,6 @@ def relax_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, floor, target, fr
                 R = max(R, bound)
             out[k] = R
         else:
-            shift, ys = forms(G[k], q0[k], ylin[k], H[k], lo, hi, F_lim, -1, V, idx, S,
-                              x, cvec, pos, simplex, grow)
-            stats[2] += 1
-            s = solve(x, shift, V, idx, S, cvec, pos, simplex, grow,
-                      -target[k] * target[k] / ys, ws, stats)
-            out[k] = 0.0 if np.isnan(s) else math.sqrt(max(-s * ys, 0.0)) * (1.0 - 1e-14)
+            b = relaxed_bound(G[k], q0[k], ylin[k], H[k], lo, hi, F_lim, -1, target[k], V,
+                              idx, S, x, cvec, pos, simplex, grow, ws, stats)
+            out[k] = 0.0 if np.isnan(b) else b

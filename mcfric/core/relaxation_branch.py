@@ -15,12 +15,11 @@ width in the part; the gains are started by splitting every side of the whole bo
 (four relaxations per damper).
 """
 
-import math
 
 import numpy as np
 
 from ._jit import jit
-from .relaxation import buffers, forms, solve
+from .relaxation import buffers, relaxed_bound
 
 #: The branch and bound gives up where no single split of the whole box closes this
 #: fraction of the gap between its bound and the goal.
@@ -45,33 +44,23 @@ def _split(lo, hi, j, side, lo2, hi2):
 
 
 @jit
-def _relax(G, q0, ylin, H, lo, hi, F_lim, beam, goal, V, idx, S, x, cvec, pos, simplex,
-           grow, ws, stats):
-    """The verified bound of the part ``[lo, hi]`` (m): of ``|y_beam|`` from above
-    (``beam >= 0``), of ``max_b |y_b|`` from below (``beam < 0``); ``nan`` where nothing
-    verified. The solver stops once it proves ``goal`` (m)."""
-    shift, ys = forms(G, q0, ylin, H, lo, hi, F_lim, beam, V, idx, S, x, cvec, pos,
-                      simplex, grow)
-    stats[2] += 1
-    if beam >= 0:
-        t = solve(x, shift, V, idx, S, cvec, pos, simplex, grow, goal * goal / ys, ws,
-                  stats)
-        if np.isnan(t):
-            return np.nan
-        return math.sqrt(max(t, 0.0) * ys) * (1.0 + 1e-14)
-    s = solve(x, shift, V, idx, S, cvec, pos, simplex, grow, -goal * goal / ys, ws, stats)
-    if np.isnan(s):
-        return np.nan
-    return math.sqrt(max(-s * ys, 0.0)) * (1.0 - 1e-14)
-
-
-@jit
 def _bounded(b, parent, upper):
     """A part's bound: its relaxation's ``b``, or its parent's where that is better or
     ``b`` is ``nan`` (the part lies inside its parent)."""
     if np.isnan(b):
         return parent
     return min(b, parent) if upper else max(b, parent)
+
+
+@jit
+def _extreme(val, n, sgn):
+    """The index of the part with the extreme bound among the first ``n`` (the largest
+    for ``sgn = 1``, the smallest for ``-1``)."""
+    best = 0
+    for i in range(1, n):
+        if sgn * val[i] > sgn * val[best]:
+            best = i
+    return best
 
 
 @jit
@@ -107,11 +96,11 @@ def branch(G, q0, ylin, H, kr, ki, F_lim, beam, root, goal, budget, V, idx, S, x
                 los[2] = los[0]
                 his[2] = his[0]
                 _split(los[2], his[2], j, side, lo2, hi2)
-                b1 = _bounded(_relax(G, q0, ylin, H, los[2], his[2], F_lim, beam, goal,
-                                     V, idx, S, x, cvec, pos, simplex, grow, ws, stats),
-                              root, upper)
-                b2 = _bounded(_relax(G, q0, ylin, H, lo2, hi2, F_lim, beam, goal, V, idx,
-                                     S, x, cvec, pos, simplex, grow, ws, stats),
+                b1 = _bounded(relaxed_bound(G, q0, ylin, H, los[2], his[2], F_lim, beam,
+                                            goal, V, idx, S, x, cvec, pos, simplex, grow,
+                                            ws, stats), root, upper)
+                b2 = _bounded(relaxed_bound(G, q0, ylin, H, lo2, hi2, F_lim, beam, goal, V,
+                                            idx, S, x, cvec, pos, simplex, grow, ws, stats),
                               root, upper)
                 used += 2
                 g = max(sgn * (root - sgn * max(sgn * b1, sgn * b2)), 0.0) / max(root, 1e-300)
@@ -136,11 +125,7 @@ def branch(G, q0, ylin, H, kr, ki, F_lim, beam, root, goal, budget, V, idx, S, x
         val[1] = val[3]
         n = 2
     while used + 2 <= budget:
-        # the open part with the extreme bound
-        best = 0
-        for i in range(1, n):
-            if sgn * val[i] > sgn * val[best]:
-                best = i
+        best = _extreme(val, n, sgn)
         if sgn * val[best] <= sgn * goal:
             break
         if n + 1 >= n_max:
@@ -161,20 +146,16 @@ def branch(G, q0, ylin, H, kr, ki, F_lim, beam, root, goal, budget, V, idx, S, x
         parent = val[best]
         _split(los[best], his[best], pick_j, pick_s, los[n], his[n])
         for i in (best, n):
-            val[i] = _bounded(_relax(G, q0, ylin, H, los[i], his[i], F_lim, beam, goal, V,
-                                     idx, S, x, cvec, pos, simplex, grow, ws, stats),
-                              parent, upper)
+            val[i] = _bounded(relaxed_bound(G, q0, ylin, H, los[i], his[i], F_lim, beam,
+                                            goal, V, idx, S, x, cvec, pos, simplex, grow,
+                                            ws, stats), parent, upper)
         used += 2
         worst = sgn * max(sgn * val[best], sgn * val[n])
         n += 1
         gain[pick_j, pick_s] += (max(sgn * (parent - worst), 0.0) / max(parent, 1e-300)
                                  / max(width[pick_j, pick_s], 1e-12))
         count[pick_j, pick_s] += 1.0
-    out = val[0]
-    for i in range(1, n):
-        if sgn * val[i] > sgn * out:
-            out = val[i]
-    return out, used
+    return val[_extreme(val, n, sgn)], used
 
 
 @jit(nogil=True)
@@ -207,8 +188,9 @@ def branch_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, cert, target, bu
             bound = beam_bounds[k, b]
             goal = max(R, target[k])
             if bound <= goal:
+                # the rest are no higher
                 R = max(R, bound)
-                continue
+                break
             if left >= 6:
                 got, used = branch(G[k], q0[k], ylin[k], H[k], kr, ki, F_lim, b, bound,
                                    goal, left, V, idx, S, x, cvec, pos, simplex, grow,
