@@ -20,6 +20,7 @@ import numpy as np
 from ..core import force_ascent, force_newton
 from ..core.branch_bound import certify_frequencies
 from ..core.joint_ascent import values, witnesses
+from ..core.joint_descent import lowest
 from ..core.relaxation import relax_frequencies
 from ..core.relaxation_branch import branch_frequencies
 from ..threads import in_threads
@@ -266,8 +267,8 @@ def _force_ascent(args, kr, ki, F_lim, starts, stop, wit, K):
 def _relaxed(args, kr, ki, F_lim, want_max, cert, wit, rtol, atol):
     """``cert`` improved by the semidefinite relaxation of the whole box
     (:mod:`mcfric.core.relaxation`) where it is not yet within the tolerance of its
-    witness; the relaxation's rounded points (n_f, 2, nd; N/m, NaN where none: the upper
-    bound's only, :func:`mcfric.core.relaxation.rounded`) and each beam's proven bound
+    witness; the relaxation's rounded points (n_f, 2, nd; N/m, NaN where none:
+    :func:`mcfric.core.relaxation.rounded`) and each beam's proven bound
     (n_f, nb; m, ``inf`` where not relaxed; the upper bound's only)."""
     n_f, nd = args[1].shape
     loose = np.flatnonzero(~_met(want_max, cert, wit, rtol, atol))
@@ -470,6 +471,16 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
                 wit = _force_ascent(args, kr, ki, F_lim,
                                     np.concatenate([K[:, None], K_round], axis=1), stop,
                                     wit, K)
+            if not want_max:
+                # the box search's minimum may break the force limit, and the corners
+                # lie far above the joint minimum: descend from the relaxation's rounded
+                # points and the witness where the bound is loose
+                todo = np.flatnonzero(~np.isnan(K_round[:, 0, 0]) &
+                                      ~_met(False, cert, wit, rtol, atol))
+                if len(todo):
+                    in_threads(lambda fs: lowest(*args, kr, ki, F_lim, K_round,
+                                                 np.asarray(fs, np.int64), K, wit),
+                               [todo[c] for c in _chunks(len(todo))])
             cert, used = _split(args, kr, ki, F_lim, want_max, cert, wit, rtol, atol,
                                 beam_bounds, split)
             split_used[int(not want_max)] = used

@@ -211,7 +211,7 @@ def polish(G, q0, ylin, H, hr, gr, kr, ki, want_max, objectives, cap, max_sweeps
             if not want_max and math.isfinite(v):
                 # the minimum's ridges: every beam and damper at once (see .minimax)
                 K2 = K.copy()
-                v2 = minimax_barrier(G[k], q0[k], ylin[k], H[k], kr, ki, K2, w)
+                v2 = minimax_barrier(G[k], q0[k], ylin[k], H[k], kr, ki, math.inf, K2, w)
                 if v2 < v:
                     v = v2
                     for j in range(nd):

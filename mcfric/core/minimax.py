@@ -13,7 +13,9 @@ stall on such ridges (a dozen beams equal, one damper moved at a time). Here the
   ``|y_b|^2 <= t`` and the box, by a log-barrier Newton method with the Gauss-Newton
   curvature ``2 Re(J_b^H J_b)`` of each ``|y_b|^2``: every beam and box face enters the
   step together, so it walks along the ridge where the others stall. It ends the
-  minimum's search, from the best point found.
+  minimum's search, from the best point found; with a force limit (each damper force
+  ``p_j = K_j q_j`` another barrier) it is the lower witnesses' descent
+  (:mod:`.joint_descent`).
 
 Variables are the describing functions scaled to the unit box, ``x = (Re K_j / kr,
 Im K_j / ki)`` interleaved; the Jacobian of ``y`` is ``dy_b / dK_j = -q_j (H_bj -
@@ -203,15 +205,32 @@ def _scaled_phi(G, q0, ylin, H, x, Kt, T, piv, q, y, ph, s, kr, ki, nd, nb, hr, 
     return m
 
 
-@jit
-def minimax_barrier(G, q0, ylin, H, kr, ki, K, w):
-    """Minimise ``M = max_b |y_b|`` over the box from ``K`` by a log-barrier method.
+@inline_jit
+def _force_barrier(Kt, q, F2, pf, mu, nd):
+    """``pf_j = |K_j q_j|^2 / F_lim^2`` into ``pf`` and the force limit's barrier term
+    ``-mu sum_j log(1 - pf_j)`` (inf outside the limit)."""
+    acc = 0.0
+    for j in range(nd):
+        p = Kt[j] * q[j]
+        pf[j] = (p.real * p.real + p.imag * p.imag) / F2
+        if not (pf[j] < 1.0):
+            return math.inf
+        acc += math.log(1.0 - pf[j])
+    return -mu * acc
 
-    ``min t`` subject to ``t >= |y_b|^2 / s`` (``s``: the starting ``M^2``) and
-    ``0 < x < 1``: Newton steps on ``t - mu (sum_b log(t - |y_b|^2 / s) + sum_i log x_i
-    (1 - x_i))`` with the Gauss-Newton curvature of each ``|y_b|^2``, a backtracking
-    line search on the true outputs, and ``mu`` reduced in stages
-    (``_BARRIER_MU`` ... ``_BARRIER_MU_END``). The best point met (by M itself) is kept.
+
+@jit
+def minimax_barrier(G, q0, ylin, H, kr, ki, F_lim, K, w):
+    """Minimise ``M = max_b |y_b|`` over the box, and the force limit if ``F_lim`` is
+    finite, from ``K`` by a log-barrier method.
+
+    ``min t`` subject to ``t >= |y_b|^2 / s`` (``s``: the starting ``M^2``), ``0 < x <
+    1`` and ``|K_j q_j| < F_lim``: Newton steps on ``t - mu (sum_b log(t - |y_b|^2 / s)
+    + sum_i log x_i (1 - x_i) + sum_j log(1 - |K_j q_j|^2 / F_lim^2))`` with the
+    Gauss-Newton curvature of each ``|y_b|^2`` and ``|K_j q_j|^2``, a backtracking line
+    search on the true outputs, and ``mu`` reduced in stages (``_BARRIER_MU`` ...
+    ``_BARRIER_MU_END``). The best point met (by M itself) is kept. With a force limit
+    ``K`` must start strictly inside it (else nothing moves).
 
     Returns M at the point left in ``K`` (m): never above the starting M, which it
     returns with ``K`` unchanged if nothing better was met; NaN if singular.
@@ -243,6 +262,12 @@ def minimax_barrier(G, q0, ylin, H, kr, ki, K, w):
     step = np.empty(n + 1)
     grad = np.empty(n + 1)
     spiv = np.empty(n + 1, dtype=np.int64)
+    force = math.isfinite(F_lim)
+    F2 = F_lim * F_lim
+    pf = np.empty(nd)
+    pft = np.empty(nd)
+    gpf = np.empty((nd, n))
+    P = np.empty((nd, n), dtype=np.complex128)
     phi0 = _sumsq(G, q0, ylin, H, K, T, piv, q, y, nd, nb, hr, F, cyc)
     if not math.isfinite(phi0):
         return math.nan
@@ -259,6 +284,11 @@ def minimax_barrier(G, q0, ylin, H, kr, ki, K, w):
                         cyc)
     if not math.isfinite(m):
         return m_start
+    fb = 0.0
+    if force:
+        fb = _force_barrier(Kt, q, F2, pf, _BARRIER_MU, nd)
+        if not math.isfinite(fb):
+            return m_start
     t = 1.01 * m + 1e-3
     best = 1.0                      # the start, in units of s
     found = False
@@ -298,6 +328,29 @@ def minimax_barrier(G, q0, ylin, H, kr, ki, K, w):
                         row[k] += a * gb[k] + gn * (dr * Dre[k] + di * Dim[k])
                     Hm[n, i] -= a
                 Hm[n, n] += ib2
+            if force:
+                # the force limits: like the beams' rows, without t
+                for j in range(nd):
+                    for i in range(nd):
+                        dp = -Kt[j] * X[j, i] * q[i]
+                        if i == j:
+                            dp += q[j]
+                        P[j, 2 * i] = dp * kr
+                        P[j, 2 * i + 1] = complex(-dp.imag * ki, dp.real * ki)
+                    p = Kt[j] * q[j]
+                    cj = 1.0 - pf[j]
+                    ib = 1.0 / cj
+                    for i in range(n):
+                        gpf[j, i] = 2.0 * (p.real * P[j, i].real + p.imag * P[j, i].imag) / F2
+                        grad[i] += mu * gpf[j, i] * ib
+                    ib2 = mu * ib * ib
+                    gn = 2.0 * mu * ib / F2
+                    for i in range(n):
+                        a = ib2 * gpf[j, i]
+                        row = Hm[i]
+                        for k in range(i + 1):
+                            row[k] += a * gpf[j, k] + gn * (P[j, i].real * P[j, k].real +
+                                                            P[j, i].imag * P[j, k].imag)
             grad[n] += 1.0
             for i in range(n):
                 grad[i] -= mu * (1.0 / x[i] - 1.0 / (1.0 - x[i]))
@@ -316,6 +369,8 @@ def minimax_barrier(G, q0, ylin, H, kr, ki, K, w):
             if not (dec >= _BARRIER_DECREMENT * mu):
                 break               # centred enough: next stage
             f0 = _barrier_value(t, ph, x, mu, nb, n)
+            if force:
+                f0 += _force_barrier(Kt, q, F2, pf, mu, nd)
             lam = 1.0
             ok = False
             for _ in range(40):
@@ -330,8 +385,10 @@ def minimax_barrier(G, q0, ylin, H, kr, ki, K, w):
                 if inside:
                     mt = _scaled_phi(G, q0, ylin, H, xt, Kt, T, piv, q, y, pht, s, kr, ki,
                                      nd, nb, hr, F, cyc)
-                    if math.isfinite(mt) and (
-                            _barrier_value(tt, pht, xt, mu, nb, n) <= f0 - 1e-4 * lam * dec):
+                    ft = _barrier_value(tt, pht, xt, mu, nb, n)
+                    if force and math.isfinite(mt):
+                        ft += _force_barrier(Kt, q, F2, pft, mu, nd)
+                    if math.isfinite(mt) and ft <= f0 - 1e-4 * lam * dec:
                         ok = True
                         break
                 lam *= 0.5
@@ -344,6 +401,9 @@ def minimax_barrier(G, q0, ylin, H, kr, ki, K, w):
                 x[i] = xt[i]
             for b in range(nb):
                 ph[b] = pht[b]
+            if force:
+                for j in range(nd):
+                    pf[j] = pft[j]
             t = tt
             if mt < best:
                 best = mt

@@ -699,8 +699,9 @@ def relax_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, floor, target, fr
     each relaxation stops once it proves its beam below ``max(running maximum,
     target[k])``. The lower bound stops once it reaches ``target[k]``. ``stats``
     (int64, shape (3,)): Newton steps, barrier rounds and relaxations are added to it.
-    ``K_round[k]`` (shape (2, nd); upper bound only): the :func:`rounded` candidates of
-    the beam with the largest bound (N/m; left as they are where none was solved);
+    ``K_round[k]`` (shape (2, nd)): the :func:`rounded` candidates of the minimum's
+    relaxation, or of the beam with the largest upper bound (N/m; left as they are
+    where none was solved);
     ``beam_bounds[k]`` (shape (nb,), m; upper bound only): a proven bound of each beam's
     ``|y_b|``, its force bound where it was not relaxed.
     """
@@ -757,3 +758,5 @@ def relax_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, floor, target, fr
             b = relaxed_bound(G[k], q0[k], ylin[k], H[k], lo, hi, F_lim, -1, target[k], V,
                               idx, S, x, cvec, pos, simplex, grow, ws, stats)
             out[k] = 0.0 if np.isnan(b) else b
+            if not np.isnan(b) and rounded(x, V, idx, S, kr, ki, F_lim, ws, Kc):
+                K_round[k] = Kc
