@@ -26,6 +26,17 @@ _INSIDE = 1e-9
 
 
 @jit(nogil=True)
+def _kept(v, ok, K, K_best, M_out, k):
+    """Whether an admissible point ``K`` (``ok``) of ``M = v`` (m) is below ``M_out[k]``;
+    if so it becomes ``K_best`` and ``M_out[k]``."""
+    if not (ok and math.isfinite(v) and v < M_out[k]):
+        return False
+    M_out[k] = v
+    K_best[:] = K
+    return True
+
+
+@jit(nogil=True)
 def lowest(G, q0, ylin, H, kr, ki, F_lim, K_given, freqs, K_out, M_out):
     """Descend from given points to admissible ones of small ``M``, keeping the least.
 
@@ -64,19 +75,13 @@ def lowest(G, q0, ylin, H, kr, ki, F_lim, K_given, freqs, K_out, M_out):
             K0[:] = K
             v, ok = pulled_inside(G[k], q0[k], ylin[k], H[k], K0, F_lim, 1.0 - _INSIDE, T,
                                   piv, q)
-            if ok and math.isfinite(v) and v < M_out[k]:
-                M_out[k] = v
-                K_out[k, :] = K0
-                better = True
+            better |= _kept(v, ok, K0, K_out[k], M_out, k)
             if not strictly_inside(G[k], q0[k], ylin[k], H[k], K, kr, ki, F_lim, 1e-6, T,
                                    piv, q):
                 continue
             minimax_barrier(G[k], q0[k], ylin[k], H[k], kr, ki, F_lim, K, w)
             v, ok = admissible_value(G[k], q0[k], ylin[k], H[k], K, F_lim * (1.0 - _INSIDE),
                                      T, piv, q)
-            if ok and math.isfinite(v) and v < M_out[k]:
-                M_out[k] = v
-                K_out[k, :] = K
-                better = True
+            better |= _kept(v, ok, K, K_out[k], M_out, k)
         changed += better
     return changed

@@ -284,11 +284,8 @@ def minimax_barrier(G, q0, ylin, H, kr, ki, F_lim, K, w):
                         cyc)
     if not math.isfinite(m):
         return m_start
-    fb = 0.0
-    if force:
-        fb = _force_barrier(Kt, q, F2, pf, _BARRIER_MU, nd)
-        if not math.isfinite(fb):
-            return m_start
+    if force and not math.isfinite(_force_barrier(Kt, q, F2, pf, _BARRIER_MU, nd)):
+        return m_start
     t = 1.01 * m + 1e-3
     best = 1.0                      # the start, in units of s
     found = False

@@ -453,9 +453,10 @@ def shifted(x, shift, V, idx, S, pos, simplex, ws):
 
 @jit
 def rounded(x, V, idx, S, kr, ki, F_lim, ws, K):
-    """Candidate maximisers from the relaxation at ``x``: ``X = Z^-1`` is (a multiple of)
-    the barrier's primal point, and where the relaxation is tight it is ``z z^H`` for
-    ``z = (p, 1)`` at the maximum, or a mixture of such. ``K[0]``: ``K_j = p_j / q_j``
+    """Candidate optimisers from the relaxation at ``x`` (of the maximum or of the
+    minimum): ``X = Z^-1`` is (a multiple of) the barrier's primal point, and where the
+    relaxation is tight it is ``z z^H`` for ``z = (p, 1)`` at the optimum, or a mixture
+    of such. ``K[0]``: ``K_j = p_j / q_j``
     from its leading eigenvector; ``K[1]``: from the combination of its ``PURIFY_RANK``
     leading eigenvectors (scaled by the square roots of their eigenvalues) that leaves
     the box and the force limit least, of that eigenvector and ``PURIFY_SAMPLES`` random
@@ -685,7 +686,6 @@ def relaxed_bound(G, q0, ylin, H, lo, hi, F_lim, beam, goal, V, idx, S, x, cvec,
     if np.isnan(s):
         return np.nan
     return math.sqrt(max(-s * ys, 0.0)) * (1.0 - 1e-14)
-
 
 
 @jit(nogil=True)

@@ -15,7 +15,6 @@ width in the part; the gains are started by splitting every side of the whole bo
 (four relaxations per damper).
 """
 
-
 import numpy as np
 
 from ._jit import jit
