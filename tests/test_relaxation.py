@@ -33,6 +33,13 @@ def problem(model, freq, beam):
     return arrays, shift, ys, rx.workspace(nn, nv, m)
 
 
+def cold_solve(a, shift, ws):
+    """:func:`mcfric.core.relaxation.solve` from a cold start, to full accuracy."""
+    return rx.solve(a["x"], shift, a["V"], a["idx"], a["S"], a["cvec"], a["pos"],
+                    a["simplex"], a["grow"], -np.inf, ws, np.zeros(2, np.int64), 0.0,
+                    np.empty(len(a["x"]) + 1))
+
+
 def dense_Z(a):
     """``Z = sum_i x_i A_i + A_const`` formed plainly in numpy."""
     V, idx, S, x = a["V"], a["idx"], a["S"], a["x"]
@@ -62,16 +69,14 @@ def test_certificates_are_semidefinite_and_enclose_admissible_points(freq):
     upper = 0.0
     for beam in range(model.n_beams):
         a, shift, ys, ws = problem(model, freq, beam)
-        t = rx.solve(a["x"], shift, a["V"], a["idx"], a["S"], a["cvec"], a["pos"],
-                     a["simplex"], a["grow"], -np.inf, ws, np.zeros(2, np.int64))
+        t = cold_solve(a, shift, ws)
         assert np.isfinite(t) and t == a["x"][shift]
         assert np.all(a["x"][:shift] > 0)
         Z = dense_Z(a)
         assert np.linalg.eigvalsh(Z).min() >= -1e-14 * np.abs(Z).max()
         upper = max(upper, np.sqrt(t * ys))
     a, shift, ys, ws = problem(model, freq, -1)
-    s = -rx.solve(a["x"], shift, a["V"], a["idx"], a["S"], a["cvec"], a["pos"],
-                  a["simplex"], a["grow"], -np.inf, ws, np.zeros(2, np.int64))
+    s = -cold_solve(a, shift, ws)
     lam = a["x"][a["simplex"]]
     assert np.all(lam > 0) and lam.sum() < 1
     Z = dense_Z(a)
@@ -87,8 +92,7 @@ def test_verification_rejects_an_indefinite_Z():
     ``t`` a relative 1e-12 lower fails the verification and 1e-6 higher passes."""
     model = mcfric.eight_beam(1.1)
     a, shift, ys, ws = problem(model, 90.0, 3)
-    rx.solve(a["x"], shift, a["V"], a["idx"], a["S"], a["cvec"], a["pos"], a["simplex"],
-             a["grow"], -np.inf, ws, np.zeros(2, np.int64))
+    cold_solve(a, shift, ws)
     a["x"][shift] = 0.0
     Z = dense_Z(a)
     P, b = Z[:-1, :-1], Z[:-1, -1]
@@ -135,8 +139,7 @@ def test_rounded_candidates(freq):
     best = None
     for beam in range(model.n_beams):
         a, shift, ys, ws = problem(model, freq, beam)
-        t = rx.solve(a["x"], shift, a["V"], a["idx"], a["S"], a["cvec"], a["pos"],
-                     a["simplex"], a["grow"], -np.inf, ws, np.zeros(2, np.int64))
+        t = cold_solve(a, shift, ws)
         if best is None or t * ys > best[0]:
             best = (t * ys, a, ws)
     _, a, ws = best

@@ -9,7 +9,7 @@ import pytest
 
 import mcfric
 from mcfric.bounds import compute_bounds
-from mcfric.core.relaxation import buffers, relaxed_bound
+from mcfric.core.relaxation import buffers, forms, inherit, relaxed_bound, weights
 from mcfric.core.relaxation_branch import branch
 
 from .test_certified import F_LIM, K_MAX, chain, grid_points, physical_grid
@@ -19,6 +19,15 @@ from .test_force_ascent import arrays
 def _buffers(nd, nb, lower):
     """The kernels' buffers with a force limit, and a ``stats`` counter."""
     return (*buffers(nd, nb, True, lower), np.zeros(3, np.int64))
+
+
+def _relaxed(G, q0, ylin, H, lo, hi, beam, goal, buf, theta=None, plo=None, phi=None):
+    """:func:`relaxed_bound` of the part ``[lo, hi]``, cold unless a parent's ``theta``
+    (updated in place) and box are given."""
+    if theta is None:
+        theta = np.full(len(buf[3]) + 1, np.nan)
+        plo, phi = lo, hi
+    return relaxed_bound(G, q0, ylin, H, lo, hi, F_LIM, beam, goal, *buf, theta, plo, phi)
 
 
 def _in_part(lo, hi, n, rng):
@@ -52,10 +61,9 @@ def test_each_part_encloses_its_admissible_points(freq):
             continue
         checked += 1
         buf = _buffers(nd, nb, False)
-        upper = max(relaxed_bound(G, q0, ylin, H, lo, hi, F_LIM, b, 0.0, *buf)
-                    for b in range(nb))
+        upper = max(_relaxed(G, q0, ylin, H, lo, hi, b, 0.0, buf) for b in range(nb))
         buf = _buffers(nd, nb, True)
-        lower = relaxed_bound(G, q0, ylin, H, lo, hi, F_LIM, -1, np.inf, *buf)
+        lower = _relaxed(G, q0, ylin, H, lo, hi, -1, np.inf, buf)
         assert np.isfinite(upper) and np.isfinite(lower)
         assert lower <= M[ok].min() and M[ok].max() <= upper
     assert checked >= 2
@@ -76,15 +84,104 @@ def test_three_dampers_enclose_an_exhaustive_grid(freq):
     uppers = []
     for b in range(nb):
         buf = _buffers(nd, nb, False)
-        whole = relaxed_bound(G, q0, ylin, H, lo, hi, F_LIM, b, 0.0, *buf)
+        whole = _relaxed(G, q0, ylin, H, lo, hi, b, 0.0, buf)
         bound, used = branch(G, q0, ylin, H, K_MAX, K_MAX, F_LIM, b, whole, 0.0, 120, *buf)
         assert used <= 120 and bound <= whole
         uppers.append(bound)
     assert M[ok].max() <= max(uppers)
     buf = _buffers(nd, nb, True)
-    whole = relaxed_bound(G, q0, ylin, H, lo, hi, F_LIM, -1, np.inf, *buf)
+    whole = _relaxed(G, q0, ylin, H, lo, hi, -1, np.inf, buf)
     lower, used = branch(G, q0, ylin, H, K_MAX, K_MAX, F_LIM, -1, whole, np.inf, 120, *buf)
     assert used <= 120 and whole <= lower <= M[ok].min()
+
+
+def _Z(buf, x):
+    """``Z = V (sum_i x_i S_i + the constant form) V^H`` assembled plainly in numpy from
+    :func:`forms`' basis, index pairs and 2 x 2 forms."""
+    V, idx, S = buf[0], buf[1], buf[2]
+    C = np.zeros((V.shape[1], V.shape[1]), complex)
+    for i, w in enumerate(np.append(x, 1.0)):
+        C[np.ix_(idx[i], idx[i])] += w * S[i]
+    return V @ C @ V.conj().T
+
+
+def _halves(rng, lo, hi, depth):
+    """A chain of ``depth`` random halvings of ``[lo, hi]``: (parent, part) boxes."""
+    out = []
+    for _ in range(depth):
+        plo, phi = lo.copy(), hi.copy()
+        j, side, upper_half = rng.integers(len(lo)), rng.integers(2), rng.integers(2)
+        part = 1j if side else 1.0
+        mid = 0.5 * ((lo[j] * part.conjugate()).real + (hi[j] * part.conjugate()).real)
+        if upper_half:
+            lo[j] = lo[j] + part * (mid - (lo[j] * part.conjugate()).real)
+        else:
+            hi[j] = hi[j] - part * ((hi[j] * part.conjugate()).real - mid)
+        out.append((plo, phi, lo.copy(), hi.copy()))
+    return out
+
+
+@pytest.mark.parametrize("beam", [2, -1])
+def test_inherited_multipliers_only_grow_Z(beam):
+    """Eight beams, 0.25 N, 73 Hz: the multipliers a relaxation saves, moved to a half of
+    its box by ``inherit``, give a ``Z`` (assembled in numpy) that exceeds the parent's
+    by a positive semidefinite matrix, down a chain of 12 random halvings; dropping the
+    disc's transfer (the parent's multipliers as they are) breaks it."""
+    model = mcfric.eight_beam(0.25)
+    G, q0, ylin, H = (x[0] for x in arrays(model, np.array([73.0])))
+    nd, nb = 7, 8
+    rng = np.random.default_rng(11)
+    lo, hi = np.zeros(nd, complex), np.full(nd, K_MAX * (1 + 1j))
+    buf = _buffers(nd, nb, beam < 0)
+    m = len(buf[3])
+    theta = np.full(m + 1, np.nan)
+    assert np.isfinite(_relaxed(G, q0, ylin, H, lo, hi, beam, np.inf if beam < 0 else 0.0,
+                                buf, theta, lo, hi))
+    w = np.empty(m)
+    worst_plain = 0.0
+    for plo, phi, clo, chi in _halves(rng, lo, hi, 12):
+        forms(G, q0, ylin, H, plo, phi, F_LIM, beam, *buf[:8])
+        weights(buf[2], nd, 6, w)
+        Zp = _Z(buf, theta[:m] / w)
+        scale = np.linalg.norm(Zp)
+        moved = theta.copy()
+        inherit(moved, clo, chi, plo, phi, 6)
+        forms(G, q0, ylin, H, clo, chi, F_LIM, beam, *buf[:8])
+        weights(buf[2], nd, 6, w)
+        assert np.linalg.eigvalsh(_Z(buf, moved[:m] / w) - Zp).min() >= -1e-12 * scale
+        worst_plain = min(worst_plain,
+                          np.linalg.eigvalsh(_Z(buf, theta[:m] / w) - Zp).min() / scale)
+        # the part's own relaxation, started there, gives the next parent's multipliers
+        theta = moved
+        assert np.isfinite(_relaxed(G, q0, ylin, H, clo, chi, beam,
+                                    np.inf if beam < 0 else 0.0, buf, theta, plo, phi))
+    assert worst_plain < -1e-6
+
+
+@pytest.mark.parametrize("freq", [73.0, 121.8])
+def test_warm_start_gives_the_cold_bound_in_fewer_steps(freq):
+    """Eight beams, 0.25 N: relaxations of the parts of 6 random halvings of the box,
+    each started from its parent's saved multipliers, prove the same bounds as cold
+    starts (to the solver's accuracy) in fewer Newton steps."""
+    model = mcfric.eight_beam(0.25)
+    G, q0, ylin, H = (x[0] for x in arrays(model, np.array([freq])))
+    nd, nb = 7, 8
+    rng = np.random.default_rng(5)
+    for beam, goal in ((3, 0.0), (-1, np.inf)):
+        lo, hi = np.zeros(nd, complex), np.full(nd, K_MAX * (1 + 1j))
+        buf = _buffers(nd, nb, beam < 0)
+        theta = np.full(len(buf[3]) + 1, np.nan)
+        _relaxed(G, q0, ylin, H, lo, hi, beam, goal, buf, theta, lo, hi)
+        steps = np.zeros(2, np.int64)
+        for plo, phi, clo, chi in _halves(rng, lo, hi, 6):
+            before = buf[-1][0]
+            warm = _relaxed(G, q0, ylin, H, clo, chi, beam, goal, buf, theta, plo, phi)
+            steps[0] += buf[-1][0] - before
+            before = buf[-1][0]
+            cold = _relaxed(G, q0, ylin, H, clo, chi, beam, goal, buf)
+            steps[1] += buf[-1][0] - before
+            assert abs(warm - cold) <= 1e-3 * cold
+        assert steps[0] < 0.75 * steps[1]
 
 
 def test_splitting_closes_eight_beam_gaps_and_stays_sound():

@@ -63,7 +63,7 @@ WITNESS_SAMPLES = 12
 RELAX = True
 #: Relaxations of parts of the box per frequency and bound at most, where the relaxation
 #: of the whole box leaves the bound loose (:mod:`mcfric.core.relaxation_branch`).
-SPLIT_BUDGET = 200
+SPLIT_BUDGET = 400
 #: Newton steps, barrier rounds and relaxations of the last call, upper and lower (for
 #: the docs' measurements).
 LAST_RELAXATION = np.zeros((2, 3), np.int64)

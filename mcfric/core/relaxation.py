@@ -39,6 +39,10 @@ MAX_STEPS = 160
 CENTRED = 1.0
 #: Barrier weight factor per round.
 MU_FACTOR = 0.1
+#: A part's relaxation starts from its parent's last iterate whose barrier weight was at
+#: least this fraction of the shift variable (``mu nu / |x_shift|``; a cold start is at
+#: 1): later iterates lie too near the parent's boundary to start from.
+WARM_RATIO = 0.05
 #: Safety factors over the rounding bounds of the assembly (gamma_k |V| |C| |V|^T, k <=
 #: ~100 operations: ~1e-14) and of the Cholesky test (Rump: (n + 1) u tr Z).
 ASSEMBLY_MARGIN = 1e-12
@@ -328,15 +332,15 @@ def _value(x, mu, V, idx, S, cvec, pos, simplex, m, ws):
 
 
 @jit
-def solve(x, shift, V, idx, S, cvec, pos, simplex, grow, target, ws, stats):
+def solve(x, shift, V, idx, S, cvec, pos, simplex, grow, target, ws, stats, warm, save):
     """Improve the multipliers ``x`` (in place) and return the best *verified* value of
     the shift variable ``x[shift]`` (``nan`` if none verified).
 
     Parameters
     ----------
     x : ndarray, shape (m,)
-        Start; the ``grow`` entries are doubled until the leading block of ``Z`` is
-        positive definite, then ``x[shift]`` is set to make ``Z`` so.
+        Start; unless ``warm``, the ``grow`` entries are doubled until the leading block
+        of ``Z`` is positive definite, then ``x[shift]`` is set to make ``Z`` so.
     shift : int
         The variable on ``E`` (``t`` with ``S = +1``, ``s`` with ``S = -1``).
     V, idx, S
@@ -350,6 +354,14 @@ def solve(x, shift, V, idx, S, cvec, pos, simplex, grow, target, ws, stats):
         Stop once the verified objective ``cvec[shift] x[shift]`` is at or below this.
     stats : ndarray of int64, shape (2,)
         Newton steps and barrier rounds are added to it.
+    warm : float
+        ``0``: a cold start as above. Otherwise ``x`` is strictly feasible (``Z``
+        positive definite, the cone's interior) and the barrier starts at the weight
+        ``warm |x_shift| / nu``.
+    save : ndarray, shape (m + 1,)
+        Receives the last iterate whose weight ratio ``mu nu / |x_shift|`` was at least
+        :data:`WARM_RATIO` (the first one if none was), and that ratio last: a start
+        for a neighbour.
     """
     C, T, Z, L, Zi, W, Q, Hm, g, dx, xn, Cabs, Vabs, Zabs, Lh, yv, P, R, Tabs, xb = ws
     nn, nv = V.shape
@@ -364,6 +376,15 @@ def solve(x, shift, V, idx, S, cvec, pos, simplex, grow, target, ws, stats):
             ng += 1
     gstart[ng] = m
     gstart = gstart[:ng + 1]
+    nu = float(nn)
+    for i in range(m):
+        if pos[i]:
+            nu += 1.0
+    if simplex.any():
+        nu += 1.0
+    if warm > 0.0:
+        return _rounds(x, shift, warm * max(abs(x[shift]), 1e-300) / nu, nu, V, idx, S,
+                       gstart, cvec, pos, simplex, target, ws, stats, save)
     # start: the leading block positive definite, then the shift from its Schur complement
     x[shift] = 0.0
     found = False
@@ -378,17 +399,22 @@ def solve(x, shift, V, idx, S, cvec, pos, simplex, grow, target, ws, stats):
     if not found:
         return np.nan
     r = _schur(Z, L, W, nn)
-    nu = float(nn)
-    for i in range(m):
-        if pos[i]:
-            nu += 1.0
-    if simplex.any():
-        nu += 1.0
     # sgn x_shift + r > 0, with a margin
     x[shift] = (1.0 + abs(r) - r) / sgn
-    mu = max(abs(x[shift]), 1e-300) / nu
+    return _rounds(x, shift, max(abs(x[shift]), 1e-300) / nu, nu, V, idx, S, gstart, cvec,
+                   pos, simplex, target, ws, stats, save)
+
+
+@jit
+def _rounds(x, shift, mu, nu, V, idx, S, gstart, cvec, pos, simplex, target, ws, stats,
+            save):
+    """The barrier rounds of :func:`solve` from the strictly feasible ``x``, the weight
+    ``mu`` cut by :data:`MU_FACTOR` per round (``nu``: the barrier's parameter)."""
+    dx, xn, xb = ws[9], ws[10], ws[19]
+    m = len(x)
     best = np.nan
     steps = 0
+    save[m] = np.nan
     while steps < MAX_STEPS:
         for inner in range(STEPS_PER_ROUND):
             lam2, f0 = _newton(x, mu, V, idx, S, gstart, cvec, pos, simplex, m, ws)
@@ -411,6 +437,10 @@ def solve(x, shift, V, idx, S, cvec, pos, simplex, grow, target, ws, stats):
             if not moved or lam2 < CENTRED ** 2 or steps >= MAX_STEPS:
                 break
         stats[1] += 1
+        ratio = mu * nu / max(abs(x[shift]), 1e-300)
+        if ratio >= WARM_RATIO or np.isnan(save[m]):
+            save[:m] = x
+            save[m] = ratio
         if verified(x, V, idx, S, m, pos, simplex, ws):
             val = cvec[shift] * x[shift]
             if np.isnan(best) or val < best:
@@ -580,12 +610,7 @@ def forms(G, q0, ylin, H, lo, hi, F_lim, beam, V, idx, S, x, cvec, pos, simplex,
     per = 6 if force else 5
     for j in range(nd):
         a, b, c, d = lo[j].real, hi[j].real, lo[j].imag, hi[j].imag
-        mid = 0.5 * (lo[j] + hi[j])
-        rho2 = 0.0
-        for corner in (lo[j], hi[j], complex(a, d), complex(b, c)):
-            rho2 = max(rho2, abs(corner - mid) ** 2)
-        # rounded up past the rounding of |mid|^2: the disc still holds the rectangle
-        rho2 = rho2 * (1.0 + 1e-10) + 1e-10 * abs(mid) ** 2
+        mid, rho2 = _disc(lo[j], hi[j])
         for f in range(5):
             idx[i + f, 0] = j
             idx[i + f, 1] = nd + j
@@ -661,6 +686,66 @@ def forms(G, q0, ylin, H, lo, hi, F_lim, beam, V, idx, S, x, cvec, pos, simplex,
 
 
 @jit
+def _disc(lo, hi):
+    """Centre (N/m) and squared radius ((N/m)^2) of the disc :func:`forms` puts around
+    the rectangle ``[lo, hi]``."""
+    mid = 0.5 * (lo + hi)
+    rho2 = 0.0
+    for corner in (lo, hi, complex(lo.real, hi.imag), complex(hi.real, lo.imag)):
+        rho2 = max(rho2, abs(corner - mid) ** 2)
+    # rounded up past the rounding of |mid|^2: the disc still holds the rectangle
+    return mid, rho2 * (1.0 + 1e-10) + 1e-10 * abs(mid) ** 2
+
+
+@jit
+def weights(S, nd, per, w):
+    """``w`` such that ``x_i w_i`` is form ``i``'s multiplier before :func:`forms`
+    scaled it by a power of two (from the entries the scaling leaves known: the
+    rectangle's ``1/2``, the disc's and the force limit's ``1``); 1 for the others."""
+    w[:] = 1.0
+    for i in range(nd * per):
+        f = i % per
+        if f < 4:
+            w[i] = 2.0 * abs(S[i, 0, 1])
+        elif f == 4:
+            w[i] = S[i, 1, 1].real
+        else:
+            w[i] = S[i, 0, 0].real
+
+
+@jit
+def inherit(theta, lo, hi, plo, phi, per):
+    """A parent part's multipliers ``theta`` (of the unscaled forms, see :func:`weights`)
+    moved, in place, to its part ``[lo, hi]`` inside ``[plo, phi]`` (N/m) so that ``Z``
+    only grows: positive definite for the parent, it stays so for the part.
+
+    The rectangle's forms only tighten. The parent's disc form is the part's plus
+    ``d(K) |q|^2`` with ``d`` affine in ``K``; ``d <= 0`` at the part's corners (they lie
+    on the part's disc and inside the parent's), so on its rectangle ``d`` is a
+    nonnegative combination of the sides' ``a - Re K``, ... plus a constant ``<= 0``:
+    the parent's disc multiplier moves onto those sides, and the constant's term is
+    ``-c |q|^2 >= 0`` in ``Z``.
+    """
+    for j in range(len(lo)):
+        if lo[j] == plo[j] and hi[j] == phi[j]:
+            continue
+        mc, _ = _disc(lo[j], hi[j])
+        mp, _ = _disc(plo[j], phi[j])
+        td = theta[j * per + 4]
+        # d(K) = 2 Re(K conj(mc - mp)) + const
+        a = 2.0 * (mc.real - mp.real)
+        b = 2.0 * (mc.imag - mp.imag)
+        if a >= 0.0:
+            theta[j * per + 1] += td * a
+        else:
+            theta[j * per] -= td * a
+        if b >= 0.0:
+            theta[j * per + 3] += td * b
+        else:
+            theta[j * per + 2] -= td * b
+
+
+@jit
 def n_forms(nd, nb, force, lower):
     """Multipliers of :func:`forms` (the constant form not counted)."""
     return nd * (6 if force else 5) + 1 + (nb - 1 if lower else 0)
@@ -668,24 +753,46 @@ def n_forms(nd, nb, force, lower):
 
 @jit
 def relaxed_bound(G, q0, ylin, H, lo, hi, F_lim, beam, goal, V, idx, S, x, cvec, pos,
-                  simplex, grow, ws, stats):
+                  simplex, grow, ws, stats, theta, plo, phi):
     """The verified bound over the dampers in ``[lo_j, hi_j]`` (N/m) and the force limit
     (m): of ``|y_beam|`` from above (``beam >= 0``), of ``max_b |y_b|`` from below
     (``beam < 0``); ``nan`` where nothing verified (rounded outwards). The solver stops
-    once it proves ``goal`` (m); ``stats[2]`` counts the relaxation."""
+    once it proves ``goal`` (m); ``stats[2]`` counts the relaxation.
+
+    ``theta`` (shape (m + 1,)): the multipliers (unscaled, :func:`weights`) and weight
+    ratio a relaxation of the part ``[plo, phi]`` holding this one saved (``theta[0]``
+    NaN: none); where they, :func:`inherit`-ed, make ``Z`` positive definite the solver
+    starts there instead of cold (about half the Newton steps, the same bounds: a
+    start, never a proof). On return ``theta`` holds this relaxation's, for its parts.
+    """
     shift, ys = forms(G, q0, ylin, H, lo, hi, F_lim, beam, V, idx, S, x, cvec, pos,
                       simplex, grow)
     stats[2] += 1
-    if beam >= 0:
-        t = solve(x, shift, V, idx, S, cvec, pos, simplex, grow, goal * goal / ys, ws,
-                  stats)
-        if np.isnan(t):
-            return np.nan
-        return math.sqrt(max(t, 0.0) * ys) * (1.0 + 1e-14)
-    s = solve(x, shift, V, idx, S, cvec, pos, simplex, grow, -goal * goal / ys, ws, stats)
-    if np.isnan(s):
+    m = len(x)
+    per = 6 if np.isfinite(F_lim) else 5
+    w = np.empty(m)
+    weights(S, len(q0), per, w)
+    warm = 0.0
+    if not np.isnan(theta[0]):
+        inherit(theta, lo, hi, plo, phi, per)
+        xw = theta[:m] / w
+        C, T, Z, L = ws[0], ws[1], ws[2], ws[3]
+        _assemble(xw, 1.0, V, idx, S, C, T, Z, m)
+        if not np.isnan(cholesky(Z, L, V.shape[0])):
+            x[:] = xw
+            warm = theta[m]
+    goal2 = goal * goal / ys
+    save = np.empty(m + 1)
+    val = solve(x, shift, V, idx, S, cvec, pos, simplex, grow,
+                goal2 if beam >= 0 else -goal2, ws, stats, warm, save)
+    theta[0] = np.nan
+    if np.isnan(val):
         return np.nan
-    return math.sqrt(max(-s * ys, 0.0)) * (1.0 - 1e-14)
+    theta[:m] = save[:m] * w
+    theta[m] = save[m]
+    if beam >= 0:
+        return math.sqrt(max(val, 0.0) * ys) * (1.0 + 1e-14)
+    return math.sqrt(max(-val * ys, 0.0)) * (1.0 - 1e-14)
 
 
 @jit(nogil=True)
@@ -715,6 +822,8 @@ def relax_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, floor, target, fr
     eq10 = np.empty(nb)
     xprev = np.empty(m)
     xw = np.empty(m)
+    save = np.empty(m + 1)
+    cold = np.full(m + 1, np.nan)
     Kc = np.empty((2, nd), np.complex128)
     for k in freqs:
         if want_max:
@@ -742,7 +851,7 @@ def relax_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, floor, target, fr
                 if np.isnan(t):
                     stats[2] += 1
                     t = solve(x, shift, V, idx, S, cvec, pos, simplex, grow,
-                              goal * goal / ys, ws, stats)
+                              goal * goal / ys, ws, stats, 0.0, save)
                     if not np.isnan(t):
                         xprev[:] = x
                         have = True
@@ -755,8 +864,9 @@ def relax_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, floor, target, fr
                 R = max(R, bound)
             out[k] = R
         else:
+            cold[0] = np.nan
             b = relaxed_bound(G[k], q0[k], ylin[k], H[k], lo, hi, F_lim, -1, target[k], V,
-                              idx, S, x, cvec, pos, simplex, grow, ws, stats)
+                              idx, S, x, cvec, pos, simplex, grow, ws, stats, cold, lo, hi)
             out[k] = 0.0 if np.isnan(b) else b
             if not np.isnan(b) and rounded(x, V, idx, S, kr, ki, F_lim, ws, Kc):
                 K_round[k] = Kc
