@@ -85,13 +85,15 @@ def test_three_dampers_enclose_an_exhaustive_grid(freq):
     for b in range(nb):
         buf = _buffers(nd, nb, False)
         whole = _relaxed(G, q0, ylin, H, lo, hi, b, 0.0, buf)
-        bound, used = branch(G, q0, ylin, H, K_MAX, K_MAX, F_LIM, b, whole, 0.0, 120, *buf)
+        bound, used = branch(G, q0, ylin, H, K_MAX, K_MAX, F_LIM, b, whole, 0.0, 120, *buf,
+                             np.empty((0, nd), complex))
         assert used <= 120 and bound <= whole
         uppers.append(bound)
     assert M[ok].max() <= max(uppers)
     buf = _buffers(nd, nb, True)
     whole = _relaxed(G, q0, ylin, H, lo, hi, -1, np.inf, buf)
-    lower, used = branch(G, q0, ylin, H, K_MAX, K_MAX, F_LIM, -1, whole, np.inf, 120, *buf)
+    lower, used = branch(G, q0, ylin, H, K_MAX, K_MAX, F_LIM, -1, whole, np.inf, 120, *buf,
+                         np.empty((0, nd), complex))
     assert used <= 120 and whole <= lower <= M[ok].min()
 
 

@@ -64,6 +64,9 @@ RELAX = True
 #: Relaxations of parts of the box per frequency and bound at most, where the relaxation
 #: of the whole box leaves the bound loose (:mod:`mcfric.core.relaxation_branch`).
 SPLIT_BUDGET = 400
+#: Open parts of least lower bound whose relaxations are rounded, where splitting leaves
+#: the lower bound loose, as starts for the lower witness's descent.
+ROUNDED_PARTS = 4
 #: Newton steps, barrier rounds and relaxations of the last call, upper and lower (for
 #: the docs' measurements).
 LAST_RELAXATION = np.zeros((2, 3), np.int64)
@@ -294,11 +297,15 @@ def _split(args, kr, ki, F_lim, want_max, cert, wit, rtol, atol, beam_bounds, bu
     """``cert`` tightened, where it is not yet within the tolerance of ``wit``, by the
     branch and bound over relaxations of parts of the box
     (:mod:`mcfric.core.relaxation_branch`), ``budget`` relaxations per frequency at most;
-    ``beam_bounds`` (the upper bound's) is updated in place. Returns the new ``cert``
-    and the number of relaxations."""
+    ``beam_bounds`` (the upper bound's) is updated in place. Returns the new ``cert``,
+    the number of relaxations, and for the lower bound the rounded points of the
+    :data:`ROUNDED_PARTS` open parts of least bound where it stays loose (n_f,
+    2 ROUNDED_PARTS, nd; N/m, NaN where none)."""
+    n_f, nd = args[1].shape
+    K_round = np.full((n_f, 0 if want_max else 2 * ROUNDED_PARTS, nd), np.nan + 0j)
     loose = np.flatnonzero(~_met(want_max, cert, wit, rtol, atol) & np.isfinite(cert))
     if not len(loose) or budget <= 0:
-        return cert, 0
+        return cert, 0, K_round
     target = _target(want_max, wit, rtol, atol)
     from tqdm import tqdm
 
@@ -311,12 +318,25 @@ def _split(args, kr, ki, F_lim, want_max, cert, wit, rtol, atol, beam_bounds, bu
               desc=f"splitting the box ({'upper' if want_max else 'lower'})") as bar:
         def step(item):
             branch_frequencies(*args_, np.asarray(item[1], np.int64), beam_bounds, got,
-                               stats[item[0]])
+                               stats[item[0]], K_round)
             bar.update(len(item[1]))
 
         in_threads(step, enumerate(np.array_split(loose, min(len(loose), 64))))
     LAST_SPLIT[int(not want_max)] = stats.sum(axis=0)
-    return (np.fmin(cert, got) if want_max else np.fmax(cert, got)), int(stats[:, 2].sum())
+    return ((np.fmin(cert, got) if want_max else np.fmax(cert, got)),
+            int(stats[:, 2].sum()), K_round)
+
+
+def _descend(args, kr, ki, F_lim, starts, cert, wit, K, rtol, atol):
+    """Lower witnesses improved, where the lower bound is loose, by descents from
+    ``starts`` (n_f, n_s, nd; N/m, NaN rows skipped:
+    :func:`mcfric.core.joint_descent.lowest`); ``wit`` and ``K`` in place."""
+    todo = np.flatnonzero(~np.isnan(starts[:, :, 0]).all(axis=1) &
+                          ~_met(False, cert, wit, rtol, atol))
+    if len(todo):
+        in_threads(lambda fs: lowest(*args, kr, ki, F_lim, starts,
+                                     np.asarray(fs, np.int64), K, wit),
+                   [todo[c] for c in _chunks(len(todo))])
 
 
 def _second_order(args, kr, ki, F_lim, cert, wit, beam_bounds, rtol):
@@ -475,15 +495,15 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
                 # the box search's minimum may break the force limit, and the corners
                 # lie far above the joint minimum: descend from the relaxation's rounded
                 # points and the witness where the bound is loose
-                todo = np.flatnonzero(~np.isnan(K_round[:, 0, 0]) &
-                                      ~_met(False, cert, wit, rtol, atol))
-                if len(todo):
-                    in_threads(lambda fs: lowest(*args, kr, ki, F_lim, K_round,
-                                                 np.asarray(fs, np.int64), K, wit),
-                               [todo[c] for c in _chunks(len(todo))])
-            cert, used = _split(args, kr, ki, F_lim, want_max, cert, wit, rtol, atol,
-                                beam_bounds, split)
+                _descend(args, kr, ki, F_lim, K_round, cert, wit, K, rtol, atol)
+            cert, used, K_parts = _split(args, kr, ki, F_lim, want_max, cert, wit, rtol,
+                                         atol, beam_bounds, split)
             split_used[int(not want_max)] = used
+            if not want_max:
+                # the parts' relaxations are tighter, and a part holds one of a mirror
+                # pair of minima that the whole box's rounding mixes into the symmetric
+                # point: descend from them too
+                _descend(args, kr, ki, F_lim, K_parts, cert, wit, K, rtol, atol)
             if want_max:
                 if moments:
                     cert, K_first, second_order = _second_order(args, kr, ki, F_lim, cert,

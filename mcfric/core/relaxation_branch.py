@@ -23,7 +23,7 @@ parts. This halves the Newton steps; every bound is still a verified one.
 import numpy as np
 
 from ._jit import jit
-from .relaxation import buffers, relaxed_bound
+from .relaxation import buffers, relaxed_bound, rounded
 
 #: The branch and bound gives up where no single split of the whole box closes this
 #: fraction of the gap between its bound and the goal.
@@ -69,12 +69,20 @@ def _extreme(val, n, sgn):
 
 @jit
 def branch(G, q0, ylin, H, kr, ki, F_lim, beam, root, goal, budget, V, idx, S, x, cvec,
-           pos, simplex, grow, ws, stats):
+           pos, simplex, grow, ws, stats, K_round):
     """A bound over the box ``[0, kr] x [0, ki]`` proved by relaxing its parts: of
     ``|y_beam|`` from above (``beam >= 0``) or of ``max_b |y_b|`` from below (``beam <
     0``), m. ``root`` is a bound of the whole box already proved (m); the branch and
     bound stops once the extreme over the open parts reaches ``goal`` or after
-    ``budget`` relaxations. Returns the bound and the relaxations used."""
+    ``budget`` relaxations. Returns the bound and the relaxations used.
+
+    Where it stops short of ``goal``, the ``len(K_round) // 2`` open parts of extreme
+    bound are relaxed once more (in ``stats``, not in ``used``) and their
+    :func:`.relaxation.rounded` points written to ``K_round`` (N/m; rows left as they
+    are where none): starts for a witness. Over a part the relaxation is tighter than
+    over the box, and a part holds one of a mirror pair of optima where the whole box's
+    primal point mixes them.
+    """
     nd = len(q0)
     upper = beam >= 0
     sgn = 1.0 if upper else -1.0
@@ -179,16 +187,30 @@ def branch(G, q0, ylin, H, kr, ki, F_lim, beam, root, goal, budget, V, idx, S, x
         gain[pick_j, pick_s] += (max(sgn * (parent - worst), 0.0) / max(parent, 1e-300)
                                  / max(width[pick_j, pick_s], 1e-12))
         count[pick_j, pick_s] += 1.0
-    return val[_extreme(val, n, sgn)], used
+    extreme = val[_extreme(val, n, sgn)]
+    if sgn * extreme > sgn * goal:
+        Kc = np.empty((2, nd), np.complex128)
+        for r in range(len(K_round) // 2):
+            i = _extreme(val, n, sgn)
+            if not np.isfinite(val[i]):
+                break
+            th2[:] = th[i]
+            relaxed_bound(G, q0, ylin, H, los[i], his[i], F_lim, beam, goal, V, idx, S, x,
+                          cvec, pos, simplex, grow, ws, stats, th2, los[i], his[i])
+            if rounded(x, V, idx, S, kr, ki, F_lim, ws, Kc):
+                K_round[2 * r:2 * r + 2] = Kc
+            val[i] = -sgn * np.inf
+    return extreme, used
 
 
 @jit(nogil=True)
 def branch_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, cert, target, budget,
-                       freqs, beam_bounds, out, stats):
+                       freqs, beam_bounds, out, stats, K_round):
     """Certified bounds at ``freqs`` tightened by :func:`branch`: ``out[k]`` the upper
     bound of ``max_b |y_b|`` (``want_max``) or the lower one (m), never looser than
     ``cert[k]``, aiming at ``target[k]``, with at most ``budget`` relaxations per
-    frequency.
+    frequency. For the lower bound, ``K_round[k]`` (shape (2 r, nd), N/m) receives the
+    rounded points of the ``r`` open parts of least bound where the target is not met.
 
     The upper bound takes the beams in decreasing order of ``beam_bounds[k]`` (each
     beam's proven bound, m, updated in place) and stops at the first at or below the
@@ -199,11 +221,12 @@ def branch_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, cert, target, bu
     n_f, nd = q0.shape
     V, idx, S, x, cvec, pos, simplex, grow, ws = buffers(nd, ylin.shape[1],
                                                          np.isfinite(F_lim), not want_max)
+    none = np.empty((0, nd), np.complex128)
     for k in freqs:
         if not want_max:
             b, _ = branch(G[k], q0[k], ylin[k], H[k], kr, ki, F_lim, -1, cert[k],
                           target[k], budget, V, idx, S, x, cvec, pos, simplex, grow, ws,
-                          stats)
+                          stats, K_round[k])
             out[k] = max(cert[k], b)
             continue
         left = budget
@@ -218,7 +241,7 @@ def branch_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, cert, target, bu
             if left >= 6:
                 got, used = branch(G[k], q0[k], ylin[k], H[k], kr, ki, F_lim, b, bound,
                                    goal, left, V, idx, S, x, cvec, pos, simplex, grow,
-                                   ws, stats)
+                                   ws, stats, none)
                 left -= used
                 bound = min(bound, got)
                 beam_bounds[k, b] = bound
