@@ -63,7 +63,7 @@ WITNESS_SAMPLES = 12
 RELAX = True
 #: Relaxations of parts of the box per frequency and bound at most, where the relaxation
 #: of the whole box leaves the bound loose (:mod:`mcfric.core.relaxation_branch`).
-SPLIT_BUDGET = 400
+SPLIT_BUDGET = 800
 #: Open parts of least lower bound whose relaxations are rounded, where splitting leaves
 #: the lower bound loose, as starts for the lower witness's descent.
 ROUNDED_PARTS = 4

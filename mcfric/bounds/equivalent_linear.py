@@ -222,7 +222,7 @@ def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity
     split : int, optional
         Relaxations of parts of the box per frequency and bound where the relaxation of
         the whole box leaves the certificate loose (0: none; default
-        :data:`.certified.SPLIT_BUDGET`, 400: :mod:`mcfric.core.relaxation_branch`).
+        :data:`.certified.SPLIT_BUDGET`, 800: :mod:`mcfric.core.relaxation_branch`).
     moments : bool
         Also tighten the certified upper bound by the second-order moment relaxation
         (chains of 2-7 dampers with a force limit; ``pip install "mcfric[moments]"``;

@@ -74,7 +74,7 @@ def defaults(preset=DEFAULT_PRESET):
         "run": {"threads": 0, "chunk": 0, "checkpoint_s": 0.0, "scheduler": ""},
         "bounds": {"enabled": True, "k_max": "auto", "k_max_im": "auto", "F_lim": "auto",
                    "n_starts": 3, "certify": True, "certify_budget": "auto",
-                   "certify_split": 400, "certify_moments": False},
+                   "certify_split": 800, "certify_moments": False},
     }
 
 
