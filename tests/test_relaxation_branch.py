@@ -10,7 +10,7 @@ import pytest
 import mcfric
 from mcfric.bounds import compute_bounds
 from mcfric.core.relaxation import buffers, forms, inherit, relaxed_bound, weights
-from mcfric.core.relaxation_branch import branch
+from mcfric.core.relaxation_branch import _split, branch
 
 from .test_certified import F_LIM, K_MAX, chain, grid_points, physical_grid
 from .test_force_ascent import arrays
@@ -108,17 +108,16 @@ def _Z(buf, x):
 
 
 def _halves(rng, lo, hi, depth):
-    """A chain of ``depth`` random halvings of ``[lo, hi]``: (parent, part) boxes."""
+    """A chain of ``depth`` random halvings of ``[lo, hi]`` (the branch and bound's
+    ``_split``, one half kept at random): (parent, part) boxes."""
     out = []
+    lo, hi = lo.copy(), hi.copy()
     for _ in range(depth):
         plo, phi = lo.copy(), hi.copy()
-        j, side, upper_half = rng.integers(len(lo)), rng.integers(2), rng.integers(2)
-        part = 1j if side else 1.0
-        mid = 0.5 * ((lo[j] * part.conjugate()).real + (hi[j] * part.conjugate()).real)
-        if upper_half:
-            lo[j] = lo[j] + part * (mid - (lo[j] * part.conjugate()).real)
-        else:
-            hi[j] = hi[j] - part * ((hi[j] * part.conjugate()).real - mid)
+        lo2, hi2 = np.empty_like(lo), np.empty_like(hi)
+        _split(lo, hi, rng.integers(len(lo)), rng.integers(2), lo2, hi2)
+        if rng.integers(2):
+            lo, hi = lo2, hi2
         out.append((plo, phi, lo.copy(), hi.copy()))
     return out
 

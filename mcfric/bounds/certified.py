@@ -504,13 +504,12 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
                 # pair of minima that the whole box's rounding mixes into the symmetric
                 # point: descend from them too
                 _descend(args, kr, ki, F_lim, K_parts, cert, wit, K, rtol, atol)
-            if want_max:
-                if moments:
-                    cert, K_first, second_order = _second_order(args, kr, ki, F_lim, cert,
-                                                                wit, beam_bounds, rtol)
-                    # its first moments start one more climb in the forces
-                    wit = _force_ascent(args, kr, ki, F_lim, K_first,
-                                        np.fmin(cert / (1 + rtol), box_max), wit, K)
+            elif moments:
+                cert, K_first, second_order = _second_order(args, kr, ki, F_lim, cert, wit,
+                                                            beam_bounds, rtol)
+                # its first moments start one more climb in the forces
+                wit = _force_ascent(args, kr, ki, F_lim, K_first,
+                                    np.fmin(cert / (1 + rtol), box_max), wit, K)
         if want_max:
             cert = np.maximum(np.fmin(cert, force), wit)
         else:
