@@ -68,9 +68,9 @@ SPLIT_BUDGET = 800
 #: the lower bound loose, as starts for the lower witness's descent.
 ROUNDED_PARTS = 4
 #: Newton steps, barrier rounds and relaxations of the last call, upper and lower (for
-#: the docs' measurements).
+#: the docs' measurements); the split's also the mirrored parts verified.
 LAST_RELAXATION = np.zeros((2, 3), np.int64)
-LAST_SPLIT = np.zeros((2, 3), np.int64)
+LAST_SPLIT = np.zeros((2, 4), np.int64)
 #: Relative margin on the force bound (a sum of non-negative products: (nd + 2) u).
 _FORCE_MARGIN = 1e-12
 
@@ -310,7 +310,7 @@ def _split(args, kr, ki, F_lim, want_max, cert, wit, rtol, atol, beam_bounds, bu
     from tqdm import tqdm
 
     got = cert.copy()
-    stats = np.zeros((64, 3), np.int64)
+    stats = np.zeros((64, 4), np.int64)
     args_ = (*args, kr, ki, F_lim, want_max, np.ascontiguousarray(cert),
              np.ascontiguousarray(target), int(budget))
     # up to a second per frequency: a bar on stderr (shown on a terminal only)

@@ -18,12 +18,21 @@ A part's relaxation starts from its parent's multipliers (:func:`.relaxation.inh
 they keep ``Z`` positive definite on the part), taken from an iterate of the parent's
 barrier still well inside its cone; the whole box is relaxed once more to start its
 parts. This halves the Newton steps; every bound is still a verified one.
+
+On a chain that is its own mirror image (the same dampers in reverse order, a drive
+that is symmetric or antisymmetric), beam ``nb - 1 - b``'s largest response is beam
+``b``'s: the parts that proved beam ``b``'s bound, reversed with their multipliers, are
+checked as beam ``nb - 1 - b``'s certificate (:func:`mirrored`) instead of splitting the
+box again. The check is a verification on the beam's own forms, so it is as sound on
+any chain; where the chain is not symmetric it just fails and the beam is split.
 """
+
+import math
 
 import numpy as np
 
 from ._jit import jit
-from .relaxation import buffers, relaxed_bound, rounded
+from .relaxation import buffers, forms, relaxed_bound, rounded, shifted, weights
 
 #: The branch and bound gives up where no single split of the whole box closes this
 #: fraction of the gap between its bound and the goal.
@@ -68,13 +77,127 @@ def _extreme(val, n, sgn):
 
 
 @jit
+def parts(nd, m, budget):
+    """Room for the parts of :func:`branch` with ``budget`` relaxations, ``nd`` dampers
+    and ``m`` multipliers: ``(los, his, val, th, fin)``, each part's rectangles (N/m),
+    bound (m), saved multipliers and ratio (a start for its halves) and verified
+    multipliers (unscaled, :func:`.relaxation.weights`; NaN where none)."""
+    n = max(budget + 2, 4)
+    return (np.zeros((n, nd), np.complex128), np.empty((n, nd), np.complex128),
+            np.empty(n), np.full((n, m + 1), np.nan), np.full((n, m), np.nan))
+
+
+@jit
+def _keep(ok, x, S, nd, per, w, out):
+    """``out``: the verified multipliers ``x`` of the part whose forms ``S`` holds,
+    unscaled (NaN unless ``ok``)."""
+    if not ok:
+        out[0] = np.nan
+        return
+    weights(S, nd, per, w)
+    for i in range(len(x)):
+        out[i] = x[i] * w[i]
+
+
+@jit
+def mirror_sign(G, q0, ylin, H):
+    """``s = +1`` or ``-1`` where the chain is its own mirror image (dampers and beams
+    in reverse order, ``G`` the same, ``q0`` and ``H`` times ``s``, ``ylin`` the same;
+    to ``1e-9`` of each array's largest entry), else ``0``. Only a hint: the mirrored
+    certificates of :func:`mirrored` are verified anyway."""
+    nd, nb = len(q0), len(ylin)
+    tol = 1e-9
+    gm = np.abs(G).max()
+    for i in range(nd):
+        for j in range(nd):
+            if abs(G[nd - 1 - i, nd - 1 - j] - G[i, j]) > tol * gm:
+                return 0
+    ym = np.abs(ylin).max()
+    for b in range(nb):
+        if abs(ylin[nb - 1 - b] - ylin[b]) > tol * ym:
+            return 0
+    qm = np.abs(q0).max()
+    hm = np.abs(H).max()
+    for s in (1.0, -1.0):
+        ok = True
+        for j in range(nd):
+            if abs(q0[nd - 1 - j] - s * q0[j]) > tol * qm:
+                ok = False
+        for b in range(nb):
+            for j in range(nd):
+                if abs(H[nb - 1 - b, nd - 1 - j] - s * H[b, j]) > tol * hm:
+                    ok = False
+        if ok:
+            return int(s)
+    return 0
+
+
+@jit
+def mirrored(G, q0, ylin, H, F_lim, beam, goal, prt, n, V, idx, S, x, cvec, pos, simplex,
+             grow, ws, stats):
+    """A bound of ``|y_beam|`` (m) from the ``n`` parts ``prt`` (:func:`parts`) that
+    proved the mirror beam's: on a chain that is its own mirror image the mirrored
+    parts (dampers reversed) cover the box too, and each part's multipliers, reversed
+    with it, are this beam's certificate there; each is verified
+    (:func:`.relaxation.shifted`), and where it does not prove ``goal`` the part is
+    relaxed once, started from them. Returns the largest (``nan`` where a part stays
+    above ``goal``: then the beam is split itself) and the relaxations used."""
+    los, his, val, th, fin = prt
+    nd = len(q0)
+    m = len(x)
+    per = 6 if np.isfinite(F_lim) else 5
+    lo = np.empty(nd, np.complex128)
+    hi = np.empty(nd, np.complex128)
+    w = np.empty(m)
+    theta = np.empty(m + 1)
+    worst = 0.0
+    used = 0
+    for i in range(n):
+        for j in range(nd):
+            lo[j] = los[i, nd - 1 - j]
+            hi[j] = his[i, nd - 1 - j]
+        b = np.nan
+        if not np.isnan(fin[i, 0]):
+            shift, ys = forms(G, q0, ylin, H, lo, hi, F_lim, beam, V, idx, S, x, cvec, pos,
+                              simplex, grow)
+            weights(S, nd, per, w)
+            _reverse(fin[i], nd, per, x)
+            for k in range(m):
+                x[k] /= w[k]
+            t = shifted(x, shift, V, idx, S, pos, simplex, ws)
+            if not np.isnan(t):
+                b = math.sqrt(max(t, 0.0) * ys) * (1.0 + 1e-14)
+            stats[3] += 1
+        if not b <= goal and not np.isnan(th[i, 0]):
+            _reverse(th[i], nd, per, theta)
+            b = relaxed_bound(G, q0, ylin, H, lo, hi, F_lim, beam, goal, V, idx, S, x,
+                              cvec, pos, simplex, grow, ws, stats, theta, lo, hi)
+            used += 1
+        if not b <= goal:
+            return np.nan, used
+        worst = max(worst, b)
+    return worst, used
+
+
+@jit
+def _reverse(a, nd, per, out):
+    """``out``: the multipliers ``a`` with the dampers' forms in reverse order (the
+    rest as they are)."""
+    out[:] = a
+    for j in range(nd):
+        for f in range(per):
+            out[j * per + f] = a[(nd - 1 - j) * per + f]
+
+
+@jit
 def branch(G, q0, ylin, H, kr, ki, F_lim, beam, root, goal, budget, V, idx, S, x, cvec,
-           pos, simplex, grow, ws, stats, K_round):
+           pos, simplex, grow, ws, stats, K_round, prt):
     """A bound over the box ``[0, kr] x [0, ki]`` proved by relaxing its parts: of
     ``|y_beam|`` from above (``beam >= 0``) or of ``max_b |y_b|`` from below (``beam <
     0``), m. ``root`` is a bound of the whole box already proved (m); the branch and
     bound stops once the extreme over the open parts reaches ``goal`` or after
-    ``budget`` relaxations. Returns the bound and the relaxations used.
+    ``budget`` relaxations. Returns the bound, the relaxations used and the number of
+    parts, which ``prt`` (:func:`parts`, room for ``budget``) holds on return.
 
     Where it stops short of ``goal``, the ``len(K_round) // 2`` open parts of extreme
     bound are relaxed once more (in ``stats``, not in ``used``) and their
@@ -86,10 +209,9 @@ def branch(G, q0, ylin, H, kr, ki, F_lim, beam, root, goal, budget, V, idx, S, x
     nd = len(q0)
     upper = beam >= 0
     sgn = 1.0 if upper else -1.0
-    n_max = max(budget + 2, 4)
-    los = np.zeros((n_max, nd), np.complex128)
-    his = np.empty((n_max, nd), np.complex128)
-    val = np.empty(n_max)
+    los, his, val, th, fin = prt
+    n_max = min(max(budget + 2, 4), len(val))
+    los[0, :] = 0.0
     for j in range(nd):
         his[0, j] = complex(kr, ki)
     val[0] = root
@@ -102,12 +224,17 @@ def branch(G, q0, ylin, H, kr, ki, F_lim, beam, root, goal, budget, V, idx, S, x
     phi = np.empty(nd, np.complex128)
     # each part's multipliers, the start of its parts' relaxations (relaxed_bound)
     m = len(x)
-    th = np.full((n_max, m + 1), np.nan)
+    per = 6 if np.isfinite(F_lim) else 5
+    w = np.empty(m)
+    th[0, 0] = np.nan
     th2 = np.empty(m + 1)
     th3 = np.empty(m + 1)
-    val[0] = _bounded(relaxed_bound(G, q0, ylin, H, los[0], his[0], F_lim, beam, goal, V,
-                                    idx, S, x, cvec, pos, simplex, grow, ws, stats, th[0],
-                                    los[0], his[0]), root, upper)
+    fin2 = np.empty(m)
+    fin3 = np.empty(m)
+    b0 = relaxed_bound(G, q0, ylin, H, los[0], his[0], F_lim, beam, goal, V, idx, S, x,
+                       cvec, pos, simplex, grow, ws, stats, th[0], los[0], his[0])
+    _keep(not np.isnan(b0), x, S, nd, per, w, fin[0])
+    val[0] = _bounded(b0, root, upper)
     root = val[0]
     used = 1
     # the pseudo-costs' start: every side of the whole box split once (widths 1); the
@@ -121,12 +248,16 @@ def branch(G, q0, ylin, H, kr, ki, F_lim, beam, root, goal, budget, V, idx, S, x
                 _split(los[2], his[2], j, side, lo2, hi2)
                 th2[:] = th[0]
                 th3[:] = th[0]
-                b1 = _bounded(relaxed_bound(G, q0, ylin, H, los[2], his[2], F_lim, beam,
-                                            goal, V, idx, S, x, cvec, pos, simplex, grow,
-                                            ws, stats, th2, los[0], his[0]), root, upper)
-                b2 = _bounded(relaxed_bound(G, q0, ylin, H, lo2, hi2, F_lim, beam, goal, V,
-                                            idx, S, x, cvec, pos, simplex, grow, ws, stats,
-                                            th3, los[0], his[0]), root, upper)
+                b1 = relaxed_bound(G, q0, ylin, H, los[2], his[2], F_lim, beam, goal, V,
+                                   idx, S, x, cvec, pos, simplex, grow, ws, stats, th2,
+                                   los[0], his[0])
+                _keep(not np.isnan(b1), x, S, nd, per, w, fin2)
+                b2 = relaxed_bound(G, q0, ylin, H, lo2, hi2, F_lim, beam, goal, V, idx, S,
+                                   x, cvec, pos, simplex, grow, ws, stats, th3, los[0],
+                                   his[0])
+                _keep(not np.isnan(b2), x, S, nd, per, w, fin3)
+                b1 = _bounded(b1, root, upper)
+                b2 = _bounded(b2, root, upper)
                 used += 2
                 g = max(sgn * (root - sgn * max(sgn * b1, sgn * b2)), 0.0) / max(root, 1e-300)
                 gain[j, side] = g + 1e-6
@@ -137,21 +268,21 @@ def branch(G, q0, ylin, H, kr, ki, F_lim, beam, root, goal, budget, V, idx, S, x
                     his[1] = his[2]
                     val[1] = b1
                     th[1] = th2
+                    fin[1] = fin2
                     los[3] = lo2
                     his[3] = hi2
                     val[3] = b2
                     th[3] = th3
+                    fin[3] = fin3
         if pick < STALL * sgn * (root - goal) / max(root, 1e-300):
             # no side's split gains: more of them will not either (measured)
-            return root, used
-        los[0] = los[1]
-        his[0] = his[1]
-        val[0] = val[1]
-        th[0] = th[1]
-        los[1] = los[3]
-        his[1] = his[3]
-        val[1] = val[3]
-        th[1] = th[3]
+            return root, used, 1
+        for a, c in ((0, 1), (1, 3)):
+            los[a] = los[c]
+            his[a] = his[c]
+            val[a] = val[c]
+            th[a] = th[c]
+            fin[a] = fin[c]
         n = 2
     while used + 2 <= budget:
         best = _extreme(val, n, sgn)
@@ -178,9 +309,10 @@ def branch(G, q0, ylin, H, kr, ki, F_lim, beam, root, goal, budget, V, idx, S, x
         _split(los[best], his[best], pick_j, pick_s, los[n], his[n])
         th[n] = th[best]
         for i in (best, n):
-            val[i] = _bounded(relaxed_bound(G, q0, ylin, H, los[i], his[i], F_lim, beam,
-                                            goal, V, idx, S, x, cvec, pos, simplex, grow,
-                                            ws, stats, th[i], plo, phi), parent, upper)
+            b = relaxed_bound(G, q0, ylin, H, los[i], his[i], F_lim, beam, goal, V, idx, S,
+                              x, cvec, pos, simplex, grow, ws, stats, th[i], plo, phi)
+            _keep(not np.isnan(b), x, S, nd, per, w, fin[i])
+            val[i] = _bounded(b, parent, upper)
         used += 2
         worst = sgn * max(sgn * val[best], sgn * val[n])
         n += 1
@@ -200,7 +332,7 @@ def branch(G, q0, ylin, H, kr, ki, F_lim, beam, root, goal, budget, V, idx, S, x
             if rounded(x, V, idx, S, kr, ki, F_lim, ws, Kc):
                 K_round[2 * r:2 * r + 2] = Kc
             val[i] = -sgn * np.inf
-    return extreme, used
+    return extreme, used, n
 
 
 @jit(nogil=True)
@@ -215,22 +347,29 @@ def branch_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, cert, target, bu
     The upper bound takes the beams in decreasing order of ``beam_bounds[k]`` (each
     beam's proven bound, m, updated in place) and stops at the first at or below the
     running maximum or ``target[k]``; each beam's branch and bound stops once it proves
-    the beam below both. ``stats`` (int64, shape (3,)): Newton steps, barrier rounds
-    and relaxations are added to it.
+    the beam below both. On a chain that is its own mirror image a beam whose mirror
+    beam was just proved takes its mirrored parts (:func:`mirrored`) and is split only
+    where they fail. ``stats`` (int64, shape (4,)): Newton steps, barrier rounds,
+    relaxations and mirrored parts verified are added to it.
     """
     n_f, nd = q0.shape
-    V, idx, S, x, cvec, pos, simplex, grow, ws = buffers(nd, ylin.shape[1],
-                                                         np.isfinite(F_lim), not want_max)
+    nb = ylin.shape[1]
+    V, idx, S, x, cvec, pos, simplex, grow, ws = buffers(nd, nb, np.isfinite(F_lim),
+                                                         not want_max)
+    prt = parts(nd, len(x), budget)
     none = np.empty((0, nd), np.complex128)
     for k in freqs:
         if not want_max:
-            b, _ = branch(G[k], q0[k], ylin[k], H[k], kr, ki, F_lim, -1, cert[k],
-                          target[k], budget, V, idx, S, x, cvec, pos, simplex, grow, ws,
-                          stats, K_round[k])
+            b, _, _ = branch(G[k], q0[k], ylin[k], H[k], kr, ki, F_lim, -1, cert[k],
+                             target[k], budget, V, idx, S, x, cvec, pos, simplex, grow, ws,
+                             stats, K_round[k], prt)
             out[k] = max(cert[k], b)
             continue
+        sym = mirror_sign(G[k], q0[k], ylin[k], H[k]) != 0
         left = budget
         R = 0.0
+        last = -1
+        n_last = 0
         for b in np.argsort(-beam_bounds[k]):
             bound = beam_bounds[k, b]
             goal = max(R, target[k])
@@ -239,11 +378,20 @@ def branch_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, cert, target, bu
                 R = max(R, bound)
                 break
             if left >= 6:
-                got, used = branch(G[k], q0[k], ylin[k], H[k], kr, ki, F_lim, b, bound,
-                                   goal, left, V, idx, S, x, cvec, pos, simplex, grow,
-                                   ws, stats, none)
-                left -= used
-                bound = min(bound, got)
+                got = np.nan
+                if sym and last == nb - 1 - b:
+                    got, used = mirrored(G[k], q0[k], ylin[k], H[k], F_lim, b, goal, prt,
+                                         n_last, V, idx, S, x, cvec, pos, simplex, grow,
+                                         ws, stats)
+                    left -= used
+                if np.isnan(got) and left >= 6:
+                    got, used, n_last = branch(G[k], q0[k], ylin[k], H[k], kr, ki, F_lim, b,
+                                               bound, goal, left, V, idx, S, x, cvec, pos,
+                                               simplex, grow, ws, stats, none, prt)
+                    last = b
+                    left -= used
+                if not np.isnan(got):
+                    bound = min(bound, got)
                 beam_bounds[k, b] = bound
             R = max(R, bound)
         out[k] = min(cert[k], R)
