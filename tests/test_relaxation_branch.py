@@ -9,7 +9,7 @@ import pytest
 
 import mcfric
 from mcfric.bounds import compute_bounds
-from mcfric.core.relaxation import buffers, forms, inherit, relaxed_bound, weights
+from mcfric.core.relaxation import buffers, forms, inherit, relaxed_bound, spread, weights
 from mcfric.core.relaxation_branch import _split, branch, mirror_sign, mirrored, parts
 
 from .test_certified import F_LIM, K_MAX, chain, grid_points, physical_grid
@@ -104,7 +104,11 @@ def _Z(buf, x):
     V, idx, S = buf[0], buf[1], buf[2]
     C = np.zeros((V.shape[1], V.shape[1]), complex)
     for i, w in enumerate(np.append(x, 1.0)):
-        C[np.ix_(idx[i], idx[i])] += w * S[i]
+        for a in range(2):
+            for b in range(2):
+                # one by one: a form on one basis vector (idx[i, 0] == idx[i, 1]) adds
+                # all four entries to the same place
+                C[idx[i, a], idx[i, b]] += w * S[i, a, b]
     return V @ C @ V.conj().T
 
 
@@ -252,3 +256,30 @@ def test_mirrored_parts_prove_the_mirror_beam():
     bound4b, _ = mirrored(G, q0, ylin2, H, F_LIM, 4, np.inf, prt, n, *buf[:-1], stats)
     Y2, _ = _beam_values(G, q0, ylin2, H, K)
     assert Y2[ok, 4].max() <= bound4b and bound4b > 1.2 * bound4
+
+
+def test_spread_is_the_variance_of_K_over_the_mixture():
+    """Eight beams, 0.25 N, 73 Hz (the relaxation 2.6 times the witness: its primal point
+    a mixture): ``spread`` equals, in numpy, the ``|q_j|^2``-weighted variance of ``K_j =
+    p_j / q_j`` over the points ``z_k = u_k / u_k[-1]`` of the eigen-decomposition
+    ``X = Z^-1 = sum lambda_k u_k u_k^H``, and is far from 0 for some damper."""
+    model = mcfric.eight_beam(0.25)
+    G, q0, ylin, H = (x[0] for x in arrays(model, np.array([73.0])))
+    nd, nb = 7, 8
+    buf = _buffers(nd, nb, False)
+    lo, hi = np.zeros(nd, complex), np.full(nd, K_MAX * (1 + 1j))
+    assert np.isfinite(_relaxed(G, q0, ylin, H, lo, hi, 3, 0.0, buf))
+    out = np.empty(nd)
+    assert spread(buf[3], buf[0], buf[1], buf[2], buf[8], out)
+    V = buf[0]
+    lam, U = np.linalg.eigh(np.linalg.inv(_Z(buf, buf[3])))
+    weight = lam * np.abs(U[-1]) ** 2
+    Z = U / U[-1]
+    q = V[:, :nd].conj().T @ Z
+    p = V[:, nd:2 * nd].conj().T @ Z
+    K = p / q
+    wq = weight * np.abs(q) ** 2
+    mean = (wq * K).sum(axis=1) / wq.sum(axis=1)
+    var = (wq * np.abs(K - mean[:, None]) ** 2).sum(axis=1) / wq.sum(axis=1)
+    assert np.allclose(out, var, rtol=1e-6, atol=1e-9 * K_MAX ** 2)
+    assert out.max() > 1e-3 * K_MAX ** 2

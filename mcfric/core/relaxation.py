@@ -523,6 +523,36 @@ def rounded(x, V, idx, S, kr, ki, F_lim, ws, K):
 
 
 @jit
+def spread(x, V, idx, S, ws, out):
+    """How much the relaxation at ``x`` mixes each damper's describing function: with
+    ``X = Z^-1`` (a multiple of the barrier's primal point, ``E[z z^H]`` of a mixture of
+    points ``z = (p, 1)``), ``out[j] = E|p_j|^2 / E|q_j|^2 - |E[conj(q_j) p_j] /
+    E|q_j|^2|^2`` ((N/m)^2): 0 where every point of the mixture has the same ``K_j =
+    p_j / q_j``. False (``out`` 0) if ``Z`` is not definite."""
+    C, T, Z, L, Zi, W = ws[0], ws[1], ws[2], ws[3], ws[4], ws[5]
+    nn = V.shape[0]
+    nd = nn - 1
+    out[:] = 0.0
+    _assemble(x, 1.0, V, idx, S, C, T, Z, len(x))
+    if np.isnan(cholesky(Z, L, nn)):
+        return False
+    _inverse(L, Zi, W, nn)
+    for j in range(nd):
+        # q_j = V[:, j]^H z, p_j = V[:, nd + j]^H z
+        a = 0j
+        c = 0j
+        e = 0j
+        for r in range(nn):
+            for t in range(nn):
+                a += V[r, j].conjugate() * Zi[r, t] * V[t, j]
+                c += V[r, nd + j].conjugate() * Zi[r, t] * V[t, j]
+                e += V[r, nd + j].conjugate() * Zi[r, t] * V[t, nd + j]
+        if a.real > 0.0:
+            out[j] = max(e.real / a.real - abs(c / a.real) ** 2, 0.0)
+    return True
+
+
+@jit
 def _candidate(z, V, kr, ki, F_lim, K):
     """``K_j = p_j / q_j`` (N/m, clipped to the box) at ``z`` scaled to ``z[nd] = 1``
     (``p_j = V[j, nd + j] z_j``, ``q_j = V[:, j]^H z``), and how far it lies outside the

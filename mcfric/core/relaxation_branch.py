@@ -12,7 +12,10 @@ over the open parts is as valid as the whole box's.
 Which side to split decides how fast this closes. It is chosen by *pseudo-costs*: the
 mean gain per unit width each split of that side brought so far, times the side's
 width in the part; the gains are started by splitting every side of the whole box once
-(four relaxations per damper).
+(four relaxations per damper). For an upper bound the damper is chosen by how much the
+part's relaxation mixes its describing function (:func:`.relaxation.spread`, per squared
+diagonal of its rectangle) times its better side's pseudo-cost score, and its
+relatively wider side is split.
 
 A part's relaxation starts from its parent's multipliers (:func:`.relaxation.inherit`:
 they keep ``Z`` positive definite on the part), taken from an iterate of the parent's
@@ -32,7 +35,7 @@ import math
 import numpy as np
 
 from ._jit import jit
-from .relaxation import buffers, forms, relaxed_bound, rounded, shifted, weights
+from .relaxation import buffers, forms, relaxed_bound, rounded, shifted, spread, weights
 
 #: The branch and bound gives up where no single split of the whole box closes this
 #: fraction of the gap between its bound and the goal.
@@ -88,15 +91,19 @@ def parts(nd, m, budget):
 
 
 @jit
-def _keep(ok, x, S, nd, per, w, out):
-    """``out``: the verified multipliers ``x`` of the part whose forms ``S`` holds,
-    unscaled (NaN unless ``ok``)."""
-    if not ok:
-        out[0] = np.nan
+def _keep(b, x, V, idx, S, ws, per, w, upper, fin, spr):
+    """After a part's relaxation (bound ``b``, ``nan`` if none verified; its forms in
+    ``S``): ``fin`` its verified multipliers ``x``, unscaled (NaN if none), and for an
+    upper bound ``spr`` its :func:`.relaxation.spread` (0 if none)."""
+    spr[:] = 0.0
+    if np.isnan(b):
+        fin[0] = np.nan
         return
-    weights(S, nd, per, w)
+    weights(S, len(spr), per, w)
     for i in range(len(x)):
-        out[i] = x[i] * w[i]
+        fin[i] = x[i] * w[i]
+    if upper:
+        spread(x, V, idx, S, ws, spr)
 
 
 @jit
@@ -231,9 +238,13 @@ def branch(G, q0, ylin, H, kr, ki, F_lim, beam, root, goal, budget, V, idx, S, x
     th3 = np.empty(m + 1)
     fin2 = np.empty(m)
     fin3 = np.empty(m)
+    # each part's spread of K_j (upper bounds: which damper to split)
+    spr = np.zeros((n_max, nd))
+    spr2 = np.zeros(nd)
+    spr3 = np.zeros(nd)
     b0 = relaxed_bound(G, q0, ylin, H, los[0], his[0], F_lim, beam, goal, V, idx, S, x,
                        cvec, pos, simplex, grow, ws, stats, th[0], los[0], his[0])
-    _keep(not np.isnan(b0), x, S, nd, per, w, fin[0])
+    _keep(b0, x, V, idx, S, ws, per, w, upper, fin[0], spr[0])
     val[0] = _bounded(b0, root, upper)
     root = val[0]
     used = 1
@@ -251,11 +262,11 @@ def branch(G, q0, ylin, H, kr, ki, F_lim, beam, root, goal, budget, V, idx, S, x
                 b1 = relaxed_bound(G, q0, ylin, H, los[2], his[2], F_lim, beam, goal, V,
                                    idx, S, x, cvec, pos, simplex, grow, ws, stats, th2,
                                    los[0], his[0])
-                _keep(not np.isnan(b1), x, S, nd, per, w, fin2)
+                _keep(b1, x, V, idx, S, ws, per, w, upper, fin2, spr2)
                 b2 = relaxed_bound(G, q0, ylin, H, lo2, hi2, F_lim, beam, goal, V, idx, S,
                                    x, cvec, pos, simplex, grow, ws, stats, th3, los[0],
                                    his[0])
-                _keep(not np.isnan(b2), x, S, nd, per, w, fin3)
+                _keep(b2, x, V, idx, S, ws, per, w, upper, fin3, spr3)
                 b1 = _bounded(b1, root, upper)
                 b2 = _bounded(b2, root, upper)
                 used += 2
@@ -269,11 +280,13 @@ def branch(G, q0, ylin, H, kr, ki, F_lim, beam, root, goal, budget, V, idx, S, x
                     val[1] = b1
                     th[1] = th2
                     fin[1] = fin2
+                    spr[1] = spr2
                     los[3] = lo2
                     his[3] = hi2
                     val[3] = b2
                     th[3] = th3
                     fin[3] = fin3
+                    spr[3] = spr3
         if pick < STALL * sgn * (root - goal) / max(root, 1e-300):
             # no side's split gains: more of them will not either (measured)
             return root, used, 1
@@ -283,6 +296,7 @@ def branch(G, q0, ylin, H, kr, ki, F_lim, beam, root, goal, budget, V, idx, S, x
             val[a] = val[c]
             th[a] = th[c]
             fin[a] = fin[c]
+            spr[a] = spr[c]
         n = 2
     while used + 2 <= budget:
         best = _extreme(val, n, sgn)
@@ -303,6 +317,17 @@ def branch(G, q0, ylin, H, kr, ki, F_lim, beam, root, goal, budget, V, idx, S, x
                     score = sc
                     pick_j = j
                     pick_s = side
+        if upper and spr[best].max() > 0.0:
+            score = -1.0
+            for j in range(nd):
+                d2 = (width[j, 0] * kr) ** 2 + (width[j, 1] * ki) ** 2
+                sc = spr[best, j] / max(d2, 1e-300) * max(
+                    gain[j, 0] / max(count[j, 0], 1.0) * width[j, 0],
+                    gain[j, 1] / max(count[j, 1], 1.0) * width[j, 1])
+                if sc > score:
+                    score = sc
+                    pick_j = j
+                    pick_s = 0 if width[j, 0] >= width[j, 1] else 1
         parent = val[best]
         plo[:] = los[best]
         phi[:] = his[best]
@@ -311,7 +336,7 @@ def branch(G, q0, ylin, H, kr, ki, F_lim, beam, root, goal, budget, V, idx, S, x
         for i in (best, n):
             b = relaxed_bound(G, q0, ylin, H, los[i], his[i], F_lim, beam, goal, V, idx, S,
                               x, cvec, pos, simplex, grow, ws, stats, th[i], plo, phi)
-            _keep(not np.isnan(b), x, S, nd, per, w, fin[i])
+            _keep(b, x, V, idx, S, ws, per, w, upper, fin[i], spr[i])
             val[i] = _bounded(b, parent, upper)
         used += 2
         worst = sgn * max(sgn * val[best], sgn * val[n])
