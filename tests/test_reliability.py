@@ -300,14 +300,14 @@ def test_sigterm_stops_a_run_resumably(tmp_path):
     out = tmp_path / "r.h5"
     argv = [sys.executable, "-m", "mcfric", "run", "eight-beam", "--samples", "4000",
             "--n-freq", "300", "--chunk", "64", "-o", str(out), "--no-progress",
-            "--no-figure"]
+            "--no-figure", "--no-certify"]
     p = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     assert "mcfric run:" in p.stdout.readline()
     import time
-    # signal once the ensemble has begun writing (the bounds come first; their time
-    # depends on the machine's load)
+    # signal once the ensemble has begun writing (the bounds come first, not certified
+    # here: their time, a numba compile included, depends on the machine's load)
     partial = tmp_path / "r.h5.partial"
-    deadline = time.monotonic() + 120
+    deadline = time.monotonic() + 600
     while not partial.exists() and time.monotonic() < deadline and p.poll() is None:
         time.sleep(0.1)
     time.sleep(1)
