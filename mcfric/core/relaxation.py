@@ -637,7 +637,7 @@ def forms(G, q0, ylin, H, lo, hi, F_lim, beam, V, idx, S, x, cvec, pos, simplex,
             vmax[a] = max(vmax[a], abs(V[k, a]))
     S[:, :, :] = 0.0
     i = 0
-    per = 6 if force else 5
+    per = per_damper(force)
     for j in range(nd):
         a, b, c, d = lo[j].real, hi[j].real, lo[j].imag, hi[j].imag
         mid, rho2 = _disc(lo[j], hi[j])
@@ -776,9 +776,16 @@ def inherit(theta, lo, hi, plo, phi, per):
 
 
 @jit
+def per_damper(force):
+    """Forms per damper in :func:`forms`: the rectangle's four sides, its disc, and the
+    force limit where one is given (``force``)."""
+    return 6 if force else 5
+
+
+@jit
 def n_forms(nd, nb, force, lower):
     """Multipliers of :func:`forms` (the constant form not counted)."""
-    return nd * (6 if force else 5) + 1 + (nb - 1 if lower else 0)
+    return nd * per_damper(force) + 1 + (nb - 1 if lower else 0)
 
 
 @jit
@@ -799,7 +806,7 @@ def relaxed_bound(G, q0, ylin, H, lo, hi, F_lim, beam, goal, V, idx, S, x, cvec,
                       simplex, grow)
     stats[2] += 1
     m = len(x)
-    per = 6 if np.isfinite(F_lim) else 5
+    per = per_damper(np.isfinite(F_lim))
     w = np.empty(m)
     weights(S, len(q0), per, w)
     warm = 0.0

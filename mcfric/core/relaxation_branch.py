@@ -35,7 +35,7 @@ import math
 import numpy as np
 
 from ._jit import jit
-from .relaxation import buffers, forms, relaxed_bound, rounded, shifted, spread, weights
+from .relaxation import buffers, forms, per_damper, relaxed_bound, rounded, shifted, spread, weights
 
 #: The branch and bound gives up where no single split of the whole box closes this
 #: fraction of the gap between its bound and the goal.
@@ -152,7 +152,7 @@ def mirrored(G, q0, ylin, H, F_lim, beam, goal, prt, n, V, idx, S, x, cvec, pos,
     los, his, val, th, fin = prt
     nd = len(q0)
     m = len(x)
-    per = 6 if np.isfinite(F_lim) else 5
+    per = per_damper(np.isfinite(F_lim))
     lo = np.empty(nd, np.complex128)
     hi = np.empty(nd, np.complex128)
     w = np.empty(m)
@@ -231,7 +231,7 @@ def branch(G, q0, ylin, H, kr, ki, F_lim, beam, root, goal, budget, V, idx, S, x
     phi = np.empty(nd, np.complex128)
     # each part's multipliers, the start of its parts' relaxations (relaxed_bound)
     m = len(x)
-    per = 6 if np.isfinite(F_lim) else 5
+    per = per_damper(np.isfinite(F_lim))
     w = np.empty(m)
     th[0, 0] = np.nan
     th2 = np.empty(m + 1)
