@@ -21,9 +21,10 @@ N0 = 0.5
 F_LIM = force_limit(1.0, N0)
 
 
-def physical_grid(model, freq_hz, K):
+def physical_grid(model, freq_hz, K, forces=False):
     """M and the largest ``|K_j q_j| / F_LIM`` at every row of ``K`` (P, nd), solved in
-    physical space: ``(I - D Kphys) Y = D Fext`` batched over the rows."""
+    physical space: ``(I - D Kphys) Y = D Fext`` batched over the rows (``forces``: every
+    damper's ``|K_j q_j|`` (P, nd; N) instead of the largest ratio)."""
     D, Fext, index = naive._assemble(2 * np.pi * freq_hz, naive_beams(model), model.force,
                                      0, 1, 2)
     pairs = naive_pairs(model)
@@ -40,6 +41,8 @@ def physical_grid(model, freq_hz, K):
     out = [index[(b, 1)] for b in range(model.n_beams)]
     M = np.abs(Y[:, out]).max(axis=1)
     q = np.stack([Y[:, index[(a, 0)]] - Y[:, index[(b, 0)]] for a, b in pairs], axis=1)
+    if forces:
+        return M, np.abs(K * q)
     return M, (np.abs(K * q) / F_LIM).max(axis=1)
 
 

@@ -83,6 +83,46 @@ def test_dual_bound_is_valid_for_any_dual():
     assert B.certificate.upper[0] > 2 * B.certificate.upper_witness[0]
 
 
+def test_force_limits_bound_every_admissible_force():
+    """Eight beams, 0.25 N: the proven force limits are at most F_lim and at least every
+    damper force of 3000 random admissible points (physical-space solves); at 12.2 Hz
+    (first resonances) they are below a fifth of F_lim."""
+    model = mcfric.eight_beam(0.25)
+    for freq, seed in ((12.2, 3), (73.0, 4)):
+        G, q0, ylin, H = (x[0] for x in arrays(model, np.array([freq])))
+        limits = moments.force_limits(G, q0, K_MAX, K_MAX, F_LIM)
+        rng = np.random.default_rng(seed)
+        K = 10.0 ** rng.uniform(-3, 0, (3000, 1)) * (rng.uniform(0, K_MAX, (3000, 7))
+                                                     + 1j * rng.uniform(0, K_MAX, (3000, 7)))
+        _, p = physical_grid(model, freq, K, forces=True)
+        p = p[p.max(axis=1) <= F_LIM]
+        assert len(p) > 100
+        assert np.all(limits <= F_LIM) and np.all(p <= limits)
+        if freq < 20:
+            assert limits.max() < 0.2 * F_LIM
+
+
+def test_second_order_in_proven_force_scales_is_tight_at_the_first_resonance():
+    """Eight beams, 0.25 N, 12.2 Hz: the first-order relaxation stays 10 % above the
+    witness whatever the splitting. In the variables ``p / F_lim`` the second order is
+    as loose (the forces that matter are a tenth of F_lim and the solver stops short);
+    in ``p / limits`` (the proven force limits) it is within 1 % of the witness, whose
+    ``M`` is recomputed in physical space, and above 3000 random admissible points."""
+    model = mcfric.eight_beam(0.25)
+    f = np.array([12.2])
+    G, q0, ylin, H = (x[0] for x in arrays(model, f))
+    C = compute_bounds(model, f, K_MAX, F_lim=F_LIM).certificate
+    M, force = physical_grid(model, f[0], C.K_upper[:1])
+    assert force[0] <= 1 + 1e-9
+    best = max(M[0], random_admissible(model, f[0], 3000, 6).max())
+    limits = moments.force_limits(G, q0, K_MAX, K_MAX, F_LIM)
+    plain = moments.beam_bound(G, q0, ylin, H, K_MAX, K_MAX, F_LIM, 3)[0]
+    scaled = max(moments.beam_bound(G, q0, ylin, H, K_MAX, K_MAX, F_LIM, b, limits)[0]
+                 for b in range(8))
+    assert plain > 1.05 * M[0]
+    assert best <= scaled <= 1.01 * M[0]
+
+
 def test_certify_with_moments_tightens_and_stays_sound():
     """Eight beams, 1.1 N, two frequencies where the first-order relaxation is loose:
     with the second-order relaxation the certified upper bounds are never looser, at

@@ -365,11 +365,15 @@ def _second_order(args, kr, ki, F_lim, cert, wit, beam_bounds, rtol):
         order = np.argsort(-beam_bounds[k])
         done = -np.inf
         rest = -np.inf
+        # the forces' proven sizes scale the variables (a tenth of F_lim near the first
+        # resonances at small drives, where p / F_lim leaves the solver short)
+        limits = moments.force_limits(G[k], q0[k], kr, ki, F_lim)
         for b in order:
             if beam_bounds[k, b] <= max(done, wit[k] * (1 + rtol)):
                 rest = beam_bounds[k, b]
                 break
-            value, p = moments.beam_bound(G[k], q0[k], ylin[k], H[k], kr, ki, F_lim, b)
+            value, p = moments.beam_bound(G[k], q0[k], ylin[k], H[k], kr, ki, F_lim, b,
+                                          limits)
             counts[i, 0] += 1
             counts[i, 1] += not np.isfinite(value)
             if min(beam_bounds[k, b], value) > done and not np.isnan(p[0]):

@@ -214,10 +214,41 @@ def _verified_dual(z, sizes):
     return np.concatenate(out)
 
 
-def problem(G, q0, ylin, H, kr, ki, F_lim, beam):
+def force_limits(G, q0, kr, ki, F_lim):
+    """Proven bounds of every damper force ``|p_j|`` (N) over the admissible set, at
+    most ``F_lim``: each the first-order relaxation's (:mod:`mcfric.core.relaxation`)
+    verified bound of the "response" ``p_j`` (``ylin = 0``, ``H = -I``), ``F_lim`` where
+    it does not verify. Where the responses that matter need only small forces (near the
+    first resonances at small drives) they are a tenth of ``F_lim``, and the second order
+    in ``p / F_lim`` is badly scaled there (below)."""
+    from ..core import relaxation as rx
+
+    nd = q0.shape[0]
+    V, idx, S, x, cvec, pos, simplex, grow, ws = rx.buffers(nd, nd, True, False)
+    lo = np.zeros(nd, np.complex128)
+    hi = np.full(nd, complex(kr, ki))
+    H = -np.eye(nd, dtype=np.complex128)
+    zero = np.zeros(nd, np.complex128)
+    stats = np.zeros(3, np.int64)
+    out = np.full(nd, float(F_lim))
+    for j in range(nd):
+        theta = np.full(len(x) + 1, np.nan)
+        b = rx.relaxed_bound(G, q0, zero, H, lo, hi, F_lim, j, 0.0, V, idx, S, x, cvec,
+                             pos, simplex, grow, ws, stats, theta, lo, hi)
+        if b > 0.0:  # NaN (not verified) keeps F_lim
+            out[j] = min(out[j], b)
+    return out
+
+
+def problem(G, q0, ylin, H, kr, ki, F_lim, beam, limits=None):
     """The relaxation at one frequency for beam ``beam``, in Clarabel's form: maximise
     ``c_0 - q . y'`` subject to ``b - A y'`` in the PSD cones of ``sizes``; returns
-    ``(A, b, q, c_0, sizes, sy)``, the objective scaled by ``1 / sy`` (m^2)."""
+    ``(A, b, q, c_0, sizes, sy)``, the objective scaled by ``1 / sy`` (m^2).
+
+    ``limits`` (nd,; N): proven bounds of the damper forces over the admissible set
+    (:func:`force_limits`; default ``F_lim``). The variables are then ``x_j = p_j /
+    limits_j`` and the force forms ``1 - |x_j|^2``: the admissible set is unchanged, and
+    every moment of an admissible point is still at most 1 in modulus."""
     nd = q0.shape[0]
     n = 2 * nd + 1
     st = structure(nd)
@@ -225,16 +256,29 @@ def problem(G, q0, ylin, H, kr, ki, F_lim, beam):
     admissible_forms(G, q0, kr, ki, F_lim, Mc)
     My = np.empty((n, n))
     response_form(ylin, H, F_lim, beam, My)
+    if limits is not None:
+        # z = D z' with z' = (Re p / limits, Im p / limits, 1)
+        d = np.concatenate([limits, limits, [F_lim]]) / F_lim
+        Mc *= d[None, :, None] * d[None, None, :]
+        My *= d[:, None] * d[None, :]
+        for j in range(nd):
+            c = PER_DAMPER * j
+            for i in range(5):
+                Mc[c + i] /= np.abs(Mc[c + i]).max()
+            Mc[c + 5] = 0.0
+            Mc[c + 5, n - 1, n - 1] = 1.0
+            Mc[c + 5, j, j] = -1.0
+            Mc[c + 5, nd + j, nd + j] = -1.0
     sy = np.abs(My).max()
     coef = _objective(st, My / sy, H[beam])
     A, b, sizes = _blocks(st, Mc, nd)
     return A, b, -coef[1:], coef[0], sizes, sy
 
 
-def beam_bound(G, q0, ylin, H, kr, ki, F_lim, beam):
+def beam_bound(G, q0, ylin, H, kr, ki, F_lim, beam, limits=None):
     """A verified upper bound of ``|y_b|`` (m) over the admissible set at one frequency
-    (``inf`` where the solver or the verification fails), and the relaxation's first
-    moments as damper forces (N; a start for a witness, NaN where none).
+    (``inf`` where the dual cannot be verified), and the relaxation's first moments as
+    damper forces (N; a start for a witness; NaN where the solver did not converge).
 
     Parameters
     ----------
@@ -243,6 +287,9 @@ def beam_bound(G, q0, ylin, H, kr, ki, F_lim, beam):
     kr, ki, F_lim : float
         The box (N/m) and the force limit (N, finite).
     beam : int
+    limits : ndarray of float, optional
+        Proven bounds of the damper forces (N, :func:`force_limits`), used as the
+        variables' scales and force limits; default ``F_lim``.
     """
     import clarabel
 
@@ -250,7 +297,7 @@ def beam_bound(G, q0, ylin, H, kr, ki, F_lim, beam):
     p = np.full(nd, np.nan + 0j)
     if not np.abs(H[beam]).max() > 0:
         return abs(ylin[beam]), p
-    A, b, q, c0, sizes, sy = problem(G, q0, ylin, H, kr, ki, F_lim, beam)
+    A, b, q, c0, sizes, sy = problem(G, q0, ylin, H, kr, ki, F_lim, beam, limits)
     settings = clarabel.DefaultSettings()
     settings.verbose = False
     settings.max_threads = 1
@@ -258,11 +305,15 @@ def beam_bound(G, q0, ylin, H, kr, ki, F_lim, beam):
     solver = clarabel.DefaultSolver(P.tocsc(), q, A, b,
                                     [clarabel.PSDTriangleConeT(s) for s in sizes], settings)
     sol = solver.solve()
-    if str(sol.status) not in ("Solved", "AlmostSolved"):
+    z = np.asarray(sol.z)
+    # the bound holds for any dual, so one left by a solver that stopped on a numerical
+    # error is verified too (often within 1 % where the forces' scales are tight)
+    if not np.all(np.isfinite(z)):
         return math.inf, p
-    x = np.asarray(sol.x)[structure(nd)["first"] - 1]
-    p = F_lim * (x[:nd] + 1j * x[nd:])
-    value = dual_bound(A, b, q, c0, np.asarray(sol.z), sizes)
+    if str(sol.status) in ("Solved", "AlmostSolved"):
+        x = np.asarray(sol.x)[structure(nd)["first"] - 1]
+        p = (F_lim if limits is None else limits) * (x[:nd] + 1j * x[nd:])
+    value = dual_bound(A, b, q, c0, z, sizes)
     return math.sqrt(max(value, 0.0) * sy) * (1 + MARGIN), p
 
 
