@@ -236,7 +236,8 @@ def force_limits(G, q0, kr, ki, F_lim):
         b = rx.relaxed_bound(G, q0, zero, H, lo, hi, F_lim, j, 0.0, V, idx, S, x, cvec,
                              pos, simplex, grow, ws, stats, theta, lo, hi)
         if b > 0.0:  # NaN (not verified) keeps F_lim
-            out[j] = min(out[j], b)
+            # outwards again, past the rounding of the scaling in problem()
+            out[j] = min(out[j], b * (1.0 + 1e-12))
     return out
 
 
@@ -264,7 +265,9 @@ def problem(G, q0, ylin, H, kr, ki, F_lim, beam, limits=None):
         for j in range(nd):
             c = PER_DAMPER * j
             for i in range(5):
-                Mc[c + i] /= np.abs(Mc[c + i]).max()
+                top = np.abs(Mc[c + i]).max()
+                if top > 0.0:
+                    Mc[c + i] /= top
             Mc[c + 5] = 0.0
             Mc[c + 5, n - 1, n - 1] = 1.0
             Mc[c + 5, j, j] = -1.0
