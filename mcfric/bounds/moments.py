@@ -236,7 +236,7 @@ def force_limits(G, q0, kr, ki, F_lim):
         b = rx.relaxed_bound(G, q0, zero, H, lo, hi, F_lim, j, 0.0, V, idx, S, x, cvec,
                              pos, simplex, grow, ws, stats, theta, lo, hi)
         if b > 0.0:  # NaN (not verified) keeps F_lim
-            # outwards again, past the rounding of the scaling in problem()
+            # outwards again, past the rounding of the coefficients built from it
             out[j] = min(out[j], b * (1.0 + 1e-12))
     return out
 
@@ -253,25 +253,11 @@ def problem(G, q0, ylin, H, kr, ki, F_lim, beam, limits=None):
     nd = q0.shape[0]
     n = 2 * nd + 1
     st = structure(nd)
+    scale = np.full(nd, float(F_lim)) if limits is None else limits
     Mc = np.empty((PER_DAMPER * nd, n, n))
-    admissible_forms(G, q0, kr, ki, F_lim, Mc)
+    admissible_forms(G, q0, kr, ki, scale, Mc)
     My = np.empty((n, n))
-    response_form(ylin, H, F_lim, beam, My)
-    if limits is not None:
-        # z = D z' with z' = (Re p / limits, Im p / limits, 1)
-        d = np.concatenate([limits, limits, [F_lim]]) / F_lim
-        Mc *= d[None, :, None] * d[None, None, :]
-        My *= d[:, None] * d[None, :]
-        for j in range(nd):
-            c = PER_DAMPER * j
-            for i in range(5):
-                top = np.abs(Mc[c + i]).max()
-                if top > 0.0:
-                    Mc[c + i] /= top
-            Mc[c + 5] = 0.0
-            Mc[c + 5, n - 1, n - 1] = 1.0
-            Mc[c + 5, j, j] = -1.0
-            Mc[c + 5, nd + j, nd + j] = -1.0
+    response_form(ylin, H, scale, beam, My)
     sy = np.abs(My).max()
     coef = _objective(st, My / sy, H[beam])
     A, b, sizes = _blocks(st, Mc, nd)

@@ -191,18 +191,19 @@ def climb_frequencies(G, q0, ylin, H, kr, ki, F_lim, K_start, floor, stop, freqs
     piv = np.empty(nd, np.int64)
     q = np.empty(nd, np.complex128)
     eq10 = np.empty(nb)
+    scale = np.full(nd, F_lim)
     for k in freqs:
         M_out[k] = -math.inf
         best = floor[k]
         force_bounds(ylin[k], H[k], F_lim, eq10)
         by_bound = np.argsort(-eq10)
-        admissible_forms(G[k], q0[k], kr, ki, F_lim, Mc)
+        admissible_forms(G[k], q0[k], kr, ki, scale, Mc)
         supports(Mc, sup, ns)
         for r in range(min(nb, MAX_BEAMS)):
             beam = by_bound[r]
             if eq10[beam] <= best or best >= stop[k]:
                 break
-            response_form(ylin[k], H[k], F_lim, beam, My)
+            response_form(ylin[k], H[k], scale, beam, My)
             for s in range(K_start.shape[1]):
                 if best >= stop[k]:
                     break

@@ -3,15 +3,16 @@
 With every damper force ``p`` as the variable, ``q = q0 - G p`` and ``y_b = ylin_b -
 H_b p`` are affine, and ``K_j = p_j / q_j`` lies in the box ``[0, kr] x [0, ki]`` and in
 the rectangle's circumscribed disc (centre ``m``, radius ``rho``), with ``|p_j| <=
-F_lim``, if and only if (for ``q_j != 0``)
+s_j``, if and only if (for ``q_j != 0``)
 
     Re(p_j conj q_j) >= 0,          kr |q_j|^2 - Re(p_j conj q_j) >= 0,
     Im(p_j conj q_j) >= 0,          ki |q_j|^2 - Im(p_j conj q_j) >= 0,
-    rho^2 |q_j|^2 - |p_j - m q_j|^2 >= 0,   F_lim^2 - |p_j|^2 >= 0.
+    rho^2 |q_j|^2 - |p_j - m q_j|^2 >= 0,   s_j^2 - |p_j|^2 >= 0.
 
 (The disc is implied by the box; it is kept because relaxations are tighter with it.)
-In the real coordinates ``x = (Re p, Im p) / F_lim`` (each in [-1, 1] under the force
-limit) each is ``z^T M z`` with ``z = (x, 1)``.
+``s_j`` is damper ``j``'s force limit: ``F_lim``, or a smaller proven bound of ``|p_j|``
+over the admissible set. In the real coordinates ``x_j = (Re p_j, Im p_j) / s_j`` (each in
+[-1, 1] under the force limit) each is ``z^T M z`` with ``z = (x, 1)``.
 """
 
 import numpy as np
@@ -23,9 +24,10 @@ PER_DAMPER = 6
 
 
 @jit
-def admissible_forms(G, q0, kr, ki, F_lim, Mc):
+def admissible_forms(G, q0, kr, ki, scale, Mc):
     """Fill ``Mc`` (``PER_DAMPER`` nd, 2 nd + 1, 2 nd + 1) with the forms of every damper
-    (in the order of the module docstring), each scaled to a largest entry of 1."""
+    (in the order of the module docstring), each scaled to a largest entry of 1;
+    ``scale`` (nd,; N) holds the force limits ``s_j``."""
     nd = q0.shape[0]
     n = 2 * nd + 1
     al = np.zeros(n, np.complex128)
@@ -36,11 +38,11 @@ def admissible_forms(G, q0, kr, ki, F_lim, Mc):
     for j in range(nd):
         # p_j = al . z and q_j = be . z
         al[:] = 0.0
-        al[j] = F_lim
-        al[nd + j] = 1j * F_lim
+        al[j] = scale[j]
+        al[nd + j] = 1j * scale[j]
         for k in range(nd):
-            be[k] = -G[j, k] * F_lim
-            be[nd + k] = -1j * G[j, k] * F_lim
+            be[k] = -G[j, k] * scale[k]
+            be[nd + k] = -1j * G[j, k] * scale[k]
         be[n - 1] = q0[j]
         c = PER_DAMPER * j
         for a in range(n):
@@ -65,14 +67,15 @@ def admissible_forms(G, q0, kr, ki, F_lim, Mc):
 
 
 @jit
-def response_form(ylin, H, F_lim, beam, My):
-    """Fill ``My`` (2 nd + 1, 2 nd + 1) with ``|y_b|^2`` (m^2) of beam ``beam``."""
+def response_form(ylin, H, scale, beam, My):
+    """Fill ``My`` (2 nd + 1, 2 nd + 1) with ``|y_b|^2`` (m^2) of beam ``beam`` in the
+    coordinates of ``scale`` (nd,; N)."""
     nd = H.shape[1]
     n = 2 * nd + 1
     ga = np.zeros(n, np.complex128)
     for j in range(nd):
-        ga[j] = -H[beam, j] * F_lim
-        ga[nd + j] = -1j * H[beam, j] * F_lim
+        ga[j] = -H[beam, j] * scale[j]
+        ga[nd + j] = -1j * H[beam, j] * scale[j]
     ga[n - 1] = ylin[beam]
     for a in range(n):
         for b in range(n):
