@@ -22,7 +22,7 @@ from ..core.branch_bound import certify_frequencies
 from ..core.joint_ascent import values, witnesses
 from ..core.joint_descent import lowest
 from ..core.relaxation import relax_frequencies
-from ..core.relaxation_branch import branch_frequencies
+from ..core.relaxation_branch import branch_frequencies, mirror_sign
 from ..threads import in_threads
 from .search import _chunks
 
@@ -71,6 +71,11 @@ ROUNDED_PARTS = 4
 #: the docs' measurements); the split's also the mirrored parts verified.
 LAST_RELAXATION = np.zeros((2, 3), np.int64)
 LAST_SPLIT = np.zeros((2, 4), np.int64)
+#: Second-order bounds of the last call taken from the mirror beam's dual.
+LAST_MIRRORED = np.zeros(1, np.int64)
+#: A mirrored second-order dual is kept where its bound is within this of the mirror
+#: beam's (on a chain that is its mirror image they agree to about 1e-12).
+MIRROR_RTOL = 1e-6
 #: Relative margin on the force bound (a sum of non-negative products: (nd + 2) u).
 _FORCE_MARGIN = 1e-12
 
@@ -354,7 +359,7 @@ def _second_order(args, kr, ki, F_lim, cert, wit, beam_bounds, rtol):
     G, q0, ylin, H = args
     n_f, nd = q0.shape
     todo = np.flatnonzero(~_met(True, cert, wit, rtol, 0.0) & np.isfinite(cert))
-    counts = np.zeros((len(todo), 2), np.int64)
+    counts = np.zeros((len(todo), 3), np.int64)
     new = cert.copy()
     K_first = np.full((n_f, 1, nd), np.nan + 0j)
 
@@ -368,14 +373,34 @@ def _second_order(args, kr, ki, F_lim, cert, wit, beam_bounds, rtol):
         # the forces' proven sizes scale the variables (a tenth of F_lim near the first
         # resonances at small drives, where p / F_lim leaves the solver short)
         limits = moments.force_limits(G[k], q0[k], kr, ki, F_lim)
+        sign = mirror_sign(G[k], q0[k], ylin[k], H[k])
+        if sign:
+            # a larger bound is still one; mirrored duals need the same on both sides
+            limits = np.maximum(limits, limits[::-1])
+        nb = ylin.shape[1]
+        solved = {}
         for b in order:
             if beam_bounds[k, b] <= max(done, wit[k] * (1 + rtol)):
                 rest = beam_bounds[k, b]
                 break
-            value, p = moments.beam_bound(G[k], q0[k], ylin[k], H[k], kr, ki, F_lim, b,
-                                          limits)
-            counts[i, 0] += 1
-            counts[i, 1] += not np.isfinite(value)
+            m = nb - 1 - b
+            solve = m not in solved
+            if not solve:
+                # the mirror beam's dual, reversed: verified here in a tenth of a second
+                # (solved instead where the chain is not its mirror image after all)
+                pm, zm, vm = solved[m]
+                value = moments.mirrored_bound(G[k], q0[k], ylin[k], H[k], kr, ki, F_lim,
+                                               b, limits, zm, sign)
+                p = sign * pm[::-1]
+                counts[i, 2] += 1
+                solve = not value <= max(vm * (1 + MIRROR_RTOL), done)
+            if solve:
+                value, p, z = moments.beam_bound(G[k], q0[k], ylin[k], H[k], kr, ki, F_lim,
+                                                 b, limits)
+                counts[i, 0] += 1
+                counts[i, 1] += not np.isfinite(value)
+                if sign and z is not None and np.isfinite(value):
+                    solved[b] = (p, z, value)
             if min(beam_bounds[k, b], value) > done and not np.isnan(p[0]):
                 with np.errstate(all="ignore"):
                     K = p / (q0[k] - G[k] @ p)
@@ -393,7 +418,9 @@ def _second_order(args, kr, ki, F_lim, cert, wit, beam_bounds, rtol):
 
         # Clarabel releases the GIL: one frequency per thread
         in_threads(step, range(len(todo)))
-    return new, K_first, counts.sum(axis=0)
+    total = counts.sum(axis=0)
+    LAST_MIRRORED[0] = total[2]
+    return new, K_first, total[:2]
 
 
 def _pct(x):

@@ -22,6 +22,10 @@ y(x)`` the constraint blocks at the moments ``y(x)`` of an admissible point,
 
 since every moment of an admissible point is at most 1 in modulus (``|x_i| <= 1``).
 Rounding of the constraint coefficients is covered by a relative margin.
+
+On a chain that is its own mirror image a beam's dual, reversed, is verified as the
+mirror beam's certificate (:func:`mirrored_bound`, a tenth of a second instead of a
+solve).
 """
 
 from __future__ import annotations
@@ -298,12 +302,80 @@ def beam_bound(G, q0, ylin, H, kr, ki, F_lim, beam, limits=None):
     # the bound holds for any dual, so one left by a solver that stopped on a numerical
     # error is verified too (often within 1 % where the forces' scales are tight)
     if not np.all(np.isfinite(z)):
-        return math.inf, p
+        return math.inf, p, None
     if str(sol.status) in ("Solved", "AlmostSolved"):
         x = np.asarray(sol.x)[structure(nd)["first"] - 1]
         p = (F_lim if limits is None else limits) * (x[:nd] + 1j * x[nd:])
     value = dual_bound(A, b, q, c0, z, sizes)
-    return math.sqrt(max(value, 0.0) * sy) * (1 + MARGIN), p
+    return math.sqrt(max(value, 0.0) * sy) * (1 + MARGIN), p, z
+
+
+def mirrored_bound(G, q0, ylin, H, kr, ki, F_lim, beam, limits, z, sign):
+    """A verified upper bound of ``|y_beam|`` (m) from the dual ``z`` that
+    :func:`beam_bound` returned for the mirror beam ``nb - 1 - beam``, without solving.
+
+    On a chain that is its own mirror image (dampers and beams in reverse order, ``q0``
+    and ``H`` times ``sign``: :func:`mcfric.core.relaxation_branch.mirror_sign`) the map
+    ``x -> sign * reversed(x)`` carries every constraint of one beam's relaxation into
+    the other's and its objective into the other's, so the dual blocks, permuted and
+    signed with it, are a certificate of the mirror beam. It is verified on this beam's
+    own problem (:func:`dual_bound`) like any dual, so the bound is valid on any chain;
+    where the chain is not a mirror image it is just loose. ``limits`` must then be the
+    same on both sides (:func:`certified._second_order` takes the larger of each pair).
+    """
+    A, b, q, c0, sizes, sy = problem(G, q0, ylin, H, kr, ki, F_lim, beam, limits)
+    src, sgn = _mirror_map(q0.shape[0], int(sign))
+    value = dual_bound(A, b, q, c0, sgn * z[src], sizes)
+    return math.sqrt(max(value, 0.0) * sy) * (1 + MARGIN)
+
+
+@functools.lru_cache(maxsize=8)
+def _mirror_map(nd, sign):
+    """Indices ``src`` and signs ``sgn`` with ``sgn * z[src]`` the dual of the mirrored
+    relaxation: the blocks of clique ``c`` and of damper ``j``'s forms go to clique
+    ``n_c - 1 - c`` and damper ``nd - 1 - j``, each entry ``(a, b)`` (monomials ``m_a,
+    m_b``) to the entry of the mirrored monomials, times ``sign ** (deg m_a + deg m_b)``."""
+    st = structure(nd)
+    nv = 2 * nd
+    nc = len(st["cliques"])
+    flip = [nd - 1 - i if i < nd else 2 * nd - 1 - (i - nd) for i in range(nv)]
+
+    def image(e):
+        out = [0] * nv
+        for i, k in enumerate(e):
+            out[flip[i]] = k
+        return tuple(out)
+
+    def variables(c):
+        d = st["cliques"][c]
+        return d + [nd + j for j in d]
+
+    # (clique, degree) of every block in the dual's order, with its offset
+    blocks = [(c, 2) for c in range(nc)]
+    blocks += [(st["clique_of"][j], 1) for j in range(nd) for _ in range(PER_DAMPER)]
+    target = list(range(nc - 1, -1, -1))
+    target += [nc + PER_DAMPER * (nd - 1 - j) + f for j in range(nd) for f in range(PER_DAMPER)]
+    offsets = [0]
+    for c, deg in blocks:
+        n = len(_monomials(variables(c), deg, nv))
+        offsets.append(offsets[-1] + n * (n + 1) // 2)
+    src = np.empty(offsets[-1], np.int64)
+    sgn = np.empty(offsets[-1])
+    for i, (c, deg) in enumerate(blocks):
+        t = target[i]
+        mine = _monomials(variables(c), deg, nv)
+        theirs = {e: a for a, e in enumerate(_monomials(variables(blocks[t][0]), deg, nv))}
+        pos = [theirs[image(e)] for e in mine]
+        par = [sign ** sum(e) for e in mine]
+        ii, jj = _svec_index(len(mine))
+        # entry (a, b) of block i (the mirror beam's) goes to (pos a, pos b) of block t,
+        # in svec order the upper triangle column by column
+        for r, (a, b) in enumerate(zip(ii, jj)):
+            u, v = sorted((pos[a], pos[b]))
+            dest = offsets[t] + v * (v + 1) // 2 + u
+            src[dest] = offsets[i] + r
+            sgn[dest] = par[a] * par[b]
+    return src, sgn
 
 
 def dual_bound(A, b, q, c0, z, sizes):
