@@ -126,9 +126,9 @@ def test_second_order_in_proven_force_scales_is_tight_at_the_first_resonance():
 def test_mirrored_dual_proves_the_mirror_beam_bound():
     """Eight beams, 1.1 N, 104.9 Hz (a chain that is its own mirror image, drive
     antisymmetric): beam 1's dual, reversed and signed, proves beam 6's bound within 1e-4
-    of beam 6's own solve (the solver's precision), above 3000 random admissible
-    points of beam 6; with the
-    wrong sign the verified bound is five times looser (the map must matter)."""
+    of beam 6's own solve (the solver's precision) and above 3000 random admissible
+    points of beam 6; with the wrong sign the verified bound is five times looser (the
+    map must matter)."""
     from mcfric.core.relaxation_branch import mirror_sign
 
     model = mcfric.eight_beam(1.1)
