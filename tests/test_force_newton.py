@@ -19,7 +19,8 @@ def forms_at(G, q0, ylin, H, beam):
     nd = len(q0)
     n = 2 * nd + 1
     Mc = np.empty((PER_DAMPER * nd, n, n))
-    admissible_forms(G, q0, K_MAX, K_IM, np.full(nd, F_LIM), Mc)
+    admissible_forms(G, q0, np.zeros(nd, complex), np.full(nd, complex(K_MAX, K_IM)),
+                     np.full(nd, F_LIM), Mc)
     My = np.empty((n, n))
     response_form(ylin, H, np.full(nd, F_LIM), beam, My)
     return Mc, My

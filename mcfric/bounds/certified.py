@@ -71,11 +71,17 @@ ROUNDED_PARTS = 4
 #: the docs' measurements); the split's also the mirrored parts verified.
 LAST_RELAXATION = np.zeros((2, 3), np.int64)
 LAST_SPLIT = np.zeros((2, 4), np.int64)
-#: Second-order bounds of the last call taken from the mirror beam's dual.
-LAST_MIRRORED = np.zeros(1, np.int64)
+#: Second-order bounds of the last call taken from the mirror beam's duals, and
+#: relaxations of parts (:mod:`.moments_branch`; also counted as solved).
+LAST_MOMENTS = np.zeros(2, np.int64)
 #: A mirrored second-order dual is kept where its bound is within this of the mirror
 #: beam's (on a chain that is its mirror image they agree to about 1e-12).
 MIRROR_RTOL = 1e-6
+#: The second order's parts are relaxed where its bound is above the witness's
+#: tolerance but within this of the witness (farther above, splitting the own dampers
+#: was not seen to help), at most ``MOMENTS_SPLIT`` relaxations per frequency.
+MOMENTS_SPLIT_GAP = 0.03
+MOMENTS_SPLIT = 64
 #: Relative margin on the force bound (a sum of non-negative products: (nd + 2) u).
 _FORCE_MARGIN = 1e-12
 
@@ -344,22 +350,38 @@ def _descend(args, kr, ki, F_lim, starts, cert, wit, K, rtol, atol):
                    [todo[c] for c in _chunks(len(todo))])
 
 
-def _second_order(args, kr, ki, F_lim, cert, wit, beam_bounds, rtol):
+def _witness_for_beams(G, q0, ylin, H, K):
+    """Per beam (nb, nd; N/m) where to cut its own dampers (:mod:`.moments_branch`): the
+    witness's describing functions ``K``, reversed for the mirror of the beam where it
+    is largest."""
+    nd, nb = q0.shape[0], ylin.shape[0]
+    K = np.nan_to_num(K)
+    p = np.linalg.solve(np.eye(nd) + K[:, None] * G, K * q0)
+    top = int(np.argmax(np.abs(ylin - H @ p)))
+    out = np.repeat(K[None], nb, axis=0)
+    if nb - 1 - top != top:
+        out[nb - 1 - top] = K[::-1]
+    return out
+
+
+def _second_order(args, kr, ki, F_lim, cert, wit, K, beam_bounds, rtol):
     """The upper ``cert`` improved by the second-order moment relaxation
     (:mod:`.moments`) where it is not yet within ``rtol`` of ``wit``: per frequency the
     beams in decreasing order of ``beam_bounds`` until the next is proven no higher than
-    the bounds found (or the witness's tolerance). Returns the new ``cert``, the
+    the bounds found (or the witness's tolerance); where a beam's bound is a little above
+    the witness (``MOMENTS_SPLIT_GAP``), over parts of its own dampers' rectangles cut at
+    the witness's ``K`` (n_f, nd; N/m; :mod:`.moments_branch`). Returns the new ``cert``, the
     relaxation's first moments of the beam of largest bound as describing functions
     (n_f, 1, nd; N/m, clipped to the box; NaN where none: starts for the witness) and the
     number of relaxations solved and failed."""
     from tqdm import tqdm
 
-    from . import moments
+    from . import moments, moments_branch
 
     G, q0, ylin, H = args
     n_f, nd = q0.shape
     todo = np.flatnonzero(~_met(True, cert, wit, rtol, 0.0) & np.isfinite(cert))
-    counts = np.zeros((len(todo), 3), np.int64)
+    counts = np.zeros((len(todo), 4), np.int64)
     new = cert.copy()
     K_first = np.full((n_f, 1, nd), np.nan + 0j)
 
@@ -378,34 +400,48 @@ def _second_order(args, kr, ki, F_lim, cert, wit, beam_bounds, rtol):
             # a larger bound is still one; mirrored duals need the same on both sides
             limits = np.maximum(limits, limits[::-1])
         nb = ylin.shape[1]
+        goal = wit[k] * (1 + rtol)
+        cut = _witness_for_beams(G[k], q0[k], ylin[k], H[k], K[k])
+        budget = MOMENTS_SPLIT
         solved = {}
         for b in order:
-            if beam_bounds[k, b] <= max(done, wit[k] * (1 + rtol)):
+            if beam_bounds[k, b] <= max(done, goal):
                 rest = beam_bounds[k, b]
                 break
             m = nb - 1 - b
             solve = m not in solved
             if not solve:
-                # the mirror beam's dual, reversed: verified here in a tenth of a second
-                # (solved instead where the chain is not its mirror image after all)
-                pm, zm, vm = solved[m]
-                value = moments.mirrored_bound(G[k], q0[k], ylin[k], H[k], kr, ki, F_lim,
-                                               b, limits, zm, sign)
+                # the mirror beam's duals, reversed: verified here in a tenth of a second
+                # each (solved instead where the chain is not its mirror image after all)
+                pm, leaves, vm = solved[m]
+                value = moments_branch.mirrored_branch(G[k], q0[k], ylin[k], H[k], kr, ki,
+                                                       F_lim, b, limits, leaves, sign)
                 p = sign * pm[::-1]
-                counts[i, 2] += 1
+                counts[i, 2] += len(leaves)
                 solve = not value <= max(vm * (1 + MIRROR_RTOL), done)
             if solve:
                 value, p, z = moments.beam_bound(G[k], q0[k], ylin[k], H[k], kr, ki, F_lim,
                                                  b, limits)
                 counts[i, 0] += 1
                 counts[i, 1] += not np.isfinite(value)
-                if sign and z is not None and np.isfinite(value):
-                    solved[b] = (p, z, value)
+                leaves = [((np.zeros(nd, complex), np.full(nd, complex(kr, ki))), z, value)]
+                value = min(value, beam_bounds[k, b])  # both are bounds
+                if goal < value <= wit[k] * (1 + MOMENTS_SPLIT_GAP) and budget > 0:
+                    # a little above the witness: split the beam's own dampers
+                    value, used, leaves, stalled = moments_branch.branch_bound(
+                        G[k], q0[k], ylin[k], H[k], kr, ki, F_lim, b, limits, value, z,
+                        cut[b], max(goal, done), budget)
+                    # splitting that stalls on one beam keeps the frequency loose
+                    budget = 0 if stalled else budget - used
+                    counts[i, 0] += used
+                    counts[i, 3] += used
+                if sign and np.isfinite(value) and all(zl is not None for _, zl, _ in leaves):
+                    solved[b] = (p, leaves, value)
             if min(beam_bounds[k, b], value) > done and not np.isnan(p[0]):
                 with np.errstate(all="ignore"):
-                    K = p / (q0[k] - G[k] @ p)
-                K_first[k, 0] = (np.clip(np.nan_to_num(K.real), 0, kr)
-                                 + 1j * np.clip(np.nan_to_num(K.imag), 0, ki))
+                    Kp = p / (q0[k] - G[k] @ p)
+                K_first[k, 0] = (np.clip(np.nan_to_num(Kp.real), 0, kr)
+                                 + 1j * np.clip(np.nan_to_num(Kp.imag), 0, ki))
             done = max(done, min(beam_bounds[k, b], value))
         new[k] = min(cert[k], max(done, rest, wit[k]))
 
@@ -419,7 +455,7 @@ def _second_order(args, kr, ki, F_lim, cert, wit, beam_bounds, rtol):
         # Clarabel releases the GIL: one frequency per thread
         in_threads(step, range(len(todo)))
     total = counts.sum(axis=0)
-    LAST_MIRRORED[0] = total[2]
+    LAST_MOMENTS[:] = total[2:]
     return new, K_first, total[:2]
 
 
@@ -537,7 +573,7 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
                 _descend(args, kr, ki, F_lim, K_parts, cert, wit, K, rtol, atol)
             elif moments:
                 cert, K_first, second_order = _second_order(args, kr, ki, F_lim, cert, wit,
-                                                            beam_bounds, rtol)
+                                                            K, beam_bounds, rtol)
                 # its first moments start one more climb in the forces
                 wit = _force_ascent(args, kr, ki, F_lim, K_first,
                                     np.fmin(cert / (1 + rtol), box_max), wit, K)

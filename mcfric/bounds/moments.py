@@ -245,7 +245,7 @@ def force_limits(G, q0, kr, ki, F_lim):
     return out
 
 
-def problem(G, q0, ylin, H, kr, ki, F_lim, beam, limits=None):
+def problem(G, q0, ylin, H, kr, ki, F_lim, beam, limits=None, part=None):
     """The relaxation at one frequency for beam ``beam``, in Clarabel's form: maximise
     ``c_0 - q . y'`` subject to ``b - A y'`` in the PSD cones of ``sizes``; returns
     ``(A, b, q, c_0, sizes, sy)``, the objective scaled by ``1 / sy`` (m^2).
@@ -253,13 +253,17 @@ def problem(G, q0, ylin, H, kr, ki, F_lim, beam, limits=None):
     ``limits`` (nd,; N): proven bounds of the damper forces over the admissible set
     (:func:`force_limits`; default ``F_lim``). The variables are then ``x_j = p_j /
     limits_j`` and the force forms ``1 - |x_j|^2``: the admissible set is unchanged, and
-    every moment of an admissible point is still at most 1 in modulus."""
+    every moment of an admissible point is still at most 1 in modulus. ``part``: a pair
+    ``(lo, hi)`` of complex arrays (nd,; N/m), each damper's rectangle in a part of the
+    box (:mod:`.moments_branch`); default the box."""
     nd = q0.shape[0]
     n = 2 * nd + 1
     st = structure(nd)
     scale = np.full(nd, float(F_lim)) if limits is None else limits
+    if part is None:
+        part = (np.zeros(nd, np.complex128), np.full(nd, complex(kr, ki)))
     Mc = np.empty((PER_DAMPER * nd, n, n))
-    admissible_forms(G, q0, kr, ki, scale, Mc)
+    admissible_forms(G, q0, part[0], part[1], scale, Mc)
     My = np.empty((n, n))
     response_form(ylin, H, scale, beam, My)
     sy = np.abs(My).max()
@@ -268,7 +272,7 @@ def problem(G, q0, ylin, H, kr, ki, F_lim, beam, limits=None):
     return A, b, -coef[1:], coef[0], sizes, sy
 
 
-def beam_bound(G, q0, ylin, H, kr, ki, F_lim, beam, limits=None):
+def beam_bound(G, q0, ylin, H, kr, ki, F_lim, beam, limits=None, part=None):
     """A verified upper bound of ``|y_b|`` (m) over the admissible set at one frequency
     (``inf`` where the dual cannot be verified), and the relaxation's first moments as
     damper forces (N; a start for a witness; NaN where the solver did not converge).
@@ -283,6 +287,16 @@ def beam_bound(G, q0, ylin, H, kr, ki, F_lim, beam, limits=None):
     limits : ndarray of float, optional
         Proven bounds of the damper forces (N, :func:`force_limits`), used as the
         variables' scales and force limits; default ``F_lim``.
+    part : tuple of ndarray, optional
+        ``(lo, hi)``: the corners of each damper's rectangle (N/m) in a part of the box;
+        the bound is then over that part. Default the box.
+
+    Returns
+    -------
+    value : float
+    p : ndarray of complex
+    z : ndarray or None
+        The solver's dual (for :func:`mirrored_bound`; None where it is not finite).
     """
     import clarabel
 
@@ -290,7 +304,7 @@ def beam_bound(G, q0, ylin, H, kr, ki, F_lim, beam, limits=None):
     p = np.full(nd, np.nan + 0j)
     if not np.abs(H[beam]).max() > 0:
         return abs(ylin[beam]), p
-    A, b, q, c0, sizes, sy = problem(G, q0, ylin, H, kr, ki, F_lim, beam, limits)
+    A, b, q, c0, sizes, sy = problem(G, q0, ylin, H, kr, ki, F_lim, beam, limits, part)
     settings = clarabel.DefaultSettings()
     settings.verbose = False
     settings.max_threads = 1
@@ -310,7 +324,7 @@ def beam_bound(G, q0, ylin, H, kr, ki, F_lim, beam, limits=None):
     return math.sqrt(max(value, 0.0) * sy) * (1 + MARGIN), p, z
 
 
-def mirrored_bound(G, q0, ylin, H, kr, ki, F_lim, beam, limits, z, sign):
+def mirrored_bound(G, q0, ylin, H, kr, ki, F_lim, beam, limits, z, sign, part=None):
     """A verified upper bound of ``|y_beam|`` (m) from the dual ``z`` that
     :func:`beam_bound` returned for the mirror beam ``nb - 1 - beam``, without solving.
 
@@ -321,9 +335,10 @@ def mirrored_bound(G, q0, ylin, H, kr, ki, F_lim, beam, limits, z, sign):
     signed with it, are a certificate of the mirror beam. It is verified on this beam's
     own problem (:func:`dual_bound`) like any dual, so the bound is valid on any chain;
     where the chain is not a mirror image it is just loose. ``limits`` must then be the
-    same on both sides (:func:`certified._second_order` takes the larger of each pair).
+    same on both sides (:func:`certified._second_order` takes the larger of each pair),
+    and ``part`` the mirror beam's part reversed.
     """
-    A, b, q, c0, sizes, sy = problem(G, q0, ylin, H, kr, ki, F_lim, beam, limits)
+    A, b, q, c0, sizes, sy = problem(G, q0, ylin, H, kr, ki, F_lim, beam, limits, part)
     src, sgn = _mirror_map(q0.shape[0], int(sign))
     value = dual_bound(A, b, q, c0, sgn * z[src], sizes)
     return math.sqrt(max(value, 0.0) * sy) * (1 + MARGIN)

@@ -192,12 +192,14 @@ def climb_frequencies(G, q0, ylin, H, kr, ki, F_lim, K_start, floor, stop, freqs
     q = np.empty(nd, np.complex128)
     eq10 = np.empty(nb)
     scale = np.full(nd, F_lim)
+    lo = np.zeros(nd, np.complex128)
+    hi = np.full(nd, complex(kr, ki))
     for k in freqs:
         M_out[k] = -math.inf
         best = floor[k]
         force_bounds(ylin[k], H[k], F_lim, eq10)
         by_bound = np.argsort(-eq10)
-        admissible_forms(G[k], q0[k], kr, ki, scale, Mc)
+        admissible_forms(G[k], q0[k], lo, hi, scale, Mc)
         supports(Mc, sup, ns)
         for r in range(min(nb, MAX_BEAMS)):
             beam = by_bound[r]

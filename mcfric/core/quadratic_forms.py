@@ -1,13 +1,14 @@
 """The admissible set and a beam's response as quadratic forms in the damper forces.
 
 With every damper force ``p`` as the variable, ``q = q0 - G p`` and ``y_b = ylin_b -
-H_b p`` are affine, and ``K_j = p_j / q_j`` lies in the box ``[0, kr] x [0, ki]`` and in
+H_b p`` are affine, and ``K_j = p_j / q_j`` lies in damper ``j``'s rectangle ``[Re lo_j,
+Re hi_j] x [Im lo_j, Im hi_j]`` (the box ``[0, kr] x [0, ki]``, or a part of it) and in
 the rectangle's circumscribed disc (centre ``m``, radius ``rho``), with ``|p_j| <=
 s_j``, if and only if (for ``q_j != 0``)
 
-    Re(p_j conj q_j) >= 0,          kr |q_j|^2 - Re(p_j conj q_j) >= 0,
-    Im(p_j conj q_j) >= 0,          ki |q_j|^2 - Im(p_j conj q_j) >= 0,
-    rho^2 |q_j|^2 - |p_j - m q_j|^2 >= 0,   s_j^2 - |p_j|^2 >= 0.
+    Re(p_j conj q_j) - Re lo_j |q_j|^2 >= 0,   Re hi_j |q_j|^2 - Re(p_j conj q_j) >= 0,
+    Im(p_j conj q_j) - Im lo_j |q_j|^2 >= 0,   Im hi_j |q_j|^2 - Im(p_j conj q_j) >= 0,
+    rho^2 |q_j|^2 - |p_j - m q_j|^2 >= 0,      s_j^2 - |p_j|^2 >= 0.
 
 (The disc is implied by the box; it is kept because relaxations are tighter with it.)
 ``s_j`` is damper ``j``'s force limit: ``F_lim``, or a smaller proven bound of ``|p_j|``
@@ -24,18 +25,20 @@ PER_DAMPER = 6
 
 
 @jit
-def admissible_forms(G, q0, kr, ki, scale, Mc):
+def admissible_forms(G, q0, lo, hi, scale, Mc):
     """Fill ``Mc`` (``PER_DAMPER`` nd, 2 nd + 1, 2 nd + 1) with the forms of every damper
     (in the order of the module docstring), each scaled to a largest entry of 1;
+    ``lo``, ``hi`` (nd,; complex, N/m) are the corners of each damper's rectangle and
     ``scale`` (nd,; N) holds the force limits ``s_j``."""
     nd = q0.shape[0]
     n = 2 * nd + 1
     al = np.zeros(n, np.complex128)
     be = np.zeros(n, np.complex128)
-    m = 0.5 * complex(kr, ki)
-    rho2 = 0.25 * (kr * kr + ki * ki)
     Mc[:] = 0.0
     for j in range(nd):
+        lr, li, hr, hi_ = lo[j].real, lo[j].imag, hi[j].real, hi[j].imag
+        m = 0.5 * (lo[j] + hi[j])
+        rho2 = 0.25 * ((hr - lr) * (hr - lr) + (hi_ - li) * (hi_ - li))
         # p_j = al . z and q_j = be . z
         al[:] = 0.0
         al[j] = scale[j]
@@ -52,10 +55,10 @@ def admissible_forms(G, q0, kr, ki, scale, Mc):
                 qq = be[a].real * be[b].real + be[a].imag * be[b].imag
                 da = al[a] - m * be[a]
                 db = al[b] - m * be[b]
-                Mc[c, a, b] = pq.real
-                Mc[c + 1, a, b] = kr * qq - pq.real
-                Mc[c + 2, a, b] = pq.imag
-                Mc[c + 3, a, b] = ki * qq - pq.imag
+                Mc[c, a, b] = pq.real - lr * qq
+                Mc[c + 1, a, b] = hr * qq - pq.real
+                Mc[c + 2, a, b] = pq.imag - li * qq
+                Mc[c + 3, a, b] = hi_ * qq - pq.imag
                 Mc[c + 4, a, b] = rho2 * qq - (da.real * db.real + da.imag * db.imag)
         Mc[c + 5, n - 1, n - 1] = 1.0
         Mc[c + 5, j, j] = -1.0
