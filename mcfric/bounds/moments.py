@@ -303,7 +303,7 @@ def beam_bound(G, q0, ylin, H, kr, ki, F_lim, beam, limits=None, part=None):
     nd = q0.shape[0]
     p = np.full(nd, np.nan + 0j)
     if not np.abs(H[beam]).max() > 0:
-        return abs(ylin[beam]), p
+        return abs(ylin[beam]), p, None
     A, b, q, c0, sizes, sy = problem(G, q0, ylin, H, kr, ki, F_lim, beam, limits, part)
     settings = clarabel.DefaultSettings()
     settings.verbose = False
