@@ -123,6 +123,9 @@ def main(argv=None):
                 ((M > C.upper * (1 + 1e-9)) | (M < C.lower * (1 - 1e-9))) & ok)),
             "upper_within_1pct": int(np.count_nonzero(C.upper_gap <= 0.01)),
             "upper_within_1pct_by_band": _bands(f, C.upper_gap <= 0.01, np.sum),
+            # where the rest are, for the next step (Hz, relative gap)
+            "upper_loose": [[round(float(f[k]), 3), round(float(C.upper_gap[k]), 4)]
+                            for k in np.flatnonzero(~(C.upper_gap <= 0.01))],
             "lower_tight": int(np.count_nonzero(C.lower_tight)),
             "certified_above_paper": int(np.count_nonzero(C.upper > BC.upper * (1 + 1e-9))),
             "certified_above_paper_1pct": int(np.count_nonzero(C.upper > BC.upper * 1.01)),
@@ -152,6 +155,10 @@ def main(argv=None):
                   f"{res['second_order_mirrored']}" if args.moments else ""))
         print(f"{'':>16}  upper within 1 % by band: " + "; ".join(
             f"{band}: {v:g}" for band, v in res["upper_within_1pct_by_band"].items()))
+        worst = sorted(res["upper_loose"], key=lambda x: -x[1])[:8]
+        if worst:
+            print(f"{'':>16}  loosest upper (Hz: gap): " + ", ".join(
+                f"{fk:.1f}: {100 * g:.2g} %" for fk, g in worst))
         for name in ("certified_over_paper_by_band", "certified_over_envelope_by_band"):
             print(f"{'':>16}  {name}: " + "; ".join(
                 f"{band}: median {v[0]:.3g} ({v[1]:.3g}-{v[2]:.3g})"

@@ -192,9 +192,10 @@ def test_splitting_the_own_dampers_closes_the_gap_at_105_hz():
     p = np.linalg.solve(np.eye(7) + K[:, :, None] * G[None], (K * q0)[..., None])[..., 0]
     y3 = np.abs(ylin[3] - p @ H[3])
     assert y3[np.abs(p).max(axis=1) <= F_LIM].max() <= bound
-    mirrored = moments_branch.mirrored_branch(G, q0, ylin, H, K_MAX, K_MAX, F_LIM, 4, limits,
-                                              leaves, mirror_sign(G, q0, ylin, H))
+    mirrored, verified = moments_branch.mirrored_branch(
+        G, q0, ylin, H, K_MAX, K_MAX, F_LIM, 4, limits, leaves, mirror_sign(G, q0, ylin, H))
     assert abs(mirrored / bound - 1) < 1e-6
+    assert verified == len({id(z) for _, z, _ in leaves})
 
 
 def test_certify_with_moments_tightens_and_stays_sound():

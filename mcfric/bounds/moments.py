@@ -218,6 +218,18 @@ def _verified_dual(z, sizes):
     return np.concatenate(out)
 
 
+def box(nd, kr, ki):
+    """The whole box as a part ``(lo, hi)``: each damper's rectangle ``[0, kr] x [0,
+    ki]`` (N/m) by its corners."""
+    return np.zeros(nd, np.complex128), np.full(nd, complex(kr, ki))
+
+
+def _to_metres(value, sy):
+    """The bound of ``|y_b|`` (m) from a verified dual value of the scaled objective,
+    widened by ``MARGIN``."""
+    return math.sqrt(max(value, 0.0) * sy) * (1 + MARGIN)
+
+
 def force_limits(G, q0, kr, ki, F_lim):
     """Proven bounds of every damper force ``|p_j|`` (N) over the admissible set, at
     most ``F_lim``: each the first-order relaxation's (:mod:`mcfric.core.relaxation`)
@@ -229,8 +241,7 @@ def force_limits(G, q0, kr, ki, F_lim):
 
     nd = q0.shape[0]
     V, idx, S, x, cvec, pos, simplex, grow, ws = rx.buffers(nd, nd, True, False)
-    lo = np.zeros(nd, np.complex128)
-    hi = np.full(nd, complex(kr, ki))
+    lo, hi = box(nd, kr, ki)
     H = -np.eye(nd, dtype=np.complex128)
     zero = np.zeros(nd, np.complex128)
     stats = np.zeros(3, np.int64)
@@ -261,7 +272,7 @@ def problem(G, q0, ylin, H, kr, ki, F_lim, beam, limits=None, part=None):
     st = structure(nd)
     scale = np.full(nd, float(F_lim)) if limits is None else limits
     if part is None:
-        part = (np.zeros(nd, np.complex128), np.full(nd, complex(kr, ki)))
+        part = box(nd, kr, ki)
     Mc = np.empty((PER_DAMPER * nd, n, n))
     admissible_forms(G, q0, part[0], part[1], scale, Mc)
     My = np.empty((n, n))
@@ -320,8 +331,7 @@ def beam_bound(G, q0, ylin, H, kr, ki, F_lim, beam, limits=None, part=None):
     if str(sol.status) in ("Solved", "AlmostSolved"):
         x = np.asarray(sol.x)[structure(nd)["first"] - 1]
         p = (F_lim if limits is None else limits) * (x[:nd] + 1j * x[nd:])
-    value = dual_bound(A, b, q, c0, z, sizes)
-    return math.sqrt(max(value, 0.0) * sy) * (1 + MARGIN), p, z
+    return _to_metres(dual_bound(A, b, q, c0, z, sizes), sy), p, z
 
 
 def mirrored_bound(G, q0, ylin, H, kr, ki, F_lim, beam, limits, z, sign, part=None):
@@ -340,8 +350,7 @@ def mirrored_bound(G, q0, ylin, H, kr, ki, F_lim, beam, limits, z, sign, part=No
     """
     A, b, q, c0, sizes, sy = problem(G, q0, ylin, H, kr, ki, F_lim, beam, limits, part)
     src, sgn = _mirror_map(q0.shape[0], int(sign))
-    value = dual_bound(A, b, q, c0, sgn * z[src], sizes)
-    return math.sqrt(max(value, 0.0) * sy) * (1 + MARGIN)
+    return _to_metres(dual_bound(A, b, q, c0, sgn * z[src], sizes), sy)
 
 
 @functools.lru_cache(maxsize=8)

@@ -19,8 +19,6 @@ import heapq
 import itertools
 import math
 
-import numpy as np
-
 from . import moments
 
 #: A split that leaves more than ``1 - PROGRESS`` of the split part's excess over the goal
@@ -98,7 +96,7 @@ def branch_bound(G, q0, ylin, H, kr, ki, F_lim, beam, limits, value, z, K_cut, g
     """
     nd = q0.shape[0]
     own = own_dampers(beam, nd)
-    whole = (np.zeros(nd, np.complex128), np.full(nd, complex(kr, ki)))
+    whole = moments.box(nd, kr, ki)
     # each entry: a part, and the part (itself or an ancestor) whose dual proves its bound
     heap = [(-value, 0, whole, (whole, z))]
     count = 1
@@ -126,16 +124,18 @@ def branch_bound(G, q0, ylin, H, kr, ki, F_lim, beam, limits, value, z, K_cut, g
 def mirrored_branch(G, q0, ylin, H, kr, ki, F_lim, beam, limits, leaves, sign):
     """The bound of ``|y_beam|`` (m) from the mirror beam's ``leaves``
     (:func:`branch_bound`): each part reversed, its dual verified by
-    :func:`.moments.mirrored_bound`; the largest, ``inf`` where a leaf has no dual."""
+    :func:`.moments.mirrored_bound`; the largest, ``inf`` where a leaf has no dual. Also
+    returns the number of duals verified (siblings proved by one ancestor's dual share
+    its verification)."""
     worst = -math.inf
     seen = set()
     for (lo, hi), z, _ in leaves:
-        if id(z) in seen:  # siblings proved by the same ancestor
+        if id(z) in seen:
             continue
         seen.add(id(z))
         if z is None:
-            return math.inf
+            return math.inf, len(seen) - 1
         worst = max(worst, moments.mirrored_bound(G, q0, ylin, H, kr, ki, F_lim, beam,
                                                   limits, z, sign,
                                                   (lo[::-1].copy(), hi[::-1].copy())))
-    return worst
+    return worst, len(seen)
