@@ -78,8 +78,9 @@ class BoundsSpec:
         Enclosures per frequency and bound of the certification; None: 4000 for one
         damper, 400 for more.
     split : int or None
-        Relaxations of parts of the box per frequency and bound where the relaxation of
-        the whole box is loose (0: none); None: the default, 200.
+        Relaxations of parts of the box per frequency where the relaxation of the whole
+        box leaves the upper bound loose, the lower bound at most 800 of them (0: none);
+        None: the default, 3200.
     moments : bool
         Whether the certified upper bound is tightened by the second-order moment
         relaxation (slow; chains only).

@@ -61,9 +61,11 @@ WITNESS_SAMPLES = 12
 #: Whether the semidefinite relaxation of the whole box tightens the branch and bound's
 #: bounds where they are not yet within the tolerance (two or more dampers, a force limit).
 RELAX = True
-#: Relaxations of parts of the box per frequency and bound at most, where the relaxation
-#: of the whole box leaves the bound loose (:mod:`mcfric.core.relaxation_branch`).
-SPLIT_BUDGET = 800
+#: Relaxations of parts of the box per frequency at most for the upper bound, where the
+#: relaxation of the whole box leaves it loose (:mod:`mcfric.core.relaxation_branch`).
+SPLIT_BUDGET = 3200
+#: The lower bound's at most (more closes few lower bounds: docs/bounds.md).
+LOWER_SPLIT_BUDGET = 800
 #: Open parts of least lower bound whose relaxations are rounded, where splitting leaves
 #: the lower bound loose, as starts for the lower witness's descent.
 ROUNDED_PARTS = 4
@@ -493,9 +495,10 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
     rtol : float
         Relative tolerance of the branch and bound.
     split : int, optional
-        Relaxations of parts of the box per frequency and bound where the relaxation of
-        the whole box leaves the bound loose (:mod:`mcfric.core.relaxation_branch`);
-        default ``SPLIT_BUDGET``, 0: none.
+        Relaxations of parts of the box per frequency for the upper bound where the
+        relaxation of the whole box leaves it loose (:mod:`mcfric.core.relaxation_branch`),
+        the lower bound at most ``LOWER_SPLIT_BUDGET`` of them; default ``SPLIT_BUDGET``,
+        0: none.
     moments : bool
         Also tighten the upper bound by the second-order moment relaxation
         (:mod:`.moments`; chains only, needs ``pip install "mcfric[moments]"``): about
@@ -572,7 +575,8 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
                 # points and the witness where the bound is loose
                 _descend(args, kr, ki, F_lim, K_round, cert, wit, K, rtol, atol)
             cert, used, K_parts = _split(args, kr, ki, F_lim, want_max, cert, wit, rtol,
-                                         atol, beam_bounds, split)
+                                         atol, beam_bounds,
+                                         split if want_max else min(split, LOWER_SPLIT_BUDGET))
             split_used[int(not want_max)] = used
             if not want_max:
                 # the parts' relaxations are tighter, and a part holds one of a mirror

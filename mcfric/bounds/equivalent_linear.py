@@ -220,9 +220,10 @@ def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity
         damper, 400 for more (50 from six dampers, where the relaxation follows:
         :func:`.certified.default_budget`).
     split : int, optional
-        Relaxations of parts of the box per frequency and bound where the relaxation of
-        the whole box leaves the certificate loose (0: none; default
-        :data:`.certified.SPLIT_BUDGET`, 800: :mod:`mcfric.core.relaxation_branch`).
+        Relaxations of parts of the box per frequency where the relaxation of the whole
+        box leaves the upper bound loose, the lower bound at most 800 of them (0: none;
+        default :data:`.certified.SPLIT_BUDGET`, 3200:
+        :mod:`mcfric.core.relaxation_branch`).
     moments : bool
         Also tighten the certified upper bound by the second-order moment relaxation
         (chains of 2-7 dampers with a force limit; ``pip install "mcfric[moments]"``;

@@ -74,7 +74,7 @@ def defaults(preset=DEFAULT_PRESET):
         "run": {"threads": 0, "chunk": 0, "checkpoint_s": 0.0, "scheduler": ""},
         "bounds": {"enabled": True, "k_max": "auto", "k_max_im": "auto", "F_lim": "auto",
                    "n_starts": 3, "certify": True, "certify_budget": "auto",
-                   "certify_split": 800, "certify_moments": False},
+                   "certify_split": 3200, "certify_moments": False},
     }
 
 
@@ -203,8 +203,9 @@ SPEC = {
                            'of the certification at most; "auto": 4000 for one damper, 400 '
                            "for more (50 from six dampers with a force limit)"),
         "certify_split": (integer(0, 1000000), "relaxations of parts of the box per "
-                          "frequency and bound where the relaxation of the whole box is "
-                          "loose (branch and bound over relaxations; 0: none)"),
+                          "frequency where the relaxation of the whole box leaves the upper "
+                          "bound loose (branch and bound over relaxations; the lower bound "
+                          "at most 800; 0: none)"),
         "certify_moments": (boolean(), "also tighten the certified upper bound by a "
                             "second-order moment relaxation (chains with a force limit; "
                             'slow; pip install "mcfric[moments]")'),
