@@ -289,31 +289,45 @@ def _force_ascent(args, kr, ki, F_lim, starts, stop, wit, K):
     return wit
 
 
-def _from_neighbours(args, kr, ki, F_lim, cert, wit, K, stop, rtol):
-    """Upper witnesses improved where ``cert`` is loose by climbing from the witnesses
-    ``K`` (n_f, nd; N/m) of the ``NEIGHBOUR_REACH`` frequencies either side (the rows are
-    taken as neighbours in frequency), repeated while any improves: a search that found
-    a lower peak than at the neighbouring frequencies (every other frequency at 117-123
-    Hz, 0.25 N, with bounds 25-45 % above them) starts from theirs. ``K`` is updated in
-    place, the new witness values returned (m)."""
-    n_f, nd = K.shape
-    shifts = [d for r in range(1, NEIGHBOUR_REACH + 1) for d in (-r, r)]
+def _neighbours(K):
+    """Starts from the witnesses ``K`` (n_f, nd; N/m) of the ``NEIGHBOUR_REACH`` rows
+    either side of each row (clipped at the ends): (n_f, 2 NEIGHBOUR_REACH, nd)."""
+    n_f = len(K)
+    rows = np.arange(n_f)
+    return np.stack([K[np.clip(rows + d, 0, n_f - 1)]
+                     for r in range(1, NEIGHBOUR_REACH + 1) for d in (-r, r)], axis=1)
+
+
+def _from_neighbours(args, kr, ki, F_lim, want_max, cert, wit, K, stop, rtol, atol):
+    """Witnesses improved where ``cert`` is loose by climbing (upper) or descending
+    (lower) from the witnesses of the neighbouring frequencies (:func:`_neighbours`; the
+    rows are taken as neighbours in frequency), repeated while any improves: a search
+    that stopped on a lower peak than at the neighbouring frequencies (every other
+    frequency at 117-123 Hz, 0.25 N, with upper bounds 25-45 % above them) starts from
+    theirs. ``stop`` (m): where the upper climbs stop. ``K`` and ``wit`` are updated in
+    place; returns ``wit``."""
     for _ in range(NEIGHBOUR_PASSES):
-        todo = np.flatnonzero(~_met(True, cert, wit, rtol, 0.0) & (wit < stop))
-        if not len(todo) or n_f < 2:
+        loose = ~_met(want_max, cert, wit, rtol, atol)
+        if want_max:
+            loose &= wit < stop
+        todo = np.flatnonzero(loose)
+        if not len(todo) or len(K) < 2:
             break
-        given = np.empty((n_f, len(shifts), nd), np.complex128)
-        for s, d in enumerate(shifts):
-            given[:, s] = K[np.clip(np.arange(n_f) + d, 0, n_f - 1)]
+        given = _neighbours(K)
         before = wit.copy()
-        Kw, Mw = joint_witnesses(args, kr, ki, F_lim, given, stop, todo, pool=0,
-                                 climb=len(shifts))
-        better = Mw > wit
-        K[better] = Kw[better]
-        wit = np.where(better, Mw, wit)
-        # and in the forces (near a resonance the response is a sharp ridge in K)
-        wit = _force_ascent(args, kr, ki, F_lim, given, stop, wit, K)
-        if not np.any(wit > before * (1 + 1e-9)):
+        if want_max:
+            Kw, Mw = joint_witnesses(args, kr, ki, F_lim, given, stop, todo, pool=0,
+                                     climb=given.shape[1])
+            better = Mw > wit
+            K[better] = Kw[better]
+            wit[better] = Mw[better]
+            # and in the forces (near a resonance the response is a sharp ridge in K)
+            wit[:] = _force_ascent(args, kr, ki, F_lim, given, stop, wit, K)
+            gained = wit > before * (1 + 1e-9)
+        else:
+            _descend(args, kr, ki, F_lim, given, cert, wit, K, rtol, atol)
+            gained = wit < before * (1 - 1e-9)
+        if not gained.any():
             break
     return wit
 
@@ -605,12 +619,15 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
                                     wit, K)
                 # a frequency whose search stopped on a lower peak than its neighbours'
                 # starts from theirs (the split's goal and stall rule rest on the witness)
-                wit = _from_neighbours(args, kr, ki, F_lim, cert, wit, K, stop, rtol)
+                wit = _from_neighbours(args, kr, ki, F_lim, True, cert, wit, K, stop, rtol,
+                                       atol)
             if not want_max:
                 # the box search's minimum may break the force limit, and the corners
                 # lie far above the joint minimum: descend from the relaxation's rounded
                 # points and the witness where the bound is loose
                 _descend(args, kr, ki, F_lim, K_round, cert, wit, K, rtol, atol)
+                # and from the neighbouring frequencies' lower witnesses
+                _from_neighbours(args, kr, ki, F_lim, False, cert, wit, K, None, rtol, atol)
             cert, used, K_parts = _split(args, kr, ki, F_lim, want_max, cert, wit, rtol,
                                          atol, beam_bounds,
                                          split if want_max else min(split, LOWER_SPLIT_BUDGET))
