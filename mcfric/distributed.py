@@ -32,6 +32,9 @@ WORKER_TIMEOUT_S = 60.0
 IN_FLIGHT_PER_THREAD = 2
 #: Seconds between two looks at the cluster's thread count during a run.
 THREADS_REFRESH_S = 1.0
+#: Dashboard address of a ``local:N`` cluster: any free port on this machine. (None is
+#: not "no dashboard" in distributed: it falls back to 8787, and warns when that is taken.)
+DASHBOARD = "127.0.0.1:0"
 INSTALL_HINT = 'needs Dask, an optional extra: pip install "mcfric[dask]"'
 
 # one kernel at a time per worker process: numba's default (workqueue) threading layer
@@ -176,7 +179,7 @@ class Cluster:
                 with _workers_ignore_ctrl_c():
                     local = distributed.LocalCluster(
                         n_workers=n, threads_per_worker=1, processes=True,
-                        dashboard_address=None, silence_logs=logging.ERROR)
+                        dashboard_address=DASHBOARD, silence_logs=logging.ERROR)
                 client = distributed.Client(local, timeout=CONNECT_TIMEOUT_S)
             else:
                 client = distributed.Client(address, timeout=CONNECT_TIMEOUT_S)

@@ -19,15 +19,18 @@ import numpy as np
 import pytest
 
 from mcfric import cli, config, ensemble
+from mcfric.distributed import DASHBOARD
 from mcfric.store import partial_path
 
 pytest.importorskip("distributed")
 
 ROOT = Path(__file__).resolve().parents[1]
 # 1000 members in 250 chunks of 4: long enough (several seconds on a cluster) to be
-# killed mid-run, small enough for the default suite
+# killed mid-run, small enough for the default suite. The bounds are computed on the
+# client, not the cluster: their certification (tested elsewhere) is left out here.
 CONFIG = ('[model]\npreset = "eight-beam"\n[frequency]\nn = 100\n'
-          '[sampling]\nsamples = 1000\nseed = 11\n[run]\nchunk = 4\n')
+          '[sampling]\nsamples = 1000\nseed = 11\n[run]\nchunk = 4\n'
+          '[bounds]\ncertify = false\n')
 
 
 @pytest.fixture(scope="module")
@@ -105,7 +108,7 @@ def test_a_worker_killed_mid_run_loses_nothing(reference, tmp_path):
     out = tmp_path / "cluster.h5"
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                      dashboard_address=None) as cluster, Client(cluster) as client:
+                      dashboard_address=DASHBOARD) as cluster, Client(cluster) as client:
         pids = client.run(os.getpid)
         p = subprocess.Popen(cli_cmd(toml, out, "--scheduler", cluster.scheduler_address),
                              env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
@@ -153,7 +156,7 @@ def test_workers_that_join_mid_run_get_chunks(monkeypatch):
     spec = config.load("two-beam").spec
     timing = {"kernel_s": 0.0}
     with LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
-                      dashboard_address=None) as cluster, Client(cluster) as client:
+                      dashboard_address=DASHBOARD) as cluster, Client(cluster) as client:
         c = distributed.Cluster(client, None, cluster.scheduler_address)
         c.n_threads = 1
         source = c.chunks(slow_chunk, spec, [(i, i + 1) for i in range(60)], timing)
@@ -255,7 +258,7 @@ def test_a_chunk_that_fails_everywhere_stops_resumably(reference, tmp_path, caps
     monkeypatch.setattr(ensemble, "solve_records", fail_on_sample_8)
     # threads in this process, so that the replaced task is the one the workers run
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=False,
-                      dashboard_address=None) as cluster:
+                      dashboard_address=DASHBOARD) as cluster:
         rc = cli.main(["run", str(toml), "-o", str(out), "--scheduler",
                        cluster.scheduler_address, "--no-progress", "--no-figure"])
     err = capsys.readouterr().err
@@ -276,7 +279,7 @@ def test_a_scheduler_without_workers_gives_one_line_and_no_file(tmp_path, capsys
 
     monkeypatch.setattr(distributed, "WORKER_TIMEOUT_S", 1.0)
     out = tmp_path / "r.h5"
-    with LocalCluster(n_workers=0, processes=False, dashboard_address=None) as cluster:
+    with LocalCluster(n_workers=0, processes=False, dashboard_address=DASHBOARD) as cluster:
         rc = cli.main(["run", "two-beam", "--samples", "4", "--n-freq", "10", "-o",
                        str(out), "--scheduler", cluster.scheduler_address, "--no-progress"])
     err = capsys.readouterr().err
@@ -301,7 +304,7 @@ def test_a_worker_with_another_solver_is_refused(tmp_path, capsys, monkeypatch):
     monkeypatch.setattr(ensemble, "fingerprint", fingerprint_by_side)
     out = tmp_path / "r.h5"
     with LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
-                      dashboard_address=None) as cluster:
+                      dashboard_address=DASHBOARD) as cluster:
         rc = cli.main(["run", "two-beam", "--samples", "4", "--n-freq", "10", "-o",
                        str(out), "--scheduler", cluster.scheduler_address, "--no-progress"])
     err = capsys.readouterr().err
