@@ -1,9 +1,10 @@
 """Cost and tightness of the response bounds against harmonic-balance ensembles.
 
-Run: ``python bench/bounds.py [--members N] [--n-freq N] [--threads T] [--moments] [--f0 F]``.
+Run: ``python bench/bounds.py [--members N] [--n-freq N] [--threads T] [--moments]
+[--preset P] [--f0 F] [--json PATH]``.
 
 Measured in this one run (compiled kernels; times are the best of ``--repeat``), for both
-presets at the paper's forces, on 10-150 Hz:
+presets at the paper's forces (or ``--preset`` and ``--f0``), on 10-150 Hz:
 
 * the searched bounds (upper + lower, ``mcfric.bounds.compute_bounds(certified=False)``),
   and the same with their certification (the default);
@@ -34,6 +35,9 @@ from mcfric.bounds import certified, compute_bounds, force_limit
 
 K_MAX = 15000.0
 N0 = 0.5
+PRESETS = ("two-beam", "eight-beam")
+#: the paper's excitation forces per preset, N
+PAPER_FORCES = {"two-beam": (0.22, 1.1), "eight-beam": (0.25, 1.1)}
 
 
 def best_time(fn, repeat):
@@ -53,8 +57,12 @@ def main(argv=None):
     p.add_argument("--repeat", type=int, default=5)
     p.add_argument("--moments", action="store_true",
                    help="certify with the second-order relaxation (eight beams only)")
+    p.add_argument("--preset", choices=PRESETS, default=None,
+                   help="only this preset (default: both; eight-beam with --moments)")
     p.add_argument("--f0", type=float, default=None,
-                   help="only the eight-beam case of this force (0.25 or 1.1 N)")
+                   help="only this force, N (default: the paper's, per preset)")
+    p.add_argument("--json", type=pathlib.Path, default=None,
+                   help="where to save the results (default: bench/out/bounds.json)")
     args = p.parse_args(argv)
     if args.repeat < 1:
         p.error(f"--repeat: expected an integer >= 1, got {args.repeat}")
@@ -65,13 +73,13 @@ def main(argv=None):
     results = {}
     print(f"{args.members} members x {args.n_freq} frequencies, 10-150 Hz; "
           f"k_max = {K_MAX:g} N/m, F_lim = {F_lim:.4g} N")
-    cases = (("two-beam", 0.22), ("two-beam", 1.1), ("eight-beam", 0.25), ("eight-beam", 1.1))
-    if args.f0 is not None:
-        cases = tuple(c for c in cases[2:] if c[1] == args.f0)
-        if not cases:
-            p.error(f"--f0: expected 0.25 or 1.1, got {args.f0:g}")
-    elif args.moments:
-        cases = cases[2:]
+    if args.f0 is not None and not args.f0 > 0:
+        p.error(f"--f0: expected a force > 0 N, got {args.f0:g}")
+    presets = (args.preset,) if args.preset else ("eight-beam",) if args.moments else PRESETS
+    if args.moments and presets != ("eight-beam",):
+        p.error("--moments: eight beams only (one damper needs no second order)")
+    cases = tuple((preset, F0) for preset in presets
+                  for F0 in ((args.f0,) if args.f0 is not None else PAPER_FORCES[preset]))
     for preset, F0 in cases:
         model = mcfric.preset(preset, F0)
         nd = model.n_dampers
@@ -170,8 +178,9 @@ def main(argv=None):
               f"{res['lower_over_envelope_min_median']:.3f} | upper set by force at "
               f"{res['upper_set_by_force']} of {len(f)}")
         _figure(f, M, B, out / f"bounds-{case}.png", f"{preset}, F0 = {F0:g} N")
-    (out / "bounds.json").write_text(json.dumps(results, indent=2))
-    print(f"saved {out / 'bounds.json'} and figures in {out}")
+    saved = args.json or out / "bounds.json"
+    saved.write_text(json.dumps(results, indent=2))
+    print(f"saved {saved} and figures in {out}")
 
 
 def _bands(f, ratio, summary=None, edges=(10, 40, 70, 110, 150)):
