@@ -6,6 +6,9 @@ import numba
 # error_model="numpy": division by zero gives inf/nan instead of raising, as in numpy;
 # kernels check isfinite themselves and report a status code.
 _POLICY = dict(cache=True, error_model="numpy")
+# A kernel called from another kernel compiles once per distinct argument type. A
+# literal argument (-1, 0) and a prange index (uint64) each give a second signature
+# beside int64, so call sites pass np.int64(...): one compile instead of two.
 
 
 def jit(*args, **kwargs):

@@ -528,7 +528,7 @@ def sweep_multi_harmonic(rech, force, a, b, orders, omega, mu0, N0, kc, n_time, 
     """Multi-harmonic sweep of every sample (module docstring for the arguments)."""
     n_s = mu0.shape[0]
     for i in prange(n_s):
-        _sample(i, rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, tol,
+        _sample(np.int64(i), rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, tol,
                 max_iter, y, y_peak, s, status, iterations, residual)
 
 

@@ -568,6 +568,6 @@ def refine_peaks(omega, modal_f, zeta, u, force, a, b, mu0, N0, kc, tol, max_ite
         The contact law (:mod:`.friction`).
     """
     for i in prange(mu0.shape[0]):
-        _member(i, omega, modal_f, zeta, u, force, a, b, mu0, N0, kc, tol, max_iter, y, s,
+        _member(np.int64(i), omega, modal_f, zeta, u, force, a, b, mu0, N0, kc, tol, max_iter, y, s,
                 status, beams, power, n_peaks, rtol, window, pk_w, pk_m, pk_y, pk_st, fold,
                 pkd_w, pkd_m, law)

@@ -902,7 +902,7 @@ def relax_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, floor, target, fr
             out[k] = R
         else:
             cold[0] = np.nan
-            b = relaxed_bound(G[k], q0[k], ylin[k], H[k], lo, hi, F_lim, -1, target[k], V,
+            b = relaxed_bound(G[k], q0[k], ylin[k], H[k], lo, hi, F_lim, np.int64(-1), target[k], V,
                               idx, S, x, cvec, pos, simplex, grow, ws, stats, cold, lo, hi)
             out[k] = 0.0 if np.isnan(b) else b
             if not np.isnan(b) and rounded(x, V, idx, S, kr, ki, F_lim, ws, Kc):

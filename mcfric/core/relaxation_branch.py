@@ -385,7 +385,7 @@ def branch_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, cert, target, bu
     none = np.empty((0, nd), np.complex128)
     for k in freqs:
         if not want_max:
-            b, _, _ = branch(G[k], q0[k], ylin[k], H[k], kr, ki, F_lim, -1, cert[k],
+            b, _, _ = branch(G[k], q0[k], ylin[k], H[k], kr, ki, F_lim, np.int64(-1), cert[k],
                              target[k], budget, V, idx, S, x, cvec, pos, simplex, grow, ws,
                              stats, K_round[k], prt)
             out[k] = max(cert[k], b)
@@ -394,7 +394,7 @@ def branch_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, cert, target, bu
         left = budget
         R = 0.0
         last = -1
-        n_last = 0
+        n_last = np.int64(0)
         for b in np.argsort(-beam_bounds[k]):
             bound = beam_bounds[k, b]
             goal = max(R, target[k])

@@ -251,7 +251,7 @@ def sweep_chain(rec, force, a, b, omega, mu0, N0, kc, tol, max_iter,
     n_batches = (mu0.shape[0] + LANES - 1) // LANES
     W = predict_weights(omega)
     for g in prange(n_batches):
-        _chain_batch(g, rec, force, a, b, W, mu0, N0, kc, tol, max_iter,
+        _chain_batch(np.int64(g), rec, force, a, b, W, mu0, N0, kc, tol, max_iter,
                      y, s, status, iterations, residual)
 
 
@@ -419,7 +419,7 @@ def sweep_dense(rec, force, a, b, omega, mu0, N0, kc, tol, max_iter,
     :mod:`mcfric.core.friction`), one sample at a time, dense LU."""
     W = predict_weights(omega)
     for i in prange(mu0.shape[0]):
-        _dense_sample(i, rec, force, a, b, W, mu0, N0, kc, tol, max_iter,
+        _dense_sample(np.int64(i), rec, force, a, b, W, mu0, N0, kc, tol, max_iter,
                       y, s, status, iterations, residual, law)
 
 
@@ -491,7 +491,7 @@ def sweep_one_damper(rec, force, a, b, omega, mu0, N0, kc, tol, max_iter,
     W = predict_weights(omega)
     n_batches = (mu0.shape[0] + ONE_LANES - 1) // ONE_LANES
     for g in prange(n_batches):
-        _one_damper_batch(g, rec, force, a, b, W, mu0, N0, kc, tol, max_iter,
+        _one_damper_batch(np.int64(g), rec, force, a, b, W, mu0, N0, kc, tol, max_iter,
                           y, s, status, iterations, residual)
 
 
