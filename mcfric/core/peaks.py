@@ -334,7 +334,8 @@ def _refine(idx, from_below, P, S, rtol):
     mid = idx[N_SUB // 2]
     # a broad peak (the grid neighbours above half of it): climb from the grid alone
     if mid >= 0 and min(pm[idx[0]], pm[idx[N_SUB]]) >= 0.5 * pm[mid]:
-        best, ok = _climb(mid, lo, hi, start, from_below, P, S, rtol, QUICK_STEPS, -1)
+        best, ok = _climb(mid, lo, hi, start, from_below, P, S, rtol, np.int64(QUICK_STEPS),
+                          np.int64(-1))
         if ok:
             return _beam_peaks(best, lo, hi, start, from_below, P, S, rtol)
     for step in range(1, N_SUB):
@@ -355,7 +356,8 @@ def _refine(idx, from_below, P, S, rtol):
             best = p
     left = min(pw[idx[max(tb - 1, 0)]], pw[best])
     right = max(pw[idx[min(tb + 1, N_SUB)]], pw[best])
-    best, ok = _climb(best, left, right, start, from_below, P, S, rtol, MAX_STEPS, -1)
+    best, ok = _climb(best, left, right, start, from_below, P, S, rtol, np.int64(MAX_STEPS),
+                      np.int64(-1))
     if not ok:
         return best, False
     return _beam_peaks(best, lo, hi, start, from_below, P, S, rtol)
@@ -377,7 +379,7 @@ def _beam_peaks(best, lo, hi, start, from_below, P, S, rtol):
         for p in range(S[4][0]):
             if lo <= S[0][p] <= hi and _val(S, p, bb, power) > _val(S, start_b, bb, power):
                 start_b = p
-        _, ok = _climb(start_b, lo, hi, start, from_below, P, S, rtol, MAX_STEPS, bb)
+        _, ok = _climb(start_b, lo, hi, start, from_below, P, S, rtol, np.int64(MAX_STEPS), bb)
         if not ok:
             return best, False
     for p in range(S[4][0]):
@@ -463,7 +465,7 @@ def _member(i, omega, modal_f, zeta, u, force, a, b, mu0, N0, kc, tol, max_iter,
                 continue                      # k is an end of the bracket
             _log_s(s, i, g, nd, x)
             idx[t] = _seed(omega[g], x, y[i, g], M[g], S)
-        best, ok = _refine(idx, True, P, S, rtol)
+        best, ok = _refine(idx, np.bool_(True), P, S, rtol)
         if best < 0:
             pk_st[i, p] = PEAK_GRID
             pk_w[i, p], pk_m[i, p] = omega[k], M[k]
@@ -523,7 +525,7 @@ def _member(i, omega, modal_f, zeta, u, force, a, b, mu0, N0, kc, tol, max_iter,
         idx[N_SUB] = dn[g_hi - k_bot]
         if g_lo < gb < g_hi:
             idx[N_SUB // 2] = dn[gb - k_bot]
-        best, ok = _refine(idx, False, P, S, rtol)
+        best, ok = _refine(idx, np.bool_(False), P, S, rtol)
         j = best if best >= 0 else dn[gb - k_bot]
         pkd_w[i, p], pkd_m[i, p] = S[0][j], S[1][j]
 
