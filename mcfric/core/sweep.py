@@ -361,7 +361,7 @@ def _chain_batch(g, rec, force, a, b, W, mu0, N0, kc, tol, max_iter,
                     act1[j] = actl[j, l]
                     q01[j] = q0[j, l]
                 good, n2, st = _fallback(rec, r, k, a, b, kc1, c1, act1, q01, G, xs,
-                                         tol, max_iter, wd, LAW_COULOMB)
+                                         tol, max_iter, wd, np.int64(LAW_COULOMB))
                 n_it += n2
                 for j in range(nd):
                     x[j, l] = xs[j]
