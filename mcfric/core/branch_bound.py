@@ -149,7 +149,7 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, want_max, K_init, budget, rtol, atol,
     Pb, yabs = ws[-2], ws[-1]
     U = np.empty(nb)
     L = np.empty(nb)
-    n = 0
+    n = np.int64(0)
     evaluations = 0
     root = math.inf if want_max else 0.0
     converged = False

@@ -203,7 +203,7 @@ def ascend(G, q0, ylin, H, kr, ki, F_lim, beam, K, ws):
     g, gold, x, xold, u = ws[10], ws[11], ws[12], ws[13], ws[14]
     # the beam's own dampers first, then the others
     order = np.empty(nd, np.int64)
-    nA = 0
+    nA = np.int64(0)
     for j in range(nd):
         if H[beam, j] != 0:
             order[nA] = j
@@ -237,15 +237,15 @@ def ascend(G, q0, ylin, H, kr, ki, F_lim, beam, K, ws):
     d = np.empty(n)
     for tau in TAUS:
         f = _phi(G, q0, ylin, H, order, nA, u, F_lim, kr, ki, tau, beam, g, ws)
-        count = 0
-        head = 0
+        count = np.int64(0)
+        head = np.int64(0)
         gamma = 1e-3
         for it in range(ITERATIONS):
             slope = _direction(g, x, nA, nd, Sm, Ym, rho, al, count, head, gamma, d)
             if not slope > 0.0:
                 # the quasi-Newton direction does not rise: start the memory again
-                count = 0
-                slope = _direction(g, x, nA, nd, Sm, Ym, rho, al, 0, head, gamma, d)
+                count = np.int64(0)
+                slope = _direction(g, x, nA, nd, Sm, Ym, rho, al, count, head, gamma, d)
                 if not slope > 0.0:
                     break
             # projected step (K_O onto the box), halved until inside and rising enough

@@ -129,11 +129,11 @@ def ascend(Mc, sup, ns, My, z, stop2, ws):
     not strictly feasible."""
     g, Hs, A, L, y, d, zn, w = ws
     nx = len(z) - 1
-    if not math.isfinite(_phi(z, Mc, sup, ns, My, TAUS[0], g, Hs, False, w)):
+    if not math.isfinite(_phi(z, Mc, sup, ns, My, TAUS[0], g, Hs, np.bool_(False), w)):
         return False
     for tau in TAUS:
         for step in range(STEPS):
-            f0 = _phi(z, Mc, sup, ns, My, tau, g, Hs, True, w)
+            f0 = _phi(z, Mc, sup, ns, My, tau, g, Hs, np.bool_(True), w)
             dec = _direction(g, Hs, A, L, y, d, nx)
             if not dec > DECREMENT:
                 break
@@ -143,7 +143,7 @@ def ascend(Mc, sup, ns, My, z, stop2, ws):
                 for a in range(nx):
                     zn[a] = z[a] + t * d[a]
                 zn[nx] = 1.0
-                if _phi(zn, Mc, sup, ns, My, tau, g, Hs, False, w) >= f0 + 1e-4 * t * dec:
+                if _phi(zn, Mc, sup, ns, My, tau, g, Hs, np.bool_(False), w) >= f0 + 1e-4 * t * dec:
                     moved = True
                     break
                 t *= 0.5

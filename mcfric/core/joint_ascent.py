@@ -151,7 +151,7 @@ def _step(G, q0, ylin, H, kr, ki, F, b, K, j, n_samples, ws):
     Kj = K[j]
     best = _abs2(yb)
     k_best = Kj
-    c_best = -1
+    c_best = np.int64(-1)
     t_best = 0.0
     for c in range(nd + 4):
         # the samples, then (circles) the farthest point from the pole y_b / w_b

@@ -305,8 +305,8 @@ def branch(G, q0, ylin, H, kr, ki, F_lim, beam, root, goal, budget, V, idx, S, x
         if n + 1 >= n_max:
             break
         width = np.empty((nd, 2))
-        pick_j = 0
-        pick_s = 0
+        pick_j = np.int64(0)
+        pick_s = np.int64(0)
         score = -1.0
         for j in range(nd):
             width[j, 0] = (his[best, j].real - los[best, j].real) / kr
