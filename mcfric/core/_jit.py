@@ -7,8 +7,9 @@ import numba
 # kernels check isfinite themselves and report a status code.
 _POLICY = dict(cache=True, error_model="numpy")
 # A kernel called from another kernel compiles once per distinct argument type. A
-# literal argument (-1, 0) and a prange index (uint64) each give a second signature
-# beside int64, so call sites pass np.int64(...): one compile instead of two.
+# literal argument (-1, 0, True, a module constant) and a prange index (uint64) each
+# give another signature beside int64 or bool, so call sites pass np.int64(...) or
+# np.bool_(...): one compile instead of several.
 
 
 def jit(*args, **kwargs):
