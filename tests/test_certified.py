@@ -46,6 +46,18 @@ def physical_grid(model, freq_hz, K, forces=False):
     return M, (np.abs(K * q) / F_LIM).max(axis=1)
 
 
+def random_admissible(model, freq_hz, n, seed):
+    """``M`` (m) at the admissible ones of ``n`` random points of the box (each ``K``
+    scaled by one log-uniform factor in [1e-3, 1], so that small ``K`` are sampled too):
+    those where every damper force is at or below ``F_LIM``; physical-space solves."""
+    rng = np.random.default_rng(seed)
+    nd = model.n_dampers
+    s = 10.0 ** rng.uniform(-3, 0, (n, 1))
+    K = s * (rng.uniform(0, K_MAX, (n, nd)) + 1j * rng.uniform(0, K_MAX, (n, nd)))
+    M, force = physical_grid(model, freq_hz, K)
+    return M[force <= 1.0]
+
+
 def grid_points(nd, n):
     """Every combination of an ``n x n`` grid of each damper's rectangle, (n^(2 nd), nd)."""
     g = np.linspace(0, K_MAX, n)

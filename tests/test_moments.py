@@ -9,18 +9,10 @@ import mcfric
 from mcfric.bounds import compute_bounds, moments
 from mcfric.core.branch_bound import force_bounds
 
-from .test_certified import F_LIM, K_MAX, chain, grid_points, physical_grid
+from .test_certified import F_LIM, K_MAX, chain, grid_points, physical_grid, random_admissible
 from .test_force_ascent import arrays
 
 pytest.importorskip("clarabel")
-
-
-def random_admissible(model, freq, n, seed):
-    rng = np.random.default_rng(seed)
-    K = 10.0 ** rng.uniform(-3, 0, (n, 1)) * (rng.uniform(0, K_MAX, (n, model.n_dampers))
-                                               + 1j * rng.uniform(0, K_MAX, (n, model.n_dampers)))
-    M, force = physical_grid(model, freq, K)
-    return M[force <= 1.0]
 
 
 def test_structure_of_a_seven_damper_chain():

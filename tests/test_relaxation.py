@@ -13,7 +13,7 @@ import mcfric
 from mcfric.core import relaxation as rx
 from mcfric.core.receptance import contact_space
 
-from .test_certified import F_LIM, K_MAX, physical_grid
+from .test_certified import F_LIM, K_MAX, random_admissible
 
 
 def problem(model, freq, beam):
@@ -48,17 +48,6 @@ def dense_Z(a):
         Vi = V[:, idx[i]]
         Z += (x[i] if i < len(x) else 1.0) * Vi @ S[i] @ Vi.conj().T
     return Z
-
-
-def random_admissible(model, freq, n, seed):
-    """``M`` and ``|y_b|`` (all beams) at ``n`` random points of the box that meet the
-    force limit (physical-space solves), log-spread in size."""
-    rng = np.random.default_rng(seed)
-    nd = model.n_dampers
-    s = 10.0 ** rng.uniform(-3, 0, (n, 1))
-    K = s * (rng.uniform(0, K_MAX, (n, nd)) + 1j * rng.uniform(0, K_MAX, (n, nd)))
-    M, force = physical_grid(model, freq, K)
-    return M[force <= 1.0]
 
 
 @pytest.mark.parametrize("freq", [17.0, 52.0, 90.0])
