@@ -41,6 +41,11 @@ from .relaxation import buffers, forms, per_damper, relaxed_bound, rounded, shif
 #: fraction of the gap between its bound and the goal.
 STALL = 0.02
 
+#: The beams after the first (the one of largest bound) share what it leaves of the
+#: budget plus this fraction of it: where the first spends it all, the others would
+#: otherwise keep their bounds of the whole box, often the frequency's largest.
+TAIL = 0.25
+
 
 @jit
 def _split(lo, hi, j, side, lo2, hi2):
@@ -381,7 +386,7 @@ def branch_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, cert, target, bu
     nb = ylin.shape[1]
     V, idx, S, x, cvec, pos, simplex, grow, ws = buffers(nd, nb, np.isfinite(F_lim),
                                                          not want_max)
-    prt = parts(nd, len(x), budget)
+    prt = parts(nd, len(x), budget + np.int64(TAIL * budget))
     none = np.empty((0, nd), np.complex128)
     for k in freqs:
         if not want_max:
@@ -395,6 +400,9 @@ def branch_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, cert, target, bu
         R = 0.0
         last = -1
         n_last = np.int64(0)
+        # the first beam may spend the whole budget; the others get a share more (TAIL)
+        tail = np.int64(TAIL * budget)
+        first = True
         for b in np.argsort(-beam_bounds[k]):
             bound = beam_bounds[k, b]
             goal = max(R, target[k])
@@ -402,6 +410,10 @@ def branch_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, cert, target, bu
                 # the rest are no higher
                 R = max(R, bound)
                 break
+            if not first:
+                left += tail
+                tail = 0
+            first = False
             if left >= 6:
                 got = np.nan
                 if sym and last == nb - 1 - b:
