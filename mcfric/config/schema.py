@@ -204,8 +204,9 @@ SPEC = {
                            "for more (50 from six dampers with a force limit)"),
         "certify_split": (integer(0, 1000000), "relaxations of parts of the box per "
                           "frequency where the relaxation of the whole box leaves the upper "
-                          "bound loose (branch and bound over relaxations; the lower bound "
-                          "at most 800; 0: none)"),
+                          "bound loose (branch and bound over relaxations; the beams after "
+                          "the first share a quarter more; the lower bound at most 800; "
+                          "0: none)"),
         "certify_moments": (boolean(), "also tighten the certified upper bound by a "
                             "second-order moment relaxation (chains with a force limit; "
                             'slow; pip install "mcfric[moments]")'),
