@@ -298,7 +298,7 @@ def jenkins(Q, orders, kc, fs, n_time, F, dF, work):
         if g0 == 0.0:
             th = lo
         elif (g0 > 0.0) != (g1 > 0.0) and g1 != 0.0:
-            th = _root(Q, orders, n_h, lo, lo + step, g0, g1, 0.0, True)
+            th = _root(Q, orders, n_h, lo, lo + step, g0, g1, 0.0, np.bool_(True))
         else:
             continue
         ext[m_ext] = th
@@ -340,7 +340,7 @@ def jenkins(Q, orders, kc, fs, n_time, F, dF, work):
     a = th0
     q_s = q_max
     stick_from = th0
-    o_f = 0                                 # powers at stick_from, at th_s, at b
+    o_f = np.int64(0)                       # powers at stick_from, at th_s, at b
     o_s = pw
     o_b = 2 * pw
     _powers(th0, p_max, zr, zi, o_f)
@@ -371,13 +371,13 @@ def jenkins(Q, orders, kc, fs, n_time, F, dF, work):
                 lo = ks * step
                 flo = v
                 ks += 1
-            th_s = _root(Q, orders, n_h, lo, hi, flo, fhi, level, False)
+            th_s = _root(Q, orders, n_h, lo, hi, flo, fhi, level, np.bool_(False))
             _powers(th_s, p_max, zr, zi, o_s)
             _powers(b, p_max, zr, zi, o_b)
-            _segment(Q, orders, n_h, stick_from, th_s, True, f_a, q_a, kc, 0.0, F, dF,
+            _segment(Q, orders, n_h, stick_from, th_s, np.bool_(True), f_a, q_a, kc, 0.0, F, dF,
                      zr, zi, o_f, o_s, p_max, tr, ti)
             sgn = fs if up else -fs
-            _segment(Q, orders, n_h, th_s, b, False, 0.0, 0.0, kc, sgn, F, dF,
+            _segment(Q, orders, n_h, th_s, b, np.bool_(False), 0.0, 0.0, kc, sgn, F, dF,
                      zr, zi, o_s, o_b, p_max, tr, ti)
             q_a = q_b
             f_a = sgn
@@ -390,8 +390,8 @@ def jenkins(Q, orders, kc, fs, n_time, F, dF, work):
         # not reached when the loop slips into the global minimum (it does, unless
         # rounding hides the last crossing)
         _powers(th0 + math.pi, p_max, zr, zi, o_b)
-        _segment(Q, orders, n_h, stick_from, th0 + math.pi, True, f_a, q_a, kc, 0.0, F, dF,
-                 zr, zi, o_f, o_b, p_max, tr, ti)
+        _segment(Q, orders, n_h, stick_from, th0 + math.pi, np.bool_(True), f_a, q_a, kc,
+                 0.0, F, dF, zr, zi, o_f, o_b, p_max, tr, ti)
     return 2 * n_events
 
 

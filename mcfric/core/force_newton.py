@@ -114,7 +114,7 @@ def _direction(g, Hs, A, L, y, d, nx):
         for b in range(nx):
             A[a, b] = -Hs[a, b]
         y[a] = g[a]
-    if not ridge_solve(A, L, y, d, nx, 1e-10, 10.0, 60):
+    if not ridge_solve(A, L, y, d, nx, 1e-10, 10.0, np.int64(60)):
         return -1.0
     dec = 0.0
     for a in range(nx):

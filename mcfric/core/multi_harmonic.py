@@ -255,16 +255,16 @@ def _chain_step(G, dF, W, piv, x, nd, n_h):
     while f < nd and not math.isnan(_linear_gain(dF, f, n_h)):
         f += 1
     if f == nd:
-        if not _stuck_eliminate(G, dF, W, x, 0, nd, 1, n_h):
+        if not _stuck_eliminate(G, dF, W, x, np.int64(0), nd, np.int64(1), n_h):
             return False
-        _stuck_back(G, dF, W, x, 0, nd, 1, False, n_h)
+        _stuck_back(G, dF, W, x, np.int64(0), nd, np.int64(1), np.bool_(False), n_h)
         return True
     l = nd - 1
     while not math.isnan(_linear_gain(dF, l, n_h)):
         l -= 1
-    if not _stuck_eliminate(G, dF, W, x, 0, f, 1, n_h):
+    if not _stuck_eliminate(G, dF, W, x, np.int64(0), f, np.int64(1), n_h):
         return False
-    if not _stuck_eliminate(G, dF, W, x, nd - 1, l, -1, n_h):
+    if not _stuck_eliminate(G, dF, W, x, nd - 1, l, np.int64(-1), n_h):
         return False
     c_prev = math.nan
     c_cur = math.nan
@@ -316,7 +316,7 @@ def _chain_step(G, dF, W, piv, x, nd, n_h):
                             for c in range(m2):
                                 W[rd + r, c] -= lk * W[rxp + k, c]
                     x[j * m2 + r] -= acc
-        D = W[rd:rd + m2, :m2]
+        D = W[rd:rd + m2]               # W has m2 columns: a C-contiguous block
         p = piv[j * m2:(j + 1) * m2]
         if lu_factor(D, p, m2) != 0:
             return False
@@ -360,8 +360,8 @@ def _chain_step(G, dF, W, piv, x, nd, n_h):
             for c in range(m2):
                 acc += W[rx + r, c] * x[(j + 1) * m2 + c]
             x[j * m2 + r] -= acc
-    _stuck_back(G, dF, W, x, nd - 1, l, -1, True, n_h)
-    _stuck_back(G, dF, W, x, 0, f, 1, True, n_h)
+    _stuck_back(G, dF, W, x, nd - 1, l, np.int64(-1), np.bool_(True), n_h)
+    _stuck_back(G, dF, W, x, np.int64(0), f, np.int64(1), np.bool_(True), n_h)
     return True
 
 
@@ -540,10 +540,10 @@ def _sample(i, rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, tol, m
     n_beams = force.shape[0]
     n_f = omega.shape[0]
     n = 2 * nd * n_h
-    chain = True                     # damper j couples beams j and j + 1: tridiagonal G
+    chain = np.bool_(True)           # damper j couples beams j and j + 1: tridiagonal G
     for j in range(nd):
         if a[j] != j or b[j] != j + 1:
-            chain = False
+            chain = np.bool_(False)
     r_base = 0
     if rech.shape[0] > n_h:          # per-sample receptances (mistuned rigs)
         r_base = np.int64(i) * n_h
@@ -675,8 +675,8 @@ def _sample(i, rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, tol, m
                 y[i, k, h, bb] = yh[h, bb]
             hi = -math.inf
             lo = math.inf
-            t_hi = 0
-            t_lo = 0
+            t_hi = np.int64(0)
+            t_lo = np.int64(0)
             for t in range(n_peak):
                 yt[t] = 0.0
             for h in range(n_h):

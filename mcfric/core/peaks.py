@@ -255,7 +255,7 @@ def _climb(best, left, right, start, from_below, P, S, rtol, max_steps, beam):
     power = P[17]
     verify = False
     for _ in range(max_steps):
-        ib, il, ir = best, -1, -1
+        ib, il, ir = best, np.int64(-1), np.int64(-1)
         for p in range(S[4][0]):
             if left <= pw[p] < pw[ib] and (il < 0 or pw[p] > pw[il]):
                 il = p

@@ -309,7 +309,7 @@ def _newton(x, mu, V, idx, S, gstart, cvec, pos, simplex, m, ws):
     # dx = -Hm^-1 g (a growing ridge where rounding makes Hm indefinite)
     for i in range(m):
         yv[i] = -g[i]
-    if not ridge_solve(Hm, Lh, yv, dx, m, 1e-12, 100.0, 8):
+    if not ridge_solve(Hm, Lh, yv, dx, m, 1e-12, 100.0, np.int64(8)):
         return -1.0, f
     lam2 = 0.0
     for i in range(m):
