@@ -544,9 +544,9 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
         Relative tolerance of the branch and bound.
     split : int, optional
         Relaxations of parts of the box per frequency for the upper bound where the
-        relaxation of the whole box leaves it loose (:mod:`mcfric.core.relaxation_branch`),
-        the lower bound at most ``LOWER_SPLIT_BUDGET`` of them; default ``SPLIT_BUDGET``,
-        0: none.
+        relaxation of the whole box leaves it loose (:mod:`mcfric.core.relaxation_branch`;
+        the beams after the first a quarter more), the lower bound at most
+        ``LOWER_SPLIT_BUDGET`` of them; default ``SPLIT_BUDGET``, 0: none.
     moments : bool
         Also tighten the upper bound by the second-order moment relaxation
         (:mod:`.moments`; chains only, needs ``pip install "mcfric[moments]"``): about

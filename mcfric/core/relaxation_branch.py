@@ -371,7 +371,8 @@ def branch_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, cert, target, bu
     """Certified bounds at ``freqs`` tightened by :func:`branch`: ``out[k]`` the upper
     bound of ``max_b |y_b|`` (``want_max``) or the lower one (m), never looser than
     ``cert[k]``, aiming at ``target[k]``, with at most ``budget`` relaxations per
-    frequency. For the lower bound, ``K_round[k]`` (shape (2 r, nd), N/m) receives the
+    frequency (the upper bound's beams after the first: ``TAIL * budget`` more). For
+    the lower bound, ``K_round[k]`` (shape (2 r, nd), N/m) receives the
     rounded points of the ``r`` open parts of least bound where the target is not met.
 
     The upper bound takes the beams in decreasing order of ``beam_bounds[k]`` (each
