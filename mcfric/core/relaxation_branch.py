@@ -387,7 +387,9 @@ def branch_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, cert, target, bu
     nb = ylin.shape[1]
     V, idx, S, x, cvec, pos, simplex, grow, ws = buffers(nd, nb, np.isfinite(F_lim),
                                                          not want_max)
-    prt = parts(nd, len(x), budget + np.int64(TAIL * budget))
+    # the first beam may spend the whole budget; the others get a share more (TAIL)
+    share = np.int64(TAIL * budget)
+    prt = parts(nd, len(x), budget + share)
     none = np.empty((0, nd), np.complex128)
     for k in freqs:
         if not want_max:
@@ -401,20 +403,15 @@ def branch_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, cert, target, bu
         R = 0.0
         last = -1
         n_last = np.int64(0)
-        # the first beam may spend the whole budget; the others get a share more (TAIL)
-        tail = np.int64(TAIL * budget)
-        first = True
-        for b in np.argsort(-beam_bounds[k]):
+        for i, b in enumerate(np.argsort(-beam_bounds[k])):
             bound = beam_bounds[k, b]
             goal = max(R, target[k])
             if bound <= goal:
                 # the rest are no higher
                 R = max(R, bound)
                 break
-            if not first:
-                left += tail
-                tail = 0
-            first = False
+            if i == 1:
+                left += share
             if left >= 6:
                 got = np.nan
                 if sym and last == nb - 1 - b:
