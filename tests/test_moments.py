@@ -94,6 +94,41 @@ def test_force_limits_bound_every_admissible_force():
             assert limits.max() < 0.2 * F_LIM
 
 
+def test_part_force_limits_bound_every_admissible_force_of_the_part():
+    """Eight beams, 0.25 N, 73.3 Hz (the witness has beam 4's own dampers, 3 and 4
+    counted from 0, at ``K = k_max``): over the part with those two dampers' rectangles
+    cut to ``[0.99, 1] k_max x [0, 0.01] k_max``, the part's force limits are at most
+    the box's, at least a tenth below them for one damper, and at least every damper
+    force of 3000 random admissible points of the part (physical-space solves); made
+    symmetric, the mirrored part's are exactly these reversed."""
+    from mcfric.bounds.moments_branch import part_limits
+    from mcfric.core.relaxation_branch import mirror_sign
+
+    model = mcfric.eight_beam(0.25)
+    freq = 10 + 140 * 452 / 999
+    G, q0, ylin, H = (x[0] for x in arrays(model, np.array([freq])))
+    s = mirror_sign(G, q0, ylin, H)
+    assert s != 0
+    box = moments.force_limits(G, q0, K_MAX, K_MAX, F_LIM)
+    box = np.maximum(box, box[::-1])
+    lo, hi = moments.box(7, K_MAX, K_MAX)
+    lo[3:5] = 0.99 * K_MAX
+    hi[3:5] = complex(K_MAX, 0.01 * K_MAX)
+    lim = part_limits(G, q0, K_MAX, K_MAX, F_LIM, box, (lo, hi))
+    assert np.all(lim <= box) and lim.min() < 0.9 * box[np.argmin(lim)]
+    rng = np.random.default_rng(9)
+    n = 3000
+    K = 10.0 ** rng.uniform(-3, 0, (n, 1)) * (rng.uniform(0, K_MAX, (n, 7))
+                                              + 1j * rng.uniform(0, K_MAX, (n, 7)))
+    K[:, 3:5] = (rng.uniform(0.99, 1, (n, 2)) + 1j * rng.uniform(0, 0.01, (n, 2))) * K_MAX
+    _, p = physical_grid(model, freq, K, forces=True)
+    p = p[p.max(axis=1) <= F_LIM]
+    assert len(p) > 100 and np.all(p <= lim)
+    sym = part_limits(G, q0, K_MAX, K_MAX, F_LIM, box, (lo, hi), s)
+    rev = part_limits(G, q0, K_MAX, K_MAX, F_LIM, box, (lo[::-1].copy(), hi[::-1].copy()), s)
+    assert np.array_equal(rev, sym[::-1]) and np.all(sym >= lim)
+
+
 def test_second_order_in_proven_force_scales_is_tight_at_the_first_resonance():
     """Eight beams, 0.25 N, 12.2 Hz: the first-order relaxation stays 10 % above the
     witness whatever the splitting. In the variables ``p / F_lim`` the second order is
@@ -187,7 +222,7 @@ def test_splitting_the_own_dampers_closes_the_gap_at_105_hz():
     mirrored, verified = moments_branch.mirrored_branch(
         G, q0, ylin, H, K_MAX, K_MAX, F_LIM, 4, limits, leaves, mirror_sign(G, q0, ylin, H))
     assert abs(mirrored / bound - 1) < 1e-6
-    assert verified == len({id(z) for _, z, _ in leaves})
+    assert verified == len({id(leaf[1]) for leaf in leaves})
 
 
 def test_certify_with_moments_tightens_and_stays_sound():

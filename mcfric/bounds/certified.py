@@ -479,7 +479,7 @@ def _second_order(args, kr, ki, F_lim, cert, wit, K, beam_bounds, rtol):
                                                  b, limits)
                 counts[i, 0] += 1
                 counts[i, 1] += not np.isfinite(value)
-                leaves = [(moments.box(nd, kr, ki), z, value)]
+                leaves = [(moments.box(nd, kr, ki), z, value, limits)]
                 # parts only where the bound stays above the goal after the first-order
                 # cap (both are bounds)
                 if (part_goal < min(value, beam_bounds[k, b])
@@ -487,13 +487,13 @@ def _second_order(args, kr, ki, F_lim, cert, wit, K, beam_bounds, rtol):
                     # a little above the witness: split the beam's own dampers
                     value, used, leaves, stalled = moments_branch.branch_bound(
                         G[k], q0[k], ylin[k], H[k], kr, ki, F_lim, b, limits, value, z,
-                        cut[b], max(part_goal, done), budget)
+                        cut[b], max(part_goal, done), budget, sign)
                     # splitting that stalls on one beam keeps the frequency loose
                     budget = 0 if stalled else budget - used
                     counts[i, 0] += used
                     counts[i, 3] += used
                 # the duals' own (uncapped) bound: the mirror beam's reference
-                if sign and np.isfinite(value) and all(zl is not None for _, zl, _ in leaves):
+                if sign and np.isfinite(value) and all(leaf[1] is not None for leaf in leaves):
                     solved[b] = (p, leaves, value)
             if min(beam_bounds[k, b], value) > done and not np.isnan(p[0]):
                 with np.errstate(all="ignore"):

@@ -230,18 +230,19 @@ def _to_metres(value, sy):
     return math.sqrt(max(value, 0.0) * sy) * (1 + MARGIN)
 
 
-def force_limits(G, q0, kr, ki, F_lim):
+def force_limits(G, q0, kr, ki, F_lim, part=None):
     """Proven bounds of every damper force ``|p_j|`` (N) over the admissible set, at
     most ``F_lim``: each the first-order relaxation's (:mod:`mcfric.core.relaxation`)
     verified bound of the "response" ``p_j`` (``ylin = 0``, ``H = -I``), ``F_lim`` where
     it does not verify. Where the responses that matter need only small forces (near the
     first resonances at small drives) they are a tenth of ``F_lim``, and the second order
-    in ``p / F_lim`` is badly scaled there (below)."""
+    in ``p / F_lim`` is badly scaled there (below). ``part``: ``(lo, hi)`` (N/m), the
+    bounds over that part of the box instead (:mod:`.moments_branch`)."""
     from ..core import relaxation as rx
 
     nd = q0.shape[0]
     V, idx, S, x, cvec, pos, simplex, grow, ws = rx.buffers(nd, nd, True, False)
-    lo, hi = box(nd, kr, ki)
+    lo, hi = box(nd, kr, ki) if part is None else part
     H = -np.eye(nd, dtype=np.complex128)
     zero = np.zeros(nd, np.complex128)
     stats = np.zeros(3, np.int64)
