@@ -115,7 +115,7 @@ def test_part_force_limits_bound_every_admissible_force_of_the_part():
     lo[3:5] = 0.99 * K_MAX
     hi[3:5] = complex(K_MAX, 0.01 * K_MAX)
     lim = part_limits(G, q0, K_MAX, K_MAX, F_LIM, box, (lo, hi))
-    assert np.all(lim <= box) and lim.min() < 0.9 * box[np.argmin(lim)]
+    assert np.all(lim <= box) and np.any(lim < 0.9 * box)
     rng = np.random.default_rng(9)
     n = 3000
     K = 10.0 ** rng.uniform(-3, 0, (n, 1)) * (rng.uniform(0, K_MAX, (n, 7))
