@@ -81,9 +81,10 @@ class BoundsSpec:
         Relaxations of parts of the box per frequency where the relaxation of the whole
         box leaves the upper bound loose, the lower bound at most 800 of them (0: none);
         None: the default, 3200.
-    moments : bool
+    moments : bool or "auto"
         Whether the certified upper bound is tightened by the second-order moment
-        relaxation (slow; chains only).
+        relaxation where the first order leaves it loose; ``"auto"``: where it applies
+        (chains of 2-7 dampers with a force limit).
     """
 
     k_max_re: float
@@ -93,7 +94,7 @@ class BoundsSpec:
     certify: bool = True
     budget: int | None = None
     split: int | None = None
-    moments: bool = False
+    moments: bool | str = "auto"
 
 
 @dataclass(frozen=True)

@@ -260,6 +260,15 @@ def auto_or_number(lo=0, words=("auto",)):
     return check
 
 
+def auto_or_boolean():
+    """``"auto"``, ``true`` or ``false``."""
+    def check(v, key):
+        if v == "auto" or isinstance(v, bool):
+            return v
+        raise InputError(key, f'expected "auto", true or false, got {show(v)}')
+    return check
+
+
 def auto_or_integer(lo, hi):
     """``"auto"`` or an integer in ``lo..hi``."""
     whole = integer(lo, hi)

@@ -104,7 +104,7 @@ def test_one_damper_encloses_a_dense_grid_and_is_tight(F0, F_lim):
     the witness test)."""
     model = mcfric.two_beam(F0)
     f = np.array([12.0, 17.0, 30.0, 40.0, 55.0, 64.0, 90.0, 112.0, 140.0])
-    B = compute_bounds(model, f, K_MAX, F_lim=F_lim, budget=4000)
+    B = compute_bounds(model, f, K_MAX, F_lim=F_lim, budget=4000, moments=False)
     C = check_encloses(B, model, f, 201, tight=0.006 if F_lim is None else None,
                        n_edge=40001)
     assert C.converged.all()
@@ -114,7 +114,7 @@ def test_one_damper_encloses_a_dense_grid_and_is_tight(F0, F_lim):
 def test_two_and_three_dampers_enclose_an_exhaustive_grid(n_beams, n_grid):
     model = chain(n_beams, 0.5)
     f = np.array([15.0, 17.0, 40.0, 70.0, 108.0])
-    B = compute_bounds(model, f, K_MAX, F_lim=F_LIM, budget=2000)
+    B = compute_bounds(model, f, K_MAX, F_lim=F_LIM, budget=2000, moments=False)
     check_encloses(B, model, f, n_grid)
 
 
@@ -126,7 +126,7 @@ def test_eight_beams_enclose_every_member_and_random_admissible_points(F0):
     nd = model.n_dampers
     r = mcfric.solve(model, f, rng.uniform(0, 1, (500, nd)), rng.uniform(0, K_MAX, (500, nd)),
                      N0)
-    B = compute_bounds(model, f, K_MAX, F_lim=F_LIM, budget=200)
+    B = compute_bounds(model, f, K_MAX, F_lim=F_LIM, budget=200, moments=False)
     C = B.certificate
     M = r.metric()
     ok = r.converged
@@ -142,7 +142,7 @@ def test_eight_beams_enclose_every_member_and_random_admissible_points(F0):
 def test_witnesses_are_admissible_and_attain_their_values():
     model = chain(3, 0.5)
     f = np.array([16.0, 40.0, 110.0])
-    B = compute_bounds(model, f, K_MAX, F_lim=F_LIM, budget=500)
+    B = compute_bounds(model, f, K_MAX, F_lim=F_LIM, budget=500, moments=False)
     C = B.certificate
     for k, fk in enumerate(f):
         for K, value in ((C.K_upper[k], C.upper_witness[k]), (C.K_lower[k], C.lower_witness[k])):
@@ -158,7 +158,7 @@ def test_certificate_round_trips_through_a_file(tmp_path):
 
     model = mcfric.two_beam(0.22)
     f = np.linspace(12, 140, 9)
-    B = compute_bounds(model, f, K_MAX, F_lim=F_LIM)
+    B = compute_bounds(model, f, K_MAX, F_lim=F_LIM, moments=False)
     path = tmp_path / "b.h5"
     write_file(path, {"frequency": (f, {"units": "Hz"}), "damper": (np.arange(1, 2), {})},
                {"bounds": to_group(B)}, {})
@@ -173,7 +173,7 @@ def test_skipping_certification_and_bad_budget():
     f = np.linspace(12, 140, 5)
     assert compute_bounds(model, f, K_MAX, certified=False).certificate is None
     with pytest.raises(ValueError, match="^budget: expected an integer >= 1"):
-        compute_bounds(model, f, K_MAX, budget=0)
+        compute_bounds(model, f, K_MAX, budget=0, moments=False)
 
 
 @pytest.mark.parametrize("F0", [0.22, 1.1])
@@ -183,7 +183,7 @@ def test_one_damper_certificate_is_tight_at_the_default_budget(F0):
     witness and the lower within 1 % (or 1e-3 of the upper bound) at every frequency."""
     model = mcfric.two_beam(F0)
     f = np.linspace(24.0, 56.0, 81)             # the resonances
-    C = compute_bounds(model, f, K_MAX, F_lim=F_LIM).certificate
+    C = compute_bounds(model, f, K_MAX, F_lim=F_LIM, moments=False).certificate
     assert C.budget == 4000
     assert np.all(C.upper <= 1.01 * C.upper_witness)
     assert np.all(C.lower_tight)
@@ -192,8 +192,8 @@ def test_one_damper_certificate_is_tight_at_the_default_budget(F0):
 def test_certificate_does_not_depend_on_the_thread_count():
     model = mcfric.eight_beam(1.1)
     f = np.linspace(10, 150, 24)
-    A = compute_bounds(model, f, K_MAX, F_lim=F_LIM, n_threads=1).certificate
-    B = compute_bounds(model, f, K_MAX, F_lim=F_LIM, n_threads=2).certificate
+    A = compute_bounds(model, f, K_MAX, F_lim=F_LIM, n_threads=1, moments=False).certificate
+    B = compute_bounds(model, f, K_MAX, F_lim=F_LIM, n_threads=2, moments=False).certificate
     for name in ("upper", "lower", "upper_witness", "lower_witness", "K_upper", "K_lower",
                  "evaluations"):
         np.testing.assert_array_equal(getattr(A, name), getattr(B, name))
@@ -206,7 +206,7 @@ def test_eight_beams_enclose_a_multistart_search_of_the_joint_set():
 
     model = mcfric.eight_beam(1.1)
     f = np.array([17.0, 45.0, 90.0, 130.0])
-    B = compute_bounds(model, f, K_MAX, F_lim=F_LIM, budget=200)
+    B = compute_bounds(model, f, K_MAX, F_lim=F_LIM, budget=200, moments=False)
     C = B.certificate
     nd = model.n_dampers
     rng = np.random.default_rng(11)
@@ -238,7 +238,7 @@ def test_climbed_witness_beats_random_admissible_points(F0):
 
     model = mcfric.eight_beam(F0)
     f = np.array([17.0, 30.0, 52.0, 90.0, 130.0])
-    B = compute_bounds(model, f, K_MAX, F_lim=F_LIM, budget=20)
+    B = compute_bounds(model, f, K_MAX, F_lim=F_LIM, budget=20, moments=False)
     C = B.certificate
     nd = model.n_dampers
     rng = np.random.default_rng(3)
@@ -250,7 +250,7 @@ def test_climbed_witness_beats_random_admissible_points(F0):
         certified.joint_witnesses = (lambda args, kr, ki, F_lim, given, stop, *a, **k:
                                      (np.zeros_like(given[:, 0]), np.full(len(stop), -np.inf)))
         certified._force_ascent = lambda args, kr, ki, F_lim, starts, stop, wit, K: wit
-        C0 = compute_bounds(model, f, K_MAX, F_lim=F_LIM, budget=20).certificate
+        C0 = compute_bounds(model, f, K_MAX, F_lim=F_LIM, budget=20, moments=False).certificate
     finally:
         certified.joint_witnesses, certified._force_ascent = plain
     for k, fk in enumerate(f):
@@ -301,7 +301,7 @@ def test_lower_witness_leaves_the_symmetric_minimum_for_a_parts_rounding():
     physical-space solve, and lies within 1 % of the certified lower bound."""
     model = mcfric.eight_beam(1.1)
     f = np.array([107.4, 108.1])
-    C = compute_bounds(model, f, K_MAX, F_lim=F_LIM).certificate
+    C = compute_bounds(model, f, K_MAX, F_lim=F_LIM, moments=False).certificate
     for k, fk in enumerate(f):
         W = C.K_lower[k]
         M, force = physical_grid(model, fk, W[None, :])
@@ -321,7 +321,7 @@ def test_lower_witness_is_the_joint_minimum_where_the_box_minimum_is_not_admissi
 
     model = mcfric.eight_beam(1.1)
     f = np.array([102.8, 104.0, 105.7])
-    C = compute_bounds(model, f, K_MAX, F_lim=F_LIM).certificate
+    C = compute_bounds(model, f, K_MAX, F_lim=F_LIM, moments=False).certificate
     nd = model.n_dampers
     rng = np.random.default_rng(17)
 

@@ -133,12 +133,12 @@ def test_closes_witness_gaps_at_40_to_70_hz():
 
     model = mcfric.eight_beam(0.25)
     f = np.linspace(40.0, 70.0, 61)
-    C = compute_bounds(model, f, K_MAX, F_lim=F_LIM).certificate
+    C = compute_bounds(model, f, K_MAX, F_lim=F_LIM, moments=False).certificate
     plain, passes = certified._force_ascent, certified.NEIGHBOUR_PASSES
     try:
         certified._force_ascent = lambda args, kr, ki, F_lim, starts, stop, wit, K: wit
         certified.NEIGHBOUR_PASSES = 0
-        C0 = compute_bounds(model, f, K_MAX, F_lim=F_LIM).certificate
+        C0 = compute_bounds(model, f, K_MAX, F_lim=F_LIM, moments=False).certificate
     finally:
         certified._force_ascent, certified.NEIGHBOUR_PASSES = plain, passes
     tight, tight0 = np.sum(C.upper_gap <= 0.01), np.sum(C0.upper_gap <= 0.01)
@@ -159,11 +159,11 @@ def test_neighbours_witnesses_close_120_hz():
 
     model = mcfric.eight_beam(0.25)
     f = 10 + 140 * np.arange(786, 794) / 999
-    C = compute_bounds(model, f, K_MAX, F_lim=F_LIM).certificate
+    C = compute_bounds(model, f, K_MAX, F_lim=F_LIM, moments=False).certificate
     passes = certified.NEIGHBOUR_PASSES
     try:
         certified.NEIGHBOUR_PASSES = 0
-        C0 = compute_bounds(model, f, K_MAX, F_lim=F_LIM).certificate
+        C0 = compute_bounds(model, f, K_MAX, F_lim=F_LIM, moments=False).certificate
     finally:
         certified.NEIGHBOUR_PASSES = passes
     assert np.sum(C0.upper_gap > 0.1) >= 3
@@ -183,7 +183,7 @@ def test_five_beam_chain_witness_meets_its_certificate():
 
     model = chain(5, 0.5)
     f = np.array([138.0])
-    C = compute_bounds(model, f, K_MAX, F_lim=F_LIM).certificate
+    C = compute_bounds(model, f, K_MAX, F_lim=F_LIM, moments=False).certificate
     assert C.upper_gap[0] <= 0.01
     M, force = physical_grid(model, f[0], C.K_upper)
     assert force[0] <= 1.0 and M[0] == pytest.approx(C.upper_witness[0], rel=1e-9)

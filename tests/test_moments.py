@@ -53,7 +53,7 @@ def test_dual_bound_is_valid_for_any_dual():
     model = mcfric.eight_beam(0.25)
     f = np.array([73.063])
     G, q0, ylin, H = (x[0] for x in arrays(model, f))
-    B = compute_bounds(model, f, K_MAX, F_lim=F_LIM)
+    B = compute_bounds(model, f, K_MAX, F_lim=F_LIM, moments=False)
     best = max(random_admissible(model, f[0], 3000, 2).max(), B.certificate.upper_witness[0])
     values = []
     for beam in (3, 4):
@@ -141,7 +141,7 @@ def test_second_order_in_proven_force_scales_is_tight_at_the_first_resonance():
     model = mcfric.eight_beam(0.25)
     f = np.array([12.2])
     G, q0, ylin, H = (x[0] for x in arrays(model, f))
-    C = compute_bounds(model, f, K_MAX, F_lim=F_LIM).certificate
+    C = compute_bounds(model, f, K_MAX, F_lim=F_LIM, moments=False).certificate
     M, force = physical_grid(model, f[0], C.K_upper[:1])
     assert force[0] <= 1 + 1e-9
     best = max(M[0], random_admissible(model, f[0], 3000, 6).max())
@@ -227,20 +227,51 @@ def test_splitting_the_own_dampers_closes_the_gap_at_105_hz():
 
 def test_certify_with_moments_tightens_and_stays_sound():
     """Eight beams, 1.1 N, two frequencies where the first-order relaxation is loose:
-    with the second-order relaxation the certified upper bounds are never looser, at
-    least one is tighter, and all stay above the witness and 3000 random admissible
-    points."""
+    with the second-order relaxation (on by default on a chain) the certified upper
+    bounds are never looser, at least one is tighter, and all stay above the witness and
+    3000 random admissible points."""
     model = mcfric.eight_beam(1.1)
     f = np.array([73.06, 118.47])
-    B0 = compute_bounds(model, f, K_MAX, F_lim=F_LIM)
-    B1 = compute_bounds(model, f, K_MAX, F_lim=F_LIM, moments=True)
+    B0 = compute_bounds(model, f, K_MAX, F_lim=F_LIM, moments=False)
+    B1 = compute_bounds(model, f, K_MAX, F_lim=F_LIM)   # the default: "auto"
     C0, C1 = B0.certificate, B1.certificate
+    assert C1.moments and not C0.moments and C0.second_order[0] == 0
     assert C1.second_order[0] >= 1
     assert np.all(C1.upper <= C0.upper * (1 + 1e-12))
     assert np.any(C1.upper < C0.upper * 0.99)
     assert np.all(C1.upper >= C1.upper_witness)
     for k, fk in enumerate(f):
         assert random_admissible(model, fk, 3000, k).max() <= C1.upper[k]
+
+
+def test_the_second_order_is_on_by_default_where_it_applies(tmp_path):
+    """``"auto"`` (the default of the API and the configuration): on for a chain of 2-7
+    dampers with a force limit, off for a ring, one damper or no force limit (no error);
+    ``--first-order`` turns it off; anything but "auto", true or false is one line."""
+    from mcfric import config
+    from mcfric.bounds.certified import resolve_moments
+    from mcfric.config import ConfigError
+
+    assert resolve_moments("auto", True, 7, 0.6) is True
+    assert resolve_moments("auto", True, 1, 0.6) is False
+    assert resolve_moments("auto", False, 24, 0.6) is False
+    assert resolve_moments("auto", True, 7, np.inf) is False
+    assert resolve_moments(False, True, 7, 0.6) is False
+    with pytest.raises(ValueError, match="moments: expected"):
+        resolve_moments("yes", True, 7, 0.6)
+    on = {name: config.load(name).spec.bounds.moments
+          for name in ("eight-beam", "two-beam", "disk-24")}
+    assert on == {"eight-beam": True, "two-beam": False, "disk-24": False}
+    assert config.load("eight-beam", {"bounds.F_lim": ("none", "--F-lim")}
+                       ).spec.bounds.moments is False
+    assert config.load("eight-beam", {"bounds.certify_moments": (False, "--first-order")}
+                       ).spec.bounds.moments is False
+    with pytest.raises(ConfigError, match="only for a chain"):
+        config.load("two-beam", {"bounds.certify_moments": (True, "--moments")}).spec
+    p = tmp_path / "c.toml"
+    p.write_text('model.preset = "eight-beam"\n[bounds]\ncertify_moments = "yes"\n')
+    with pytest.raises(ConfigError, match="certify_moments"):
+        config.load(p)
 
 
 def test_moments_refuse_rings_single_dampers_and_no_force_limit(tmp_path):

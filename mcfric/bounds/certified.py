@@ -126,6 +126,9 @@ class Certificate:
         (:mod:`mcfric.core.relaxation_branch`; 0: none).
     split_used : ndarray of int, shape (2,)
         Relaxations of parts of the box made for the upper and the lower bound.
+    moments : bool
+        Whether the second-order relaxation was on (it runs where the first order
+        leaves the upper bound loose).
     """
 
     upper: np.ndarray
@@ -141,6 +144,7 @@ class Certificate:
     second_order: np.ndarray = field(default_factory=lambda: np.zeros(2, np.int64))
     split: int = 0
     split_used: np.ndarray = field(default_factory=lambda: np.zeros(2, np.int64))
+    moments: bool = False
 
     @property
     def upper_gap(self):
@@ -237,6 +241,27 @@ def joint_witnesses(args, kr, ki, F_lim, given, stop, freqs=None, pool=None, cli
     return K, M
 
 
+def moments_apply(chain, n_dampers, F_lim):
+    """Whether the second-order relaxation applies: a chain (``chain``) of 2 to
+    ``MAX_DAMPERS`` dampers with a finite force limit (N)."""
+    return bool(chain and 2 <= n_dampers <= MAX_DAMPERS and np.isfinite(F_lim))
+
+
+def resolve_moments(moments, chain, n_dampers, F_lim):
+    """The second order on or off: ``"auto"`` (the default) where it applies
+    (:func:`moments_apply`), ``True`` everywhere (a one-line ValueError where it cannot
+    run), ``False`` nowhere."""
+    if isinstance(moments, str):
+        if moments != "auto":
+            raise ValueError(f'moments: expected "auto", True or False, got {moments!r}')
+        moments = moments_apply(chain, n_dampers, F_lim)
+    elif not isinstance(moments, (bool, np.bool_)):
+        raise ValueError(f'moments: expected "auto", True or False, got {moments!r}')
+    if moments:
+        check_moments(chain, n_dampers, F_lim)
+    return bool(moments)
+
+
 def check_moments(chain, n_dampers, F_lim):
     """Raise a one-line ValueError unless the second-order relaxation can run: Clarabel
     installed, a chain (``chain``) of 2 to ``MAX_DAMPERS`` dampers, a finite force limit
@@ -244,8 +269,9 @@ def check_moments(chain, n_dampers, F_lim):
     from .moments import available
 
     if not available():
-        raise ValueError('moments: needs Clarabel: pip install "mcfric[moments]"')
-    if not (chain and 2 <= n_dampers <= MAX_DAMPERS and np.isfinite(F_lim)):
+        raise ValueError('moments: needs Clarabel, a dependency of mcfric: pip install '
+                         '"clarabel>=0.9"')
+    if not moments_apply(chain, n_dampers, F_lim):
         raise ValueError(f"moments: only for a chain of 2 to {MAX_DAMPERS} dampers with a "
                          f"force limit (this one: {n_dampers} damper"
                          f"{'s' if n_dampers != 1 else ''}, {'a chain' if chain else 'not a chain'}"
@@ -547,10 +573,12 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
         relaxation of the whole box leaves it loose (:mod:`mcfric.core.relaxation_branch`;
         the beams after the first a quarter more), the lower bound at most
         ``LOWER_SPLIT_BUDGET`` of them; default ``SPLIT_BUDGET``, 0: none.
-    moments : bool
+    moments : bool or "auto"
         Also tighten the upper bound by the second-order moment relaxation
-        (:mod:`.moments`; chains only, needs ``pip install "mcfric[moments]"``): about
-        1.5 s per relaxation, a few per frequency where the first-order one is loose.
+        (:mod:`.moments`; chains of 2 to ``MAX_DAMPERS`` dampers with a force limit,
+        :func:`resolve_moments`; ``"auto"``: where it applies): about a second per
+        relaxation, a few per frequency where the first-order one is loose. Default
+        False here; :func:`mcfric.bounds.compute_bounds` defaults to ``"auto"``.
 
     Returns
     -------
@@ -559,10 +587,10 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
     n_f, nd = q0.shape
     # the relaxation needs the force limit (its multiplier makes the start definite)
     relax = RELAX and np.isfinite(F_lim) and 2 <= nd <= MAX_DAMPERS
-    if moments:
-        from .moments import is_chain
-        check_moments(is_chain(G), nd, F_lim)
+    from .moments import is_chain
+    moments = resolve_moments(moments, is_chain(G), nd, F_lim)
     second_order = np.zeros(2, np.int64)
+    LAST_MOMENTS[:] = 0
     split_used = np.zeros(2, np.int64)
     if budget is None:
         budget = default_budget(nd, relax)
@@ -652,4 +680,4 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
     (up, wu, Ku, eu, ou), (lo, wl, Kl, el, ol) = out[True], out[False]
     return Certificate(up * scale, lo * scale, wu * scale, wl * scale, Ku, Kl,
                        np.stack([ou, ol]), np.stack([eu, el]), int(budget), bool(relax),
-                       second_order, split if relax else 0, split_used)
+                       second_order, split if relax else 0, split_used, bool(moments))

@@ -11,8 +11,8 @@ within each *clique* of three neighbouring dampers (six variables): one moment m
 (28 x 28) per clique and one localising matrix (7 x 7) per constraint (Waki, Kim, Kojima
 and Muramatsu's correlative sparsity).
 
-It is solved by Clarabel (an interior-point conic solver; ``pip install
-"mcfric[moments]"``), whose answer is a floating-point approximation and proves nothing
+It is solved by Clarabel (an interior-point conic solver, a dependency of mcfric), whose
+answer is a floating-point approximation and proves nothing
 by itself. The bound is therefore rebuilt from its dual, a sum-of-squares certificate:
 with the dual blocks ``Z_i`` made positive semidefinite with a margin (checked by their
 eigenvalues), ``r = q + A^T z`` the residual of the dual equations and ``s(x) = b - A

@@ -80,6 +80,7 @@ def to_group(B):
         attrs["certify_budget"] = np.int64(C.budget)
         attrs["certify_relaxation"] = np.int8(C.relaxed)
         attrs["certify_second_order"] = np.asarray(C.second_order, np.int64)
+        attrs["certify_moments"] = np.int8(C.moments)
         attrs["certify_split"] = np.int64(C.split)
         attrs["certify_split_relaxations"] = np.asarray(C.split_used, np.int64)
     return variables, attrs
@@ -103,7 +104,8 @@ def read_bounds(path):
                            int(a["certify_budget"]), bool(a.get("certify_relaxation", 0)),
                            np.asarray(a.get("certify_second_order", [0, 0]), np.int64),
                            int(a.get("certify_split", 0)),
-                           np.asarray(a.get("certify_split_relaxations", [0, 0]), np.int64))
+                           np.asarray(a.get("certify_split_relaxations", [0, 0]), np.int64),
+                           bool(a.get("certify_moments", 0)))
     return Bounds(read(path, "frequency"), g["upper"], g["lower"], g["upper_box"],
                   g["upper_force"], g["limited_by"], g["K_upper"], g["K_lower"],
                   float(a["k_max_re"]), float(a["k_max_im"]), float(a["F_lim"]),

@@ -58,16 +58,18 @@ class Config:
                              " an undamped mode has an unbounded resonance; give zeta > 0 or "
                              "set bounds.enabled = false")
         limits = validation.bounds_limits(d) if b["enabled"] else None
-        if b["enabled"] and b["certify"] and b["certify_moments"]:
-            from ..bounds.certified import check_moments
+        moments = b["certify_moments"]
+        if b["enabled"] and b["certify"]:
+            from ..bounds.certified import resolve_moments
             try:
-                check_moments(model.topology == "linear", model.n_dampers, limits[2])
+                moments = resolve_moments(moments, model.topology == "linear",
+                                          model.n_dampers, limits[2])
             except ValueError as e:
                 raise InputError("bounds.certify_moments", str(e).split(": ", 1)[1]) from None
         bounds = (BoundsSpec(*limits, n_starts=b["n_starts"],
                              certify=b["certify"],
                              budget=None if b["certify_budget"] == "auto" else b["certify_budget"],
-                             split=b["certify_split"], moments=b["certify_moments"])
+                             split=b["certify_split"], moments=moments)
                   if b["enabled"] else None)
         r = d["run"]
         metric = MetricSpec(d["metric"]["quantity"],

@@ -15,6 +15,7 @@ from ..presets import PRESETS
 from ..presets import preset as make_preset
 from ..validators import (
     InputError,
+    auto_or_boolean,
     auto_or_integer,
     auto_or_number,
     beams_or_all,
@@ -74,7 +75,7 @@ def defaults(preset=DEFAULT_PRESET):
         "run": {"threads": 0, "chunk": 0, "checkpoint_s": 0.0, "scheduler": ""},
         "bounds": {"enabled": True, "k_max": "auto", "k_max_im": "auto", "F_lim": "auto",
                    "n_starts": 3, "certify": True, "certify_budget": "auto",
-                   "certify_split": 3200, "certify_moments": False},
+                   "certify_split": 3200, "certify_moments": "auto"},
     }
 
 
@@ -207,9 +208,12 @@ SPEC = {
                           "bound loose (branch and bound over relaxations; the beams after "
                           "the first share a quarter more; the lower bound at most 800; "
                           "0: none)"),
-        "certify_moments": (boolean(), "also tighten the certified upper bound by a "
-                            "second-order moment relaxation (chains with a force limit; "
-                            'slow; pip install "mcfric[moments]")'),
+        "certify_moments": (auto_or_boolean(), "tighten the certified upper bound by a "
+                            "second-order moment relaxation where the first order leaves "
+                            'it loose; "auto": where it applies (chains of 2-7 dampers '
+                            "with a force limit), false: the first order alone (about a "
+                            "quarter of the time; looser near some resonances), true: an "
+                            "error where it cannot run"),
     },
 }
 SECTION_DOC = {
