@@ -7,8 +7,7 @@
                [--force] [--threads T] [--chunk N] [--scheduler ADDRESS] [--peaks N]
                [--peak-rtol X] [--no-peaks] [--F0 N] [--f-min HZ] [--f-max HZ] [--n-freq N]
                [--no-certify] [--moments | --first-order] [--no-progress]
-               [--no-figure]
-               [--skip-space-check]
+               [--no-figure] [--skip-space-check]
     mcfric config [PRESET|CONFIG.toml]       # complete, commented TOML on stdout
     mcfric info FILE                         # summary of a results file
     mcfric hbm [PRESET|CONFIG.toml] [--mu0 X] [--kc N_PER_M] [--N0 N] [--F0 N]

@@ -12,11 +12,11 @@ within each *clique* of three neighbouring dampers (six variables): one moment m
 and Muramatsu's correlative sparsity).
 
 It is solved by Clarabel (an interior-point conic solver, a dependency of mcfric), whose
-answer is a floating-point approximation and proves nothing
-by itself. The bound is therefore rebuilt from its dual, a sum-of-squares certificate:
-with the dual blocks ``Z_i`` made positive semidefinite with a margin (checked by their
-eigenvalues), ``r = q + A^T z`` the residual of the dual equations and ``s(x) = b - A
-y(x)`` the constraint blocks at the moments ``y(x)`` of an admissible point,
+answer is a floating-point approximation and proves nothing by itself. The bound is
+therefore rebuilt from its dual, a sum-of-squares certificate: with the dual blocks
+``Z_i`` made positive semidefinite with a margin (checked by their eigenvalues),
+``r = q + A^T z`` the residual of the dual equations and ``s(x) = b - A y(x)`` the
+constraint blocks at the moments ``y(x)`` of an admissible point,
 
     0 <= z . s(x) = z . b - (r - q) . y(x)   =>   f(x) <= c_0 + z . b + ||r||_1,
 
