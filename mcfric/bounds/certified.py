@@ -37,8 +37,12 @@ BUDGET_ONE_DAMPER = 4000
 #: tight, so fewer dampers keep ``BUDGET``).
 BUDGET_RELAXED = 50
 RELAXED_FROM = 6
-#: Stop where the best open bound is within this of the witness (relative) ...
-RTOL = 5e-3
+#: Stop where the best open bound is within this of the witness (relative; two or more
+#: dampers: the tightness asked of the certificate; half of it costs much more time for
+#: the same count within it, docs/bounds.md) ...
+RTOL = 1e-2
+#: ... with one damper, where the enclosures are cheap ...
+RTOL_ONE_DAMPER = 5e-3
 #: ... or, for the minimum, within this fraction of the certified upper bound (absolute).
 ATOL_FRACTION = 1e-3
 #: Above this many dampers the branch and bound proves nothing beyond the force bound and
@@ -89,10 +93,6 @@ MIRROR_RTOL = 1e-6
 #: was not seen to help), at most ``MOMENTS_SPLIT`` relaxations per frequency.
 MOMENTS_SPLIT_GAP = 0.03
 MOMENTS_SPLIT = 64
-#: The parts' goal above the witness: each relaxation of a part costs about a second, and
-#: most of them went on taking bounds already within 1 % down to the certificate's
-#: tolerance.
-MOMENTS_SPLIT_RTOL = 0.008
 #: Relative margin on the force bound (a sum of non-negative products: (nd + 2) u).
 _FORCE_MARGIN = 1e-12
 
@@ -129,6 +129,9 @@ class Certificate:
     moments : bool
         Whether the second-order relaxation was on (it runs where the first order
         leaves the upper bound loose).
+    rtol : float
+        The tolerance the certification aimed for (relative, above the upper witness and
+        below the lower; ``converged`` says where it was met).
     """
 
     upper: np.ndarray
@@ -145,6 +148,7 @@ class Certificate:
     split: int = 0
     split_used: np.ndarray = field(default_factory=lambda: np.zeros(2, np.int64))
     moments: bool = False
+    rtol: float = RTOL_ONE_DAMPER
 
     @property
     def upper_gap(self):
@@ -171,8 +175,9 @@ class Certificate:
                     | (self.lower_witness - self.lower <= ATOL_FRACTION * self.upper))
 
     def summary(self, freq_hz):
-        """Where the certificate is within 1 % of its witness, the largest gaps and where
-        they are, and where the budget ran out (``freq_hz``: the frequencies, Hz)."""
+        """Which order certified, where the certificate is within 1 % of its witness, the
+        largest gaps and where they are, and where the tolerance was not met
+        (``freq_hz``: the frequencies, Hz)."""
         f = np.asarray(freq_hz)
         n = len(self.upper)
         up = self.upper_gap
@@ -180,9 +185,16 @@ class Certificate:
         k_up = int(np.argmax(np.where(np.isnan(up), -np.inf, up)))
         lo_gap = np.where(loose, self.lower_gap, -np.inf)
         k_lo = int(np.argmax(lo_gap))
-        text = (f"certified: upper within 1 % of its witness at "
-                f"{np.count_nonzero(up <= 0.01)} of {n} frequencies (largest gap "
-                f"{_pct(up[k_up])} at {f[k_up]:.4g} Hz); lower within 1 % or "
+        if not self.moments:
+            order = "first order"
+        else:
+            solved, failed = (int(x) for x in self.second_order)
+            order = (f"second order: {solved} relaxations" + (f", {failed} failed (first-"
+                     f"order bound kept there)" if failed else "") if solved
+                     else "second order: none needed")
+        text = (f"certified ({order}; tolerance {100 * self.rtol:.3g} %): upper within 1 % "
+                f"of its witness at {np.count_nonzero(up <= 0.01)} of {n} frequencies "
+                f"(largest gap {_pct(up[k_up])} at {f[k_up]:.4g} Hz); lower within 1 % or "
                 f"{ATOL_FRACTION:g} x upper at {n - np.count_nonzero(loose)}")
         if loose.any():
             text += f" (largest gap elsewhere {_pct(lo_gap[k_lo])} at {f[k_lo]:.4g} Hz)"
@@ -192,9 +204,6 @@ class Certificate:
                 text += (f"; {name}: tolerance not met within the budget at "
                          f"{np.count_nonzero(out)} frequencies in {f[out].min():.4g}-"
                          f"{f[out].max():.4g} Hz (valid there, looser)")
-        if self.second_order[1]:
-            text += (f"; second-order relaxation failed in {self.second_order[1]} of "
-                     f"{self.second_order[0]} (first-order bound kept there)")
         return text
 
 
@@ -204,6 +213,12 @@ def within(metric, lower, upper, rtol):
     metric = np.asarray(metric)
     with np.errstate(invalid="ignore"):
         return (metric >= lower * (1 - rtol)) & (metric <= upper * (1 + rtol))
+
+
+def default_rtol(n_dampers):
+    """The certificate's default relative tolerance: ``RTOL_ONE_DAMPER`` for one damper,
+    else ``RTOL``."""
+    return RTOL_ONE_DAMPER if n_dampers == 1 else RTOL
 
 
 def default_budget(n_dampers, relaxed=False):
@@ -481,7 +496,6 @@ def _second_order(args, kr, ki, F_lim, cert, wit, K, beam_bounds, rtol):
             limits = np.maximum(limits, limits[::-1])
         nb = ylin.shape[1]
         goal = wit[k] * (1 + rtol)
-        part_goal = wit[k] * (1 + max(rtol, MOMENTS_SPLIT_RTOL))
         cut = _witness_for_beams(G[k], q0[k], ylin[k], H[k], K[k])
         budget = MOMENTS_SPLIT
         solved = {}
@@ -508,12 +522,12 @@ def _second_order(args, kr, ki, F_lim, cert, wit, K, beam_bounds, rtol):
                 leaves = [(moments.box(nd, kr, ki), z, value, limits)]
                 # parts only where the bound stays above the goal after the first-order
                 # cap (both are bounds)
-                if (part_goal < min(value, beam_bounds[k, b])
+                if (goal < min(value, beam_bounds[k, b])
                         <= wit[k] * (1 + MOMENTS_SPLIT_GAP) and budget > 0):
                     # a little above the witness: split the beam's own dampers
                     value, used, leaves, stalled = moments_branch.branch_bound(
                         G[k], q0[k], ylin[k], H[k], kr, ki, F_lim, b, limits, value, z,
-                        cut[b], max(part_goal, done), budget, sign)
+                        cut[b], max(goal, done), budget, sign)
                     # splitting that stalls on one beam keeps the frequency loose
                     budget = 0 if stalled else budget - used
                     counts[i, 0] += used
@@ -548,7 +562,7 @@ def _pct(x):
 
 
 def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
-            rtol=RTOL, split=None, moments=False):
+            rtol=None, split=None, moments=False):
     """Certified bounds from contact-space arrays (all beams of the metric).
 
     Parameters
@@ -566,8 +580,9 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
         Enclosures per frequency and bound; default :func:`default_budget` (0 above
         ``MAX_DAMPERS`` dampers: the certificate is then Eq. 10 and 0, with the
         witnesses).
-    rtol : float
-        Relative tolerance of the branch and bound.
+    rtol : float, optional
+        Relative tolerance of the branch and bound and the relaxations (their goal above
+        the upper witness, below the lower); default :func:`default_rtol`.
     split : int, optional
         Relaxations of parts of the box per frequency for the upper bound where the
         relaxation of the whole box leaves it loose (:mod:`mcfric.core.relaxation_branch`;
@@ -594,6 +609,7 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
     split_used = np.zeros(2, np.int64)
     if budget is None:
         budget = default_budget(nd, relax)
+    rtol = default_rtol(nd) if rtol is None else float(rtol)
     split = SPLIT_BUDGET if split is None else int(split)
     if nd > MAX_DAMPERS:
         budget = 0
@@ -680,4 +696,4 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
     (up, wu, Ku, eu, ou), (lo, wl, Kl, el, ol) = out[True], out[False]
     return Certificate(up * scale, lo * scale, wu * scale, wl * scale, Ku, Kl,
                        np.stack([ou, ol]), np.stack([eu, el]), int(budget), bool(relax),
-                       second_order, split if relax else 0, split_used, bool(moments))
+                       second_order, split if relax else 0, split_used, bool(moments), rtol)

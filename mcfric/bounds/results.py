@@ -70,8 +70,8 @@ def to_group(B):
                 "units": "N/m", "long_name": "describing functions of the lower witness"}),
             "certified_converged": (("frequency",), (C.converged[0] + 2 * C.converged[1]
                                                      ).astype(np.int8), {
-                "long_name": "certification met its tolerance (within the budget, or after "
-                             "the relaxation)",
+                "long_name": "certification met its tolerance certify_rtol (within the "
+                             "budget, or after the relaxation)",
                 "flag_masks": [1, 2], "flag_meanings": "upper lower"}),
         })
         for row, name in enumerate(("upper", "lower")):
@@ -81,6 +81,7 @@ def to_group(B):
         attrs["certify_relaxation"] = np.int8(C.relaxed)
         attrs["certify_second_order"] = np.asarray(C.second_order, np.int64)
         attrs["certify_moments"] = np.int8(C.moments)
+        attrs["certify_rtol"] = np.float64(C.rtol)
         attrs["certify_split"] = np.int64(C.split)
         attrs["certify_split_relaxations"] = np.asarray(C.split_used, np.int64)
     return variables, attrs
@@ -105,7 +106,9 @@ def read_bounds(path):
                            np.asarray(a.get("certify_second_order", [0, 0]), np.int64),
                            int(a.get("certify_split", 0)),
                            np.asarray(a.get("certify_split_relaxations", [0, 0]), np.int64),
-                           bool(a.get("certify_moments", 0)))
+                           bool(a.get("certify_moments", 0)),
+                           # files before it was stored: 0.5 % then for every model
+                           float(a.get("certify_rtol", 5e-3)))
     return Bounds(read(path, "frequency"), g["upper"], g["lower"], g["upper_box"],
                   g["upper_force"], g["limited_by"], g["K_upper"], g["K_lower"],
                   float(a["k_max_re"]), float(a["k_max_im"]), float(a["F_lim"]),
