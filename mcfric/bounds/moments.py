@@ -257,6 +257,23 @@ def force_limits(G, q0, kr, ki, F_lim, part=None):
     return out
 
 
+def first_order_bound(G, q0, ylin, H, F_lim, beam, part, goal=0.0):
+    """The first-order relaxation's (:mod:`mcfric.core.relaxation`) verified bound of
+    ``|y_beam|`` (m) over ``part`` (``(lo, hi)``, N/m) and the force limit ``F_lim`` (N);
+    ``inf`` where it does not verify. It stops once it proves ``goal`` (m): milliseconds,
+    where the second order takes about a second."""
+    from ..core import relaxation as rx
+
+    nd, nb = q0.shape[0], H.shape[0]
+    V, idx, S, x, cvec, pos, simplex, grow, ws = rx.buffers(nd, nb, True, False)
+    lo, hi = part
+    theta = np.full(len(x) + 1, np.nan)
+    b = rx.relaxed_bound(G, q0, ylin, H, lo, hi, float(F_lim), np.int64(beam), float(goal),
+                         V, idx, S, x, cvec, pos, simplex, grow, ws, np.zeros(3, np.int64),
+                         theta, lo, hi)
+    return b if b >= 0.0 else math.inf  # NaN: not verified
+
+
 def problem(G, q0, ylin, H, kr, ki, F_lim, beam, limits=None, part=None):
     """The relaxation at one frequency for beam ``beam``, in Clarabel's form: maximise
     ``c_0 - q . y'`` subject to ``b - A y'`` in the PSD cones of ``sizes``; returns

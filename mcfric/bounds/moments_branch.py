@@ -12,6 +12,11 @@ again, until the bound is within the goal, a split takes the excess over the goa
 by less than ``PROGRESS`` (the looseness is elsewhere: the coupling with farther dampers,
 as at 117-123 Hz at 0.25 N), or the budget is spent.
 
+A part whose first-order bound (:func:`.moments.first_order_bound`, milliseconds) is
+already at most the goal needs no second-order relaxation (about a second): its leaf is
+proved by the first order (``FIRST_ORDER`` in place of a dual), and so is the mirror
+beam's reversed part.
+
 Each part's relaxation scales its variables by force limits proven over that part
 (:func:`part_limits`), not over the box: a smaller proven ``|p_j|`` is a tighter
 constraint and a better scaled problem (eight beams, 0.25 N, 73.3 Hz, beam 4: the goal
@@ -33,6 +38,8 @@ from . import moments
 PROGRESS = 0.25
 #: Each axis is cut at the witness's value, kept this fraction of the interval inside it.
 INSET = 0.1
+#: In place of a leaf's dual: the first-order relaxation proves its bound.
+FIRST_ORDER = "first order"
 
 
 def own_dampers(beam, nd):
@@ -114,11 +121,13 @@ def branch_bound(G, q0, ylin, H, kr, ki, F_lim, beam, limits, value, z, K_cut, g
     bound : float
         The largest of the leaves' bounds (m; each at most its parent's).
     used : int
-        Relaxations solved.
+        Second-order relaxations solved (parts the first order proves below ``goal``
+        take none).
     leaves : list of tuple
         ``((lo, hi), z, bound, lim)`` per leaf: the part whose dual ``z`` proves the
-        leaf's bound (the leaf or an ancestor; together they cover the box) and the
-        force limits of its problem (N), for the mirror beam.
+        leaf's bound (the leaf or an ancestor; together they cover the box; ``z`` is
+        ``FIRST_ORDER`` where the first order proves it) and the force limits of its
+        problem (N), for the mirror beam.
     stalled : bool
         Whether it stopped because a split did not make ``PROGRESS``.
     """
@@ -131,13 +140,18 @@ def branch_bound(G, q0, ylin, H, kr, ki, F_lim, beam, limits, value, z, K_cut, g
     used = 0
     stalled = False
     n_kids = 4 ** len(own)
+    # the budget counts second-order relaxations: a split costs at most n_kids of them
     while -heap[0][0] > goal and used + n_kids <= budget:
         neg, _, part, proof = heapq.heappop(heap)
         worst = -math.inf
         for kid in children(part, own, K_cut):
             lim = part_limits(G, q0, kr, ki, F_lim, limits, kid, sign)
-            v, _, zk = moments.beam_bound(G, q0, ylin, H, kr, ki, F_lim, beam, lim, kid)
-            used += 1
+            v = moments.first_order_bound(G, q0, ylin, H, F_lim, beam, kid, goal)
+            if v <= goal:
+                zk = FIRST_ORDER
+            else:
+                v, _, zk = moments.beam_bound(G, q0, ylin, H, kr, ki, F_lim, beam, lim, kid)
+                used += 1
             # a part's maximum is at most its parent's
             v, kid_proof = (v, (kid, zk, lim)) if v <= -neg else (-neg, proof)
             heapq.heappush(heap, (-v, count, kid, kid_proof))
@@ -155,7 +169,8 @@ def mirrored_branch(G, q0, ylin, H, kr, ki, F_lim, beam, limits, leaves, sign):
     (:func:`branch_bound`): each part and its force limits reversed, its dual verified
     by :func:`.moments.mirrored_bound`; the largest, ``inf`` where a leaf has no dual.
     Also returns the number of duals verified (siblings proved by one ancestor's dual
-    share its verification).
+    share its verification). A leaf the first order proved is proved again by the first
+    order over the reversed part, for this beam.
 
     The reversed limits are raised, where needed, to the mirrored part's own
     (:func:`part_limits` without ``sign``, from the box's ``limits``), so that they are
@@ -164,12 +179,15 @@ def mirrored_branch(G, q0, ylin, H, kr, ki, F_lim, beam, limits, leaves, sign):
     worst = -math.inf
     seen = set()
     for (lo, hi), z, _, lim in leaves:
+        part = (lo[::-1].copy(), hi[::-1].copy())
+        if z is FIRST_ORDER:
+            worst = max(worst, moments.first_order_bound(G, q0, ylin, H, F_lim, beam, part))
+            continue
         if id(z) in seen:
             continue
         seen.add(id(z))
         if z is None:
             return math.inf, len(seen) - 1
-        part = (lo[::-1].copy(), hi[::-1].copy())
         lim = np.maximum(lim[::-1], part_limits(G, q0, kr, ki, F_lim, limits, part))
         worst = max(worst, moments.mirrored_bound(G, q0, ylin, H, kr, ki, F_lim, beam,
                                                   lim, z, sign, part))
