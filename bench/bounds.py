@@ -19,9 +19,9 @@ by tens of percent within minutes, and a pair sees the same drift;
 and, from that ensemble, how close its envelope comes to the bounds, and whether every
 converged member lies inside. The certification is ``compute_bounds``'s default: the
 second-order relaxation where the first order leaves the upper bound loose, on chains of
-2-7 dampers (eight beams: about nine minutes per force with ``--repeat 1``);
+2-7 dampers (eight beams: about six minutes per force with ``--repeat 1``);
 ``--first-order`` certifies with the first order alone (``moments=False``, about a
-quarter of that), ``--moments`` insists on the second order (``moments=True``; eight
+third of that), ``--moments`` insists on the second order (``moments=True``; eight
 beams only). Printed and saved to ``bench/out/bounds.json`` with a figure per case
 (``bench/out/bounds-<case>.png``).
 """

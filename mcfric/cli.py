@@ -45,7 +45,7 @@ COMMANDS = ("run", "config", "info", "hbm", "bounds", "plot", "verify")
 MOMENTS_HELP = ("the second-order moment relaxation of the certified upper bound, an "
                 "error where it cannot run (default: where it applies, chains of 2-7 "
                 "dampers with a force limit)")
-FIRST_ORDER_HELP = ("certify with the first-order relaxation alone (about a quarter of "
+FIRST_ORDER_HELP = ("certify with the first-order relaxation alone (about a third of "
                     "the time on eight beams; looser near some resonances)")
 
 
