@@ -196,8 +196,8 @@ def test_splitting_the_own_dampers_closes_the_gap_at_105_hz():
     that point (16 parts) takes at least 40 % of the excess off; the bound stays above
     that point and 3000 random admissible points of beam 3; the parts the first order
     proves below the goal (no second-order solve) hold 1000 random admissible points of
-    their own below their bounds; the leaves, mirrored, prove beam 4's bound to 1e-6 of
-    beam 3's."""
+    their own below their bounds, and the first order proves beam 4's reversed part to
+    1e-6 of the same; the leaves, mirrored, prove beam 4's bound to 1e-6 of beam 3's."""
     from mcfric.bounds import moments_branch
     from mcfric.core.relaxation_branch import mirror_sign
 
@@ -231,6 +231,11 @@ def test_splitting_the_own_dampers_closes_the_gap_at_105_hz():
                              (Kp * q0)[..., None])[..., 0]
         yp = np.abs(ylin[3] - pp @ H[3])[np.abs(pp).max(axis=1) <= F_LIM]
         assert len(yp) and yp.max() <= leaf_bound
+        # the mirror beam's reversed part: the same first-order problem, mirrored
+        full = moments.first_order_bound(G, q0, ylin, H, F_LIM, 3, (lo, hi))
+        mirror = moments.first_order_bound(G, q0, ylin, H, F_LIM, 4,
+                                           (lo[::-1].copy(), hi[::-1].copy()))
+        assert full <= leaf_bound and abs(mirror / full - 1) < 1e-6
     mirrored, verified = moments_branch.mirrored_branch(
         G, q0, ylin, H, K_MAX, K_MAX, F_LIM, 4, limits, leaves, mirror_sign(G, q0, ylin, H))
     assert abs(mirrored / bound - 1) < 1e-6

@@ -235,17 +235,20 @@ def test_the_upper_bound_splits_deeper_than_the_lower():
     _encloses_random(model, f, C, seed=5)
 
 
-def test_the_other_beams_get_a_share_after_the_first_spends_the_budget():
-    """Eight beams, 0.22 N, 122.25-122.85 Hz: beam 3's split spends the whole upper
+def test_the_other_beams_get_a_share_after_the_first_spends_the_budget(monkeypatch):
+    """Eight beams, 0.22 N, 122.25-122.85 Hz, at a tolerance of 0.5 % (at the default 1 %
+    beam 3 needs less than the budget): beam 3's split spends the whole upper
     budget to come within 1 % of the witness, and beams 1, 2 and the mirror beams, each
     closed with about 150 relaxations, would keep their bounds of the whole box (about a
     third above the witness) without the share ``TAIL`` of the budget they get after it:
     with it the upper bound is within 1 % of its witness at all three, having used more
     than ``SPLIT_BUDGET`` relaxations per frequency, and encloses 3000 random admissible
     points per frequency."""
+    from mcfric.bounds import certified
     from mcfric.bounds.certified import SPLIT_BUDGET
     from mcfric.core.relaxation_branch import TAIL
 
+    monkeypatch.setattr(certified, "RTOL", 5e-3)
     model = mcfric.eight_beam(0.22)
     f = np.array([122.25, 122.55, 122.85])
     C = compute_bounds(model, f, K_MAX, F_lim=F_LIM, moments=False).certificate

@@ -241,7 +241,8 @@ def force_limits(G, q0, kr, ki, F_lim, part=None):
     from ..core import relaxation as rx
 
     nd = q0.shape[0]
-    V, idx, S, x, cvec, pos, simplex, grow, ws = rx.buffers(nd, nd, True, False)
+    V, idx, S, x, cvec, pos, simplex, grow, ws = rx.buffers(nd, nd, bool(np.isfinite(F_lim)),
+                                                            False)
     lo, hi = box(nd, kr, ki) if part is None else part
     H = -np.eye(nd, dtype=np.complex128)
     zero = np.zeros(nd, np.complex128)
@@ -265,7 +266,8 @@ def first_order_bound(G, q0, ylin, H, F_lim, beam, part, goal=0.0):
     from ..core import relaxation as rx
 
     nd, nb = q0.shape[0], H.shape[0]
-    V, idx, S, x, cvec, pos, simplex, grow, ws = rx.buffers(nd, nb, True, False)
+    V, idx, S, x, cvec, pos, simplex, grow, ws = rx.buffers(nd, nb, bool(np.isfinite(F_lim)),
+                                                            False)
     lo, hi = part
     theta = np.full(len(x) + 1, np.nan)
     b = rx.relaxed_bound(G, q0, ylin, H, lo, hi, float(F_lim), np.int64(beam), float(goal),

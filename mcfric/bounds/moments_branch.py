@@ -39,7 +39,7 @@ PROGRESS = 0.25
 #: Each axis is cut at the witness's value, kept this fraction of the interval inside it.
 INSET = 0.1
 #: In place of a leaf's dual: the first-order relaxation proves its bound.
-FIRST_ORDER = "first order"
+FIRST_ORDER = object()
 
 
 def own_dampers(beam, nd):
@@ -126,8 +126,8 @@ def branch_bound(G, q0, ylin, H, kr, ki, F_lim, beam, limits, value, z, K_cut, g
     leaves : list of tuple
         ``((lo, hi), z, bound, lim)`` per leaf: the part whose dual ``z`` proves the
         leaf's bound (the leaf or an ancestor; together they cover the box; ``z`` is
-        ``FIRST_ORDER`` where the first order proves it) and the force limits of its
-        problem (N), for the mirror beam.
+        ``FIRST_ORDER`` where the first order proves it, its limits then None) and the
+        force limits of its problem (N), for the mirror beam.
     stalled : bool
         Whether it stopped because a split did not make ``PROGRESS``.
     """
@@ -145,13 +145,16 @@ def branch_bound(G, q0, ylin, H, kr, ki, F_lim, beam, limits, value, z, K_cut, g
         neg, _, part, proof = heapq.heappop(heap)
         worst = -math.inf
         for kid in children(part, own, K_cut):
-            lim = part_limits(G, q0, kr, ki, F_lim, limits, kid, sign)
             v = moments.first_order_bound(G, q0, ylin, H, F_lim, beam, kid, goal)
-            if v <= goal:
-                zk = FIRST_ORDER
-            else:
-                v, _, zk = moments.beam_bound(G, q0, ylin, H, kr, ki, F_lim, beam, lim, kid)
+            zk, lim = FIRST_ORDER, None
+            if v > goal:
+                lim = part_limits(G, q0, kr, ki, F_lim, limits, kid, sign)
+                v2, _, z2 = moments.beam_bound(G, q0, ylin, H, kr, ki, F_lim, beam, lim,
+                                               kid)
                 used += 1
+                # both are bounds: the second order's where it is the tighter
+                if v2 < v:
+                    v, zk = v2, z2
             # a part's maximum is at most its parent's
             v, kid_proof = (v, (kid, zk, lim)) if v <= -neg else (-neg, proof)
             heapq.heappush(heap, (-v, count, kid, kid_proof))
