@@ -238,21 +238,14 @@ def force_limits(G, q0, kr, ki, F_lim, part=None):
     first resonances at small drives) they are a tenth of ``F_lim``, and the second order
     in ``p / F_lim`` is badly scaled there (below). ``part``: ``(lo, hi)`` (N/m), the
     bounds over that part of the box instead (:mod:`.moments_branch`)."""
-    from ..core import relaxation as rx
-
     nd = q0.shape[0]
-    V, idx, S, x, cvec, pos, simplex, grow, ws = rx.buffers(nd, nd, bool(np.isfinite(F_lim)),
-                                                            False)
-    lo, hi = box(nd, kr, ki) if part is None else part
+    part = box(nd, kr, ki) if part is None else part
     H = -np.eye(nd, dtype=np.complex128)
     zero = np.zeros(nd, np.complex128)
-    stats = np.zeros(3, np.int64)
     out = np.full(nd, float(F_lim))
     for j in range(nd):
-        theta = np.full(len(x) + 1, np.nan)
-        b = rx.relaxed_bound(G, q0, zero, H, lo, hi, F_lim, j, 0.0, V, idx, S, x, cvec,
-                             pos, simplex, grow, ws, stats, theta, lo, hi)
-        if b > 0.0:  # NaN (not verified) keeps F_lim
+        b = first_order_bound(G, q0, zero, H, F_lim, j, part)
+        if 0.0 < b < math.inf:  # not verified (inf) keeps F_lim
             # outwards again, past the rounding of the coefficients built from it
             out[j] = min(out[j], b * (1.0 + 1e-12))
     return out
