@@ -45,6 +45,11 @@ MARGIN = 1e-10
 PSD_MARGIN = 1e-9
 #: Dampers per clique (neighbours of a chain).
 WIDTH = 3
+#: Clarabel's stopping tolerances (duality gap, absolute and relative, and feasibility;
+#: its default 1e-8): the bound is rebuilt from whatever dual comes out, so a looser stop
+#: only loosens it a little, by far less than the certificate's tolerance
+#: (docs/performance.md).
+SOLVER_TOL = 1e-5
 
 
 def available():
@@ -336,6 +341,8 @@ def beam_bound(G, q0, ylin, H, kr, ki, F_lim, beam, limits=None, part=None):
     # refinement to full precision (that took about 40 % of the time, for bounds the same
     # to about 1e-4: docs/performance.md)
     settings.iterative_refinement_enable = False
+    settings.tol_gap_abs = settings.tol_gap_rel = settings.tol_feas = SOLVER_TOL
+    settings.tol_ktratio = max(SOLVER_TOL, settings.tol_ktratio)
     P = A[:0].T @ A[:0]  # an all-zero (n_moments - 1)^2 sparse matrix
     solver = clarabel.DefaultSolver(P.tocsc(), q, A, b,
                                     [clarabel.PSDTriangleConeT(s) for s in sizes], settings)
