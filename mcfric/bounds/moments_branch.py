@@ -148,13 +148,13 @@ def branch_bound(G, q0, ylin, H, kr, ki, F_lim, beam, limits, value, z, K_cut, g
             v = moments.first_order_bound(G, q0, ylin, H, F_lim, beam, kid, goal)
             zk, lim = FIRST_ORDER, None
             if v > goal:
-                lim = part_limits(G, q0, kr, ki, F_lim, limits, kid, sign)
-                v2, _, z2 = moments.beam_bound(G, q0, ylin, H, kr, ki, F_lim, beam, lim,
+                lim2 = part_limits(G, q0, kr, ki, F_lim, limits, kid, sign)
+                v2, _, z2 = moments.beam_bound(G, q0, ylin, H, kr, ki, F_lim, beam, lim2,
                                                kid)
                 used += 1
                 # both are bounds: the second order's where it is the tighter
                 if v2 < v:
-                    v, zk = v2, z2
+                    v, zk, lim = v2, z2, lim2
             # a part's maximum is at most its parent's
             v, kid_proof = (v, (kid, zk, lim)) if v <= -neg else (-neg, proof)
             heapq.heappush(heap, (-v, count, kid, kid_proof))
