@@ -160,6 +160,8 @@ def main(argv=None):
             "second_order": C.moments,
             "second_order_mirrored": int(certified.LAST_MOMENTS[0]) if C.moments else 0,
             "second_order_parts": int(certified.LAST_MOMENTS[1]) if C.moments else 0,
+            "second_order_geometric_parts": (int(certified.LAST_MOMENTS[2]) if C.moments
+                                             else 0),
             "certified_over_paper_by_band": _bands(f, C.upper / BC.upper),
             "certified_over_envelope_by_band": _bands(f, C.upper / env_hi),
         }

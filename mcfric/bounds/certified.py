@@ -82,9 +82,10 @@ ROUNDED_PARTS = 4
 #: the docs' measurements); the split's also the mirrored parts verified.
 LAST_RELAXATION = np.zeros((2, 3), np.int64)
 LAST_SPLIT = np.zeros((2, 4), np.int64)
-#: Second-order bounds of the last call taken from the mirror beam's duals, and
-#: relaxations of parts (:mod:`.moments_branch`; also counted as solved).
-LAST_MOMENTS = np.zeros(2, np.int64)
+#: Second-order bounds of the last call taken from the mirror beam's duals, relaxations
+#: of parts (:mod:`.moments_branch`; also counted as solved), and of those the geometric
+#: branch's.
+LAST_MOMENTS = np.zeros(3, np.int64)
 #: A mirrored second-order dual is kept where its bound is within this of the mirror
 #: beam's (on a chain that is its mirror image they agree to about 1e-12).
 MIRROR_RTOL = 1e-6
@@ -93,6 +94,11 @@ MIRROR_RTOL = 1e-6
 #: was not seen to help), at most ``MOMENTS_SPLIT`` relaxations per frequency.
 MOMENTS_SPLIT_GAP = 0.03
 MOMENTS_SPLIT = 64
+#: Where the own dampers' parts do not reach the witness's tolerance, or the bound is
+#: above ``MOMENTS_SPLIT_GAP`` but within this of the witness, every damper's rectangle
+#: is split, one at a time (:func:`.moments_branch.branch_bound`'s ``geometric``; the
+#: same budget).
+GEOMETRIC_GAP = 0.05
 #: Relative margin on the force bound (a sum of non-negative products: (nd + 2) u).
 _FORCE_MARGIN = 1e-12
 
@@ -476,7 +482,7 @@ def _second_order(args, kr, ki, F_lim, cert, wit, K, beam_bounds, rtol):
     G, q0, ylin, H = args
     n_f, nd = q0.shape
     todo = np.flatnonzero(~_met(True, cert, wit, rtol, 0.0) & np.isfinite(cert))
-    counts = np.zeros((len(todo), 4), np.int64)
+    counts = np.zeros((len(todo), 5), np.int64)
     new = cert.copy()
     K_first = np.full((n_f, 1, nd), np.nan + 0j)
 
@@ -520,18 +526,28 @@ def _second_order(args, kr, ki, F_lim, cert, wit, K, beam_bounds, rtol):
                 counts[i, 0] += 1
                 counts[i, 1] += not np.isfinite(value)
                 leaves = [(moments.box(nd, kr, ki), z, value, limits)]
+                box_value = value
                 # parts only where the bound stays above the goal after the first-order
-                # cap (both are bounds)
-                if (goal < min(value, beam_bounds[k, b])
-                        <= wit[k] * (1 + MOMENTS_SPLIT_GAP) and budget > 0):
-                    # a little above the witness: split the beam's own dampers
-                    value, used, leaves, stalled = moments_branch.branch_bound(
-                        G[k], q0[k], ylin[k], H[k], kr, ki, F_lim, b, limits, value, z,
-                        cut[b], max(goal, done), budget, sign)
-                    # splitting that stalls on one beam keeps the frequency loose
-                    budget = 0 if stalled else budget - used
+                # cap (both are bounds): a little above the witness, the beam's own
+                # dampers; where that is not enough or the bound is farther above, every
+                # damper one at a time, closing in on nearly open ones
+                for geometric, gap in ((False, MOMENTS_SPLIT_GAP), (True, GEOMETRIC_GAP)):
+                    if not (goal < min(value, beam_bounds[k, b]) <= wit[k] * (1 + gap)
+                            and budget > 0):
+                        continue
+                    v, used, lv, stalled = moments_branch.branch_bound(
+                        G[k], q0[k], ylin[k], H[k], kr, ki, F_lim, b, limits, box_value,
+                        z, cut[b], max(goal, done), budget, sign, geometric)
+                    if v < value:
+                        value, leaves = v, lv
+                    budget -= used
                     counts[i, 0] += used
                     counts[i, 3] += used
+                    counts[i, 4] += used if geometric else 0
+                # splitting that stalls (or runs out) on one beam keeps the frequency loose
+                if value > max(goal, done) and min(value, beam_bounds[k, b]) <= wit[k] * (
+                        1 + GEOMETRIC_GAP):
+                    budget = 0
                 # the duals' own (uncapped) bound: the mirror beam's reference
                 if sign and np.isfinite(value) and all(leaf[1] is not None for leaf in leaves):
                     solved[b] = (p, leaves, value)
@@ -553,7 +569,7 @@ def _second_order(args, kr, ki, F_lim, cert, wit, K, beam_bounds, rtol):
         # Clarabel releases the GIL: one frequency per thread
         in_threads(step, range(len(todo)))
     total = counts.sum(axis=0)
-    LAST_MOMENTS[:] = total[2:]
+    LAST_MOMENTS[:] = total[2:5]
     return new, K_first, total[:2]
 
 
