@@ -79,24 +79,22 @@ def _geometric_cut(lo, hi, at, side):
 def geometric_children(part, d, K_cut, kr, ki):
     """The four parts of ``part`` with damper ``d``'s rectangle cut at
     :func:`_geometric_cut` of ``K_cut[d]`` (N/m; ``kr``, ``ki``: the box's sides)."""
-    lo, hi = part
-    cr = _geometric_cut(lo[d].real, hi[d].real, K_cut[d].real, kr)
-    ci = _geometric_cut(lo[d].imag, hi[d].imag, K_cut[d].imag, ki)
-    for a, b in ((lo[d].real, cr), (cr, hi[d].real)):
-        for c, e in ((lo[d].imag, ci), (ci, hi[d].imag)):
-            lo_, hi_ = lo.copy(), hi.copy()
-            lo_[d], hi_[d] = complex(a, c), complex(b, e)
-            yield lo_, hi_
+    return children(part, [d], K_cut, sides=(kr, ki))
 
 
-def children(part, own, K_cut):
+def children(part, own, K_cut, sides=None):
     """The parts of ``part`` (a pair ``(lo, hi)``, N/m) with each of the ``own`` dampers'
-    rectangles cut in four at ``K_cut`` (N/m, clamped inside; 4 or 16 parts)."""
+    rectangles cut in four at ``K_cut`` (N/m, clamped inside; 4 or 16 parts); with
+    ``sides`` (the box's, N/m), at :func:`_geometric_cut` instead."""
     lo, hi = part
     pieces = []
     for d in own:
-        cr = _cut(lo[d].real, hi[d].real, K_cut[d].real)
-        ci = _cut(lo[d].imag, hi[d].imag, K_cut[d].imag)
+        if sides is None:
+            cr = _cut(lo[d].real, hi[d].real, K_cut[d].real)
+            ci = _cut(lo[d].imag, hi[d].imag, K_cut[d].imag)
+        else:
+            cr = _geometric_cut(lo[d].real, hi[d].real, K_cut[d].real, sides[0])
+            ci = _geometric_cut(lo[d].imag, hi[d].imag, K_cut[d].imag, sides[1])
         pieces.append([(complex(a, c), complex(b, e))
                        for a, b in ((lo[d].real, cr), (cr, hi[d].real))
                        for c, e in ((lo[d].imag, ci), (ci, hi[d].imag))])
