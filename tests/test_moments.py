@@ -307,6 +307,40 @@ def test_geometric_branch_closes_in_on_nearly_open_dampers():
     assert admissible_responses(G, q0, ylin, H, 4, K).max() <= bound
 
 
+def test_thin_part_is_solved_and_tight_at_the_first_resonance():
+    """Eight beams, 0.22 N, 16.17 Hz, beam 3: a part of the box that the geometric branch
+    reaches (damper 2 within 1.5 N/m of ``K = 0``, damper 3 nearly real, the rest the
+    box), on which Clarabel at its default regularization stopped short (1.3 % above the
+    beam's free response ``|ylin_3|``, the witness there, after the second solve). Its
+    bound is now a solved relaxation's (finite first moments), within 1.25 % of
+    ``|ylin_3|``, and above 3000 random admissible points of the part drawn
+    log-uniformly."""
+    from mcfric.bounds import moments_branch
+    from mcfric.core.relaxation_branch import mirror_sign
+
+    model = mcfric.eight_beam(0.22)
+    freq = 10 + 140 * 44 / 999
+    G, q0, ylin, H = (x[0] for x in arrays(model, np.array([freq])))
+    limits = moments.force_limits(G, q0, K_MAX, K_MAX, F_LIM)
+    limits = np.maximum(limits, limits[::-1])
+    lo, hi = moments.box(7, K_MAX, K_MAX)
+    hi[2] = 1.5 + 1.5j
+    lo[3], hi[3] = 1.5, K_MAX + 1.5j
+    part = (lo, hi)
+    lim = moments_branch.part_limits(G, q0, K_MAX, K_MAX, F_LIM, limits, part,
+                                     mirror_sign(G, q0, ylin, H))
+    value, p, _ = moments.beam_bound(G, q0, ylin, H, K_MAX, K_MAX, F_LIM, 3, lim, part)
+    assert np.all(np.isfinite(p))
+    assert value <= 1.0125 * abs(ylin[3])
+    rng = np.random.default_rng(4)
+    u = rng.uniform(0, 1, (2, 3000, 7))
+    # each axis log-uniform over its interval (from 1e-5 of the side where it starts at 0)
+    a = np.maximum(lo.real, 1e-5 * (hi - lo).real)
+    b = np.maximum(lo.imag, 1e-5 * (hi - lo).imag)
+    K = a * (hi.real / a) ** u[0] + 1j * b * (hi.imag / b) ** u[1]
+    assert admissible_responses(G, q0, ylin, H, 3, K).max() <= value
+
+
 def test_certify_with_moments_tightens_and_stays_sound():
     """Eight beams, 1.1 N, two frequencies where the first-order relaxation is loose:
     with the second-order relaxation (on by default on a chain) the certified upper

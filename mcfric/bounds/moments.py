@@ -52,6 +52,11 @@ WIDTH = 3
 #: their proven limits; the first-order bound of it 0.5-6 on eight beams), so the
 #: absolute gap is about a relative one.
 SOLVER_TOL = 1e-5
+#: Clarabel's static regularization of its KKT matrix (its default 1e-8): at the
+#: default it often stopped short (``AlmostSolved``, ``NumericalError``) on the thin
+#: parts of the branch and bound; with this it solves them, for tighter bounds at the
+#: same cost (measured: docs/bounds.md, second-order moments).
+STATIC_REGULARIZATION = 1e-7
 
 
 def available():
@@ -339,9 +344,9 @@ def beam_bound(G, q0, ylin, H, kr, ki, F_lim, beam, limits=None, part=None):
     best, best_z = math.inf, None
     # the bound holds for any dual, so one left by a solver that stopped short is
     # verified too (often within 1 % where the forces' scales are tight). Where it stops
-    # short, its path depends on the data's last bits (a thin part at 16.17 Hz: 1.95 %
-    # or 2.94 % above the witness for force limits 6e-16 apart), so it solves once more
-    # with iterative refinement, and the better verified bound is kept
+    # short, its path depends on the data's last bits, so it solves once more with
+    # Clarabel's default regularization and iterative refinement, and the better
+    # verified bound is kept
     for refine in (False, True):
         sol = _solve(clarabel, A, b, q, sizes, refine)
         z = np.asarray(sol.z)
@@ -360,10 +365,13 @@ def beam_bound(G, q0, ylin, H, kr, ki, F_lim, beam, limits=None, part=None):
 
 def _solve(clarabel, A, b, q, sizes, refine):
     """Clarabel's solution of the relaxation in the form :func:`problem` returns, at
-    ``SOLVER_TOL``, with iterative refinement of the KKT solves only if ``refine``."""
+    ``SOLVER_TOL``: with ``STATIC_REGULARIZATION`` and no iterative refinement of the KKT
+    solves, or, if ``refine``, with both at Clarabel's defaults."""
     settings = clarabel.DefaultSettings()
     settings.verbose = False
     settings.max_threads = 1
+    if not refine:
+        settings.static_regularization_constant = STATIC_REGULARIZATION
     # the bound is rebuilt from whatever dual comes out, so the KKT solves need no
     # refinement to full precision (that took about 40 % of the time, for bounds the same
     # to about 1e-4: docs/performance.md)
