@@ -307,6 +307,42 @@ def test_geometric_branch_closes_in_on_nearly_open_dampers():
     assert admissible_responses(G, q0, ylin, H, 4, K).max() <= bound
 
 
+def test_geometric_cuts_at_the_relaxation_close_the_first_resonance_at_022_n():
+    """Eight beams, 0.22 N, 16.17 Hz: the certification's witness there leaves beam 4 free
+    (dampers 0 and 3-6 at ``K = 0``; ``M`` recomputed in physical space). Cut at it, the
+    geometric branch of beam 3 stalls 1.2 % above it; cut at the whole box's relaxation's
+    describing functions (:func:`geometric_cuts`: a few N/m where the witness has 0) it
+    comes within 1 % in at most 24 relaxations, and the bound stays above 3000 random
+    admissible points drawn log-uniformly near zero."""
+    from mcfric.bounds import moments_branch
+    from mcfric.core.relaxation_branch import mirror_sign
+
+    model = mcfric.eight_beam(0.22)
+    freq = 10 + 140 * 44 / 999
+    G, q0, ylin, H = (x[0] for x in arrays(model, np.array([freq])))
+    Kw = np.array([0, 15000j, 2573.59313 + 15000j, 0, 0, 0, 0])
+    M, force = physical_grid(model, freq, Kw[None])
+    assert force[0] <= 1
+    limits = moments.force_limits(G, q0, K_MAX, K_MAX, F_LIM)
+    limits = np.maximum(limits, limits[::-1])
+    value, p, z = moments.beam_bound(G, q0, ylin, H, K_MAX, K_MAX, F_LIM, 3, limits)
+    assert value > 1.02 * M[0]
+    at = moments_branch.geometric_cuts(Kw[::-1], p, G, q0, K_MAX, K_MAX)
+    assert np.all((at.real >= 0) & (at.real <= K_MAX) & (at.imag >= 0) & (at.imag <= K_MAX))
+    # where the relaxation has no first moments, the witness's values
+    nan = np.full(7, np.nan + 0j)
+    assert np.array_equal(moments_branch.geometric_cuts(Kw, nan, G, q0, K_MAX, K_MAX), Kw)
+    bound, used, _, _ = moments_branch.branch_bound(
+        G, q0, ylin, H, K_MAX, K_MAX, F_LIM, 3, limits, value, z, at, 1.01 * M[0], 24,
+        mirror_sign(G, q0, ylin, H), geometric=True)
+    assert used <= 24
+    assert M[0] <= bound <= 1.01 * M[0]
+    rng = np.random.default_rng(5)
+    K = 10.0 ** rng.uniform(-5, 0, (3000, 7)) * (rng.uniform(0, K_MAX, (3000, 7))
+                                                 + 1j * rng.uniform(0, K_MAX, (3000, 7)))
+    assert admissible_responses(G, q0, ylin, H, 3, K).max() <= bound
+
+
 def test_thin_part_is_solved_and_tight_at_the_first_resonance():
     """Eight beams, 0.22 N, 16.17 Hz, beam 3: a part of the box that the geometric branch
     reaches (damper 2 within 1.5 N/m of ``K = 0``, damper 3 nearly real, the rest the

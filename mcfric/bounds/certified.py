@@ -535,9 +535,11 @@ def _second_order(args, kr, ki, F_lim, cert, wit, K, beam_bounds, rtol):
                     if not (goal < min(value, beam_bounds[k, b]) <= wit[k] * (1 + gap)
                             and budget > 0):
                         continue
+                    at = (moments_branch.geometric_cuts(cut[b], p, G[k], q0[k], kr, ki)
+                          if geometric else cut[b])
                     v, used, lv, stalled = moments_branch.branch_bound(
                         G[k], q0[k], ylin[k], H[k], kr, ki, F_lim, b, limits, box_value,
-                        z, cut[b], max(goal, done), budget, sign, geometric)
+                        z, at, max(goal, done), budget, sign, geometric)
                     if v < value:
                         value, leaves = v, lv
                     budget -= used
@@ -552,10 +554,7 @@ def _second_order(args, kr, ki, F_lim, cert, wit, K, beam_bounds, rtol):
                 if sign and np.isfinite(value) and all(leaf[1] is not None for leaf in leaves):
                     solved[b] = (p, leaves, value)
             if min(beam_bounds[k, b], value) > done and not np.isnan(p[0]):
-                with np.errstate(all="ignore"):
-                    Kp = p / (q0[k] - G[k] @ p)
-                K_first[k, 0] = (np.clip(np.nan_to_num(Kp.real), 0, kr)
-                                 + 1j * np.clip(np.nan_to_num(Kp.imag), 0, ki))
+                K_first[k, 0] = moments.describing_functions(p, G[k], q0[k], kr, ki)
             done = max(done, min(beam_bounds[k, b], value))
         new[k] = min(cert[k], max(done, rest, wit[k]))
 

@@ -384,6 +384,15 @@ def _solve(clarabel, A, b, q, sizes, refine):
     return solver.solve()
 
 
+def describing_functions(p, G, q0, kr, ki):
+    """The describing functions (N/m) that forces ``p`` (N; the relaxation's first
+    moments) take at their displacements ``q0 - G p``, clipped to the box ``kr``, ``ki``
+    (N/m; zero where not finite)."""
+    with np.errstate(all="ignore"):
+        K = p / (q0 - G @ p)
+    return np.clip(np.nan_to_num(K.real), 0, kr) + 1j * np.clip(np.nan_to_num(K.imag), 0, ki)
+
+
 def mirrored_bound(G, q0, ylin, H, kr, ki, F_lim, beam, limits, z, sign, part=None):
     """A verified upper bound of ``|y_beam|`` (m) from the dual ``z`` that
     :func:`beam_bound` returned for the mirror beam ``nb - 1 - beam``, without solving.

@@ -26,11 +26,15 @@ Where the witness leaves many dampers nearly open (``K`` a few N/m, near the fir
 resonance: eight beams, 16.17 Hz, dampers 0-4 within 20 N/m of zero and the whole box's
 bound 3.2 % above the witness), cutting at ``INSET`` of the interval cannot isolate them
 and the own dampers are not enough. :func:`branch_bound` with ``geometric`` then splits
-one damper per step, into four at the witness's value or, near ``K = 0``, at
+one damper per step, into four at a point's value or, near ``K = 0``, at
 ``GEOMETRIC_FACTOR`` times it (at least ``GEOMETRIC_FLOOR`` of the box): the damper
 split fewest times in that part, the nearest the beam first (the own dampers, then
-outward), the most nearly open at the witness among equals (there: within 1 % after
-12-24 relaxations).
+outward), the most nearly open at the point among equals. The point is the whole box's
+relaxation's describing functions (:func:`geometric_cuts`), not the witness's: at
+16.17 Hz, 0.22 N, the witness is another local maximum with dampers at exactly
+``K = 0`` (every cut at the floor) and one at ``2574 + 15000j`` N/m where the relaxation
+puts a few N/m; cut there the branch stalled 1.25 % above it, cut at the relaxation's
+point it ends within 1 % in 24 relaxations (docs/bounds.md).
 """
 
 from __future__ import annotations
@@ -74,6 +78,15 @@ def _geometric_cut(lo, hi, at, side):
     if lo == 0.0 and at < inset:
         return min(max(GEOMETRIC_FACTOR * at, GEOMETRIC_FLOOR * side), inset)
     return _cut(lo, hi, at)
+
+
+def geometric_cuts(K_cut, p, G, q0, kr, ki):
+    """Where the geometric branch cuts (N/m): at the describing functions of the whole
+    box's relaxation, its first moments ``p`` (N) as ``p / (q0 - G p)`` clipped to the
+    box (``kr``, ``ki``, N/m), or where ``p`` is NaN at ``K_cut`` (the witness's). A
+    witness that leaves a damper exactly open puts every cut of it at the floor, and one
+    at another local maximum puts them where they serve less (module docstring)."""
+    return np.where(np.isfinite(p), moments.describing_functions(p, G, q0, kr, ki), K_cut)
 
 
 def geometric_children(part, d, K_cut, kr, ki):
