@@ -471,7 +471,10 @@ def _second_order(args, kr, ki, F_lim, cert, wit, K, beam_bounds, rtol):
     beams in decreasing order of ``beam_bounds`` until the next is proven no higher than
     the bounds found (or the witness's tolerance); where a beam's bound is a little above
     the witness (``MOMENTS_SPLIT_GAP``), over parts of its own dampers' rectangles cut at
-    the witness's ``K`` (n_f, nd; N/m; :mod:`.moments_branch`). Returns the new ``cert``, the
+    the witness's ``K`` (n_f, nd; N/m; :mod:`.moments_branch`), and where that is not
+    enough or the bound is farther above (``GEOMETRIC_GAP``), over parts of every
+    damper's, one at a time, cut at the whole box's relaxation's describing functions
+    (:func:`.moments_branch.geometric_cuts`). Returns the new ``cert``, the
     relaxation's first moments of the beam of largest bound as describing functions
     (n_f, 1, nd; N/m, clipped to the box; NaN where none: starts for the witness) and the
     number of relaxations solved and failed."""
