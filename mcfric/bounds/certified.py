@@ -99,6 +99,12 @@ MOMENTS_SPLIT = 64
 #: is split, one at a time (:func:`.moments_branch.branch_bound`'s ``geometric``; the
 #: same budget).
 GEOMETRIC_GAP = 0.05
+#: Where the upper bound is still loose after the second order, at most this many
+#: frequencies (the loosest) have their witnesses polished beam by beam by SLSQP
+#: (:mod:`.witness_polish`; about a second per frequency).
+POLISH_MAX = 64
+#: Frequencies polished in the last call, and of those where the witness rose.
+LAST_POLISH = np.zeros(2, np.int64)
 #: Relative margin on the force bound (a sum of non-negative products: (nd + 2) u).
 _FORCE_MARGIN = 1e-12
 
@@ -575,6 +581,34 @@ def _second_order(args, kr, ki, F_lim, cert, wit, K, beam_bounds, rtol):
     return new, K_first, total[:2]
 
 
+def _polish(args, kr, ki, F_lim, cert, wit, K, beam_bounds, rtol):
+    """Upper witnesses improved where ``cert`` (m; capped by the force bound) is still
+    not within ``rtol`` of ``wit``, at the ``POLISH_MAX`` loosest frequencies: each beam
+    whose proven bound (``beam_bounds``, m) is above the witness's tolerance is maximised
+    on its own (:func:`.witness_polish.polish`; on a chain that is its own mirror image
+    one beam of each mirror pair, the one of larger bound). ``K`` is updated in place;
+    returns the new ``wit``."""
+    from .witness_polish import polish
+
+    wit = wit.copy()
+    loose = np.flatnonzero(~_met(True, cert, wit, rtol, 0.0) & np.isfinite(cert))
+    loose = loose[np.argsort(wit[loose] / cert[loose], kind="stable")][:POLISH_MAX]
+    beams = []
+    for k in loose:
+        over = ~(beam_bounds[k] <= wit[k] * (1 + rtol))
+        if mirror_sign(*(a[k] for a in args)):
+            nb = len(over)
+            for b in range(nb // 2):
+                m = nb - 1 - b
+                if over[b] and over[m]:
+                    over[b if beam_bounds[k, b] < beam_bounds[k, m] else m] = False
+        beams.append(np.flatnonzero(over).tolist())
+    before = wit.copy()
+    polish(args, kr, ki, F_lim, K, wit, loose, beams)
+    LAST_POLISH[:] = len(loose), np.count_nonzero(wit > before)
+    return wit
+
+
 def _pct(x):
     return "unbounded" if not np.isfinite(x) else f"{100 * x:.3g} %"
 
@@ -624,6 +658,7 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
     moments = resolve_moments(moments, is_chain(G), nd, F_lim)
     second_order = np.zeros(2, np.int64)
     LAST_MOMENTS[:] = 0
+    LAST_POLISH[:] = 0
     split_used = np.zeros(2, np.int64)
     if budget is None:
         budget = default_budget(nd, relax)
@@ -705,6 +740,9 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
                 # its first moments start one more climb in the forces
                 wit = _force_ascent(args, kr, ki, F_lim, K_first,
                                     np.fmin(cert / (1 + rtol), box_max), wit, K)
+                # where it is still loose, each beam on its own by a gradient method
+                wit = _polish(args, kr, ki, F_lim, np.fmin(cert, force), wit, K,
+                              beam_bounds, rtol)
         if want_max:
             cert = np.maximum(np.fmin(cert, force), wit)
         else:

@@ -1,0 +1,55 @@
+"""The witnesses' polish by SLSQP, beam by beam (:mod:`mcfric.bounds.witness_polish`)."""
+
+import numpy as np
+
+import mcfric
+from mcfric.bounds import certified, moments, witness_polish
+
+from .test_certified import F_LIM, K_MAX, physical_grid
+from .test_force_ascent import arrays
+
+#: Eight beams, 0.22 N: frequency 800 of the 1000 in 10-150 Hz, where the climbs miss
+#: beam 2's narrow maximum.
+FREQ = 10 + 140 * 800 / 999
+
+
+def test_gradients_match_central_differences():
+    """The exact gradients of ``|y_b|^2`` and of the forces' ``|p_j|^2`` against central
+    differences at random points of the box."""
+    G, q0, ylin, H = (x[0] for x in arrays(mcfric.eight_beam(0.22), np.array([FREQ])))
+    rng = np.random.default_rng(3)
+    h = 1e-6
+    for _ in range(3):
+        x = rng.random(2 * len(q0))
+        v, g, p, a2, jac = witness_polish.response_and_gradient(x, G, q0, ylin[2], H[2],
+                                                                 K_MAX, K_MAX)
+        steps = [witness_polish.response_and_gradient(x + s * e, G, q0, ylin[2], H[2],
+                                                      K_MAX, K_MAX)
+                 for e in np.eye(len(x)) for s in (h, -h)]
+        fd = np.array([(a[0] - b[0]) / (2 * h) for a, b in zip(steps[::2], steps[1::2])])
+        fdj = np.array([(a[3] - b[3]) / (2 * h) for a, b in zip(steps[::2], steps[1::2])]).T
+        assert np.abs(fd - g).max() <= 1e-6 * np.abs(g).max()
+        assert np.abs(fdj - jac).max() <= 1e-6 * np.abs(jac).max()
+        assert np.allclose(a2, np.abs(p) ** 2)
+
+
+def test_polish_finds_the_narrow_maximum_at_122_hz():
+    """From the climbs' witness, SLSQP on beam 2 alone reaches a point at least 0.5 %
+    higher (1.04 % measured), admissible and of that response when solved in physical
+    space, and below the first-order relaxation's proven bound of beam 2."""
+    model = mcfric.eight_beam(0.22)
+    args = arrays(model, np.array([FREQ]))
+    nd = args[1].shape[1]
+    K, wit = certified.joint_witnesses(args, K_MAX, K_MAX, F_LIM, np.zeros((1, 1, nd), complex),
+                                       np.array([np.inf]))
+    M0, force0 = physical_grid(model, FREQ, K)
+    assert force0[0] <= 1 and np.isclose(M0[0], wit[0], rtol=1e-9)
+    before = wit[0]
+    witness_polish.polish(args, K_MAX, K_MAX, F_LIM, K, wit, np.array([0]), [[2]])
+    M1, force1 = physical_grid(model, FREQ, K)
+    assert force1[0] <= 1
+    assert np.isclose(M1[0], wit[0], rtol=1e-9)
+    assert M1[0] >= 1.005 * before
+    G, q0, ylin, H = (x[0] for x in args)
+    proven = moments.first_order_bound(G, q0, ylin, H, F_LIM, 2, moments.box(nd, K_MAX, K_MAX))
+    assert M1[0] <= proven
