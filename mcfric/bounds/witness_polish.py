@@ -11,7 +11,7 @@ loose at the end, each beam whose proven bound lies above the witness's toleranc
 therefore maximised on its own by scipy's SLSQP in the normalised box coordinates
 ``(Re K / k_r, Im K / k_i)``, under the force limits ``|p_j| <= F_lim``, with exact
 gradients, from the witness and ``STARTS`` random points (drawn from ``seed`` and the
-frequency: the same whatever the thread). The points it reaches are handed to
+frequency), one frequency after the other. The points it reaches are handed to
 :func:`.certified.joint_witnesses`, which pulls them inside the force limit, evaluates
 them with the package's kernels and keeps the best: a witness stays an admissible
 point, whatever SLSQP's own constraint tolerance.
@@ -105,7 +105,6 @@ def polish(args, kr, ki, F_lim, K, wit, freqs, beams, seed=0):
     list of beam indices per frequency of ``freqs``), each from the witness and
     ``STARTS`` random points. ``args``: the contact-space arrays; ``K`` (n_f, nd; N/m)
     and ``wit`` (n_f; m) are updated in place where a point found is better."""
-    from ..threads import in_threads
     from .certified import joint_witnesses
 
     G, q0, ylin, H = args
@@ -130,4 +129,7 @@ def polish(args, kr, ki, F_lim, K, wit, freqs, beams, seed=0):
             K[k] = Kw[0]
             wit[k] = Mw[0]
 
-    in_threads(one, range(len(freqs)))
+    # one frequency after the other: a few are polished, and SLSQP and the warnings
+    # filter are not to be relied on across threads (the result must not depend on them)
+    for i in range(len(freqs)):
+        one(i)
