@@ -58,3 +58,28 @@ def test_polish_finds_the_narrow_maximum_at_122_hz():
     G, q0, ylin, H = (x[0] for x in args)
     proven = moments.first_order_bound(G, q0, ylin, H, F_LIM, 2, moments.box(nd, K_MAX, K_MAX))
     assert M1[0] <= proven
+
+
+def test_certify_polishes_only_where_the_upper_bound_is_loose():
+    """``certified._polish`` on two copies of the 122 Hz frequency, the first loose (its
+    bound the first-order relaxation's), the second already within the tolerance: the
+    first witness rises by at least 0.5 % to an admissible point, the second is left
+    alone, and the counts say so."""
+    model = mcfric.eight_beam(0.22)
+    args = arrays(model, np.array([FREQ, FREQ]))
+    G, q0, ylin, H = (x[0] for x in args)
+    nd, nb = q0.shape[0], ylin.shape[0]
+    K, wit = certified.joint_witnesses(args, K_MAX, K_MAX, F_LIM,
+                                       np.zeros((2, 1, nd), complex), np.full(2, np.inf))
+    box = moments.box(nd, K_MAX, K_MAX)
+    beam_bounds = np.array([[moments.first_order_bound(G, q0, ylin, H, F_LIM, b, box)
+                             for b in range(nb)]] * 2)
+    cert = np.array([beam_bounds[0].max(), wit[1]])
+    assert cert[0] > 1.01 * wit[0]
+    K0 = K.copy()
+    new = certified._polish(args, K_MAX, K_MAX, F_LIM, cert, wit, K, beam_bounds, 0.01)
+    assert new[0] >= 1.005 * wit[0] and new[1] == wit[1]
+    assert np.array_equal(K[1], K0[1])
+    M, force = physical_grid(model, FREQ, K[:1])
+    assert force[0] <= 1 and np.isclose(M[0], new[0], rtol=1e-9)
+    assert certified.LAST_POLISH.tolist() == [1, 1]
