@@ -101,8 +101,9 @@ MOMENTS_SPLIT = 64
 GEOMETRIC_GAP = 0.05
 #: Where the upper bound is still loose after the second order, at most this many
 #: frequencies (the loosest) have their witnesses polished beam by beam by SLSQP
-#: (:mod:`.witness_polish`; about a second per frequency).
-POLISH_MAX = 64
+#: (:mod:`.witness_polish`): a bounded cost where many stay loose and the looseness is
+#: the bound's, not the witness's (docs/bounds.md).
+POLISH_MAX = 16
 #: Frequencies polished in the last call, and of those where the witness rose.
 LAST_POLISH = np.zeros(2, np.int64)
 #: Relative margin on the force bound (a sum of non-negative products: (nd + 2) u).
