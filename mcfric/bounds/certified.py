@@ -591,7 +591,7 @@ def _polish(args, kr, ki, F_lim, cert, wit, K, beam_bounds, rtol):
     returns the new ``wit``."""
     from .witness_polish import polish
 
-    wit = wit.copy()
+    before, wit = wit, wit.copy()
     loose = np.flatnonzero(~_met(True, cert, wit, rtol, 0.0) & np.isfinite(cert))
     loose = loose[np.argsort(wit[loose] / cert[loose], kind="stable")][:POLISH_MAX]
     beams = []
@@ -604,7 +604,6 @@ def _polish(args, kr, ki, F_lim, cert, wit, K, beam_bounds, rtol):
                 if over[b] and over[m]:
                     over[b if beam_bounds[k, b] < beam_bounds[k, m] else m] = False
         beams.append(np.flatnonzero(over).tolist())
-    before = wit.copy()
     polish(args, kr, ki, F_lim, K, wit, loose, beams)
     LAST_POLISH[:] = len(loose), np.count_nonzero(wit > before)
     return wit

@@ -65,16 +65,23 @@ def beam_maxima(G, q0, ylin_b, H_b, kr, ki, F_lim, x_starts, scale):
 
     nd = len(q0)
     s2 = scale ** 2
+    last = {}
+
+    def at(x):
+        # SLSQP asks for the objective, the constraints and their Jacobian at the same
+        # point one after the other: one solve serves all three
+        key = x.tobytes()
+        if last.get("key") != key:
+            last["key"] = key
+            last["value"] = response_and_gradient(x, G, q0, ylin_b, H_b, kr, ki)
+        return last["value"]
 
     def objective(x):
-        v, g, *_ = response_and_gradient(x, G, q0, ylin_b, H_b, kr, ki)
+        v, g, *_ = at(x)
         return -v / s2, -g / s2
 
-    def forces(x):
-        *_, a2, jac = response_and_gradient(x, G, q0, ylin_b, H_b, kr, ki)
-        return 1.0 - a2 / F_lim ** 2, -jac / F_lim ** 2
-
-    cons = {"type": "ineq", "fun": lambda x: forces(x)[0], "jac": lambda x: forces(x)[1]}
+    cons = {"type": "ineq", "fun": lambda x: 1.0 - at(x)[3] / F_lim ** 2,
+            "jac": lambda x: -at(x)[4] / F_lim ** 2}
     out = np.full((len(x_starts), nd), np.nan + 0j)
     for i, x0 in enumerate(x_starts):
         with warnings.catch_warnings(), np.errstate(all="ignore"):
@@ -108,28 +115,23 @@ def polish(args, kr, ki, F_lim, K, wit, freqs, beams, seed=0):
     from .certified import joint_witnesses
 
     G, q0, ylin, H = args
-    n_f, nd = q0.shape
-
-    def one(i):
-        k = int(freqs[i])
-        rng = np.random.default_rng([seed, k])
+    nd = q0.shape[1]
+    # one frequency after the other: a few are polished, and SLSQP and the warnings
+    # filter are not to be relied on across threads (the result must not depend on them)
+    for k, beams_k in zip(freqs, beams):
+        rng = np.random.default_rng([seed, int(k)])
         xs = starts(K[k], kr, ki, STARTS, rng)
         # the objective in units of the witness's response (never zero: K = 0 is a start)
         scale = max(wit[k], np.abs(ylin[k]).max(), 1e-30)
         found = [beam_maxima(G[k], q0[k], ylin[k, b], H[k, b], kr, ki, F_lim, xs, scale)
-                 for b in beams[i]]
+                 for b in beams_k]
         found = np.concatenate(found) if found else np.empty((0, nd), complex)
         found = found[~np.isnan(found[:, 0])]
         if not len(found):
-            return
+            continue
         one_f = [np.ascontiguousarray(a[k:k + 1]) for a in args]
         Kw, Mw = joint_witnesses(one_f, kr, ki, F_lim, found[None], np.array([np.inf]),
-                                 pool=0, climb=len(found), seed=seed + k)
+                                 pool=0, climb=len(found), seed=seed + int(k))
         if Mw[0] > wit[k]:
             K[k] = Kw[0]
             wit[k] = Mw[0]
-
-    # one frequency after the other: a few are polished, and SLSQP and the warnings
-    # filter are not to be relied on across threads (the result must not depend on them)
-    for i in range(len(freqs)):
-        one(i)
