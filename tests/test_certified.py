@@ -356,3 +356,66 @@ def test_lower_witness_is_the_joint_minimum_where_the_box_minimum_is_not_admissi
             if fx[0] <= 1.0:
                 best = min(best, Mx[0])
         assert best >= C.lower_witness[k] * 0.99, (fk, best, C.lower_witness[k])
+
+
+def test_the_lower_bound_is_not_tight_where_no_upper_bound_is_proved():
+    """The lower bound's absolute criterion (within ``ATOL_FRACTION`` of the upper bound)
+    needs a finite upper bound: where only ``inf`` and ``0`` are proved, the summary
+    counts the lower bound loose."""
+    from mcfric.bounds.certified import Certificate
+
+    n = 3
+    C = Certificate(np.array([np.inf, np.inf, 1.0]), np.zeros(n), np.ones(n), np.ones(n),
+                    np.zeros((n, 1), complex), np.zeros((n, 1), complex),
+                    np.zeros((2, n), bool), np.zeros((2, n), np.int64), 0)
+    assert not C.lower_tight.any()
+    assert "lower within 1 % or 0.001 x upper at 0" in C.summary(np.array([10.0, 20.0, 30.0]))
+
+
+def test_force_bounds_are_rounded_outwards():
+    """Eq. 10 summed in floating point can fall a few ulps below its exact value, where
+    it is the true maximum (a saturated end damper); the kernel's value lies at or above
+    the exact sum of the same binary inputs (computed with 60 digits)."""
+    from decimal import Decimal, getcontext
+
+    from mcfric.core.branch_bound import force_bounds
+
+    getcontext().prec = 60
+    rng = np.random.default_rng(4)
+    for nd in (1, 7, 40):
+        ylin = rng.normal(size=200) + 1j * rng.normal(size=200)
+        H = (rng.normal(size=(200, nd)) + 1j * rng.normal(size=(200, nd))) * 1e-4
+        F_lim = 0.1 * rng.uniform()
+        out = np.empty(200)
+        force_bounds(ylin, H, F_lim, out)
+
+        def modulus(z):
+            return (Decimal(z.real) ** 2 + Decimal(z.imag) ** 2).sqrt()
+
+        for b in range(200):
+            exact = modulus(ylin[b]) + Decimal(F_lim) * sum(modulus(h) for h in H[b])
+            assert Decimal(out[b]) >= exact, (nd, b)
+
+
+def test_the_branch_and_bound_witness_is_the_value_of_a_solve():
+    """A witness of the branch and bound (the centre of a sub-box) is ``M`` at its
+    describing functions as a contact-space solve gives it, bit for bit, and admissible;
+    the enclosure's centre value rests on an approximate inverse."""
+    from mcfric.core.branch_bound import admissible_value, certify
+    from mcfric.core.receptance import contact_space
+
+    model = chain(3, 0.5)
+    a, b = model.dampers
+    for freq in (16.0, 40.0, 110.0):
+        G, q0, ylin, H = (np.ascontiguousarray(x[0]) for x in contact_space(
+            model.receptances(2 * np.pi * np.array([freq]))[0], model.force, a, b))
+        nd = q0.shape[0]
+        for want_max in (True, False):
+            K_best = np.zeros(nd, complex)
+            _, w, _, _ = certify(G, q0, ylin, H, K_MAX, K_MAX, F_LIM, want_max,
+                                 np.zeros((0, nd), complex), np.int64(400), 1e-9, 0.0,
+                                 K_best)
+            v, ok = admissible_value(G, q0, ylin, H, K_best, F_LIM,
+                                     np.empty((nd, nd), complex), np.empty(nd, np.int64),
+                                     np.empty(nd, complex))
+            assert ok and v == w, (freq, want_max, v, w)

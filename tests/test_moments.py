@@ -233,10 +233,11 @@ def test_splitting_the_own_dampers_closes_the_gap_at_105_hz():
     limits = moments.force_limits(G, q0, K_MAX, K_MAX, F_LIM)
     limits = np.maximum(limits, limits[::-1])
     value, _, z = moments.beam_bound(G, q0, ylin, H, K_MAX, K_MAX, F_LIM, 3, limits)
-    bound, used, leaves, _ = moments_branch.branch_bound(
+    bound, used, leaves, _, failed = moments_branch.branch_bound(
         G, q0, ylin, H, K_MAX, K_MAX, F_LIM, 3, limits, value, z, Kw, 1.005 * M[0], 16)
     first = [leaf for leaf in leaves if leaf[1] is moments_branch.FIRST_ORDER]
     assert len(leaves) == 16 and used == 16 - len(first) and 0 < len(first) < 16
+    assert failed == 0
     assert value > 1.02 * M[0]
     assert M[0] <= bound < M[0] + 0.6 * (value - M[0])
     rng = np.random.default_rng(8)
@@ -306,10 +307,10 @@ def test_geometric_branch_closes_in_on_nearly_open_dampers():
     (G, q0, ylin, H), limits, M = first_resonance(1.1, Kw)
     value, _, z = moments.beam_bound(G, q0, ylin, H, K_MAX, K_MAX, F_LIM, 4, limits)
     assert value > 1.025 * M
-    bound, used, leaves, _ = moments_branch.branch_bound(
+    bound, used, leaves, _, failed = moments_branch.branch_bound(
         G, q0, ylin, H, K_MAX, K_MAX, F_LIM, 4, limits, value, z, Kw, 1.01 * M, 24,
         mirror_sign(G, q0, ylin, H), geometric=True)
-    assert used <= 24
+    assert used <= 24 and failed == 0
     assert M <= bound <= M + 0.5 * (value - M)
     volume = sum(np.prod((hi - lo).real * (hi - lo).imag) for (lo, hi), *_ in leaves)
     assert np.isclose(volume, K_MAX ** 14, rtol=1e-9)
@@ -338,10 +339,10 @@ def test_geometric_cuts_at_the_relaxation_close_the_first_resonance_at_022_n():
     # where the relaxation has no first moments, the witness's values
     nan = np.full(7, np.nan + 0j)
     assert np.array_equal(moments_branch.geometric_cuts(Kw, nan, G, q0, K_MAX, K_MAX), Kw)
-    bound, used, _, _ = moments_branch.branch_bound(
+    bound, used, _, _, failed = moments_branch.branch_bound(
         G, q0, ylin, H, K_MAX, K_MAX, F_LIM, 3, limits, value, z, at, 1.01 * M, 24,
         mirror_sign(G, q0, ylin, H), geometric=True)
-    assert used <= 24
+    assert used <= 24 and failed == 0
     assert M <= bound <= 1.01 * M
     rng = np.random.default_rng(5)
     K = 10.0 ** rng.uniform(-5, 0, (3000, 7)) * (rng.uniform(0, K_MAX, (3000, 7))

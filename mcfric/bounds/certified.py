@@ -185,7 +185,8 @@ class Certificate:
         of the certified upper bound (absolute: deep valleys of the minimum)."""
         with np.errstate(invalid="ignore"):
             return ((self.lower_gap <= 0.01)
-                    | (self.lower_witness - self.lower <= ATOL_FRACTION * self.upper))
+                    | (np.isfinite(self.upper)
+                       & (self.lower_witness - self.lower <= ATOL_FRACTION * self.upper)))
 
     def summary(self, freq_hz):
         """Which order certified, where the certificate is within 1 % of its witness, the
@@ -547,13 +548,14 @@ def _second_order(args, kr, ki, F_lim, cert, wit, K, beam_bounds, rtol):
                         continue
                     at = (moments_branch.geometric_cuts(cut[b], p, G[k], q0[k], kr, ki)
                           if geometric else cut[b])
-                    v, used, lv, stalled = moments_branch.branch_bound(
+                    v, used, lv, stalled, failed = moments_branch.branch_bound(
                         G[k], q0[k], ylin[k], H[k], kr, ki, F_lim, b, limits, box_value,
                         z, at, max(goal, done), budget, sign, geometric)
                     if v < value:
                         value, leaves = v, lv
                     budget -= used
                     counts[i, 0] += used
+                    counts[i, 1] += failed
                     counts[i, 3] += used
                     counts[i, 4] += used if geometric else 0
                 # splitting that stalls (or runs out) on one beam keeps the frequency loose

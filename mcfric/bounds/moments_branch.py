@@ -184,6 +184,9 @@ def branch_bound(G, q0, ylin, H, kr, ki, F_lim, beam, limits, value, z, K_cut, g
     stalled : bool
         Whether it stopped because a split did not make ``PROGRESS`` (two in a row with
         ``geometric``).
+    failed : int
+        Of the ``used``, those that gave no bound (solver or verification; the part's
+        first-order bound kept there).
     """
     nd = q0.shape[0]
     own = own_dampers(beam, nd)
@@ -196,6 +199,7 @@ def branch_bound(G, q0, ylin, H, kr, ki, F_lim, beam, limits, value, z, K_cut, g
     heap = [(-value, 0, whole, (whole, z, limits), np.zeros(nd, np.int64))]
     count = 1
     used = 0
+    failed = 0
     stalled = False
     misses = 0
     n_kids = 4 if geometric else 4 ** len(own)
@@ -218,6 +222,7 @@ def branch_bound(G, q0, ylin, H, kr, ki, F_lim, beam, limits, value, z, K_cut, g
                 v2, _, z2 = moments.beam_bound(G, q0, ylin, H, kr, ki, F_lim, beam, lim2,
                                                kid)
                 used += 1
+                failed += not np.isfinite(v2)
                 # both are bounds: the second order's where it is the tighter
                 if v2 < v:
                     v, zk, lim = v2, z2, lim2
@@ -233,7 +238,7 @@ def branch_bound(G, q0, ylin, H, kr, ki, F_lim, beam, limits, value, z, K_cut, g
             stalled = True
             break
     leaves = [(proof[0], proof[1], -neg, proof[2]) for neg, _, _, proof, _ in heap]
-    return -heap[0][0], used, leaves, stalled
+    return -heap[0][0], used, leaves, stalled, failed
 
 
 def mirrored_branch(G, q0, ylin, H, kr, ki, F_lim, beam, limits, leaves, sign):
@@ -253,14 +258,18 @@ def mirrored_branch(G, q0, ylin, H, kr, ki, F_lim, beam, limits, leaves, sign):
     for (lo, hi), z, _, lim in leaves:
         part = (lo[::-1].copy(), hi[::-1].copy())
         if z is FIRST_ORDER:
-            worst = max(worst, moments.first_order_bound(G, q0, ylin, H, F_lim, beam, part))
-            continue
-        if id(z) in seen:
-            continue
-        seen.add(id(z))
-        if z is None:
-            return math.inf, len(seen) - 1
-        lim = np.maximum(lim[::-1], part_limits(G, q0, kr, ki, F_lim, limits, part))
-        worst = max(worst, moments.mirrored_bound(G, q0, ylin, H, kr, ki, F_lim, beam,
-                                                  lim, z, sign, part))
+            v = moments.first_order_bound(G, q0, ylin, H, F_lim, beam, part)
+        else:
+            if id(z) in seen:
+                continue
+            seen.add(id(z))
+            if z is None:
+                return math.inf, len(seen) - 1
+            lim = np.maximum(lim[::-1], part_limits(G, q0, kr, ki, F_lim, limits, part))
+            v = moments.mirrored_bound(G, q0, ylin, H, kr, ki, F_lim, beam, lim, z, sign,
+                                       part)
+        if not v >= 0.0:
+            # a part with no bound (NaN) leaves the beam unbounded, not out of the max
+            return math.inf, len(seen)
+        worst = max(worst, v)
     return worst, len(seen)
