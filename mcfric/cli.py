@@ -399,6 +399,7 @@ def cmd_run(args):
     """``mcfric run``: run (or resume) an ensemble, check it against its bounds, draw it;
     with ``excitation.engine_orders``, one such run and file per engine order."""
     from . import ensemble
+    from .store.lock import LockError, OutputLock
 
     cfg = _load(args)
     out = _output_path(args, ".h5", figure=not args.no_figure)
@@ -415,8 +416,10 @@ def cmd_run(args):
             _not_replacing_hdf5(o.with_suffix(".png"), "figure")
         if not args.resume:
             try:
-                ensemble.prepare(c.spec, o, force=args.force)
-            except ensemble.RunError as e:
+                # under the order's lock: a writer of it is named, as for one run
+                with OutputLock(o, "mcfric run (checking an engine order's files)"):
+                    ensemble.prepare(c.spec, o, force=args.force)
+            except (ensemble.RunError, LockError) as e:
                 raise UsageError(str(e)) from None
     print(f"mcfric run: engine orders {', '.join(map(str, orders))}: one results file "
           f"each ({', '.join(o.name for _, o in runs)})", flush=True)
@@ -775,15 +778,17 @@ def _verify_source(args):
 
     src = args.source
     if src is not None and src.endswith((".h5", ".h5.partial")):
-        from .store import read, read_attrs
+        from .results_check import check_file
+        from .store import StoreError, read
         if args.member is None:
             raise UsageError("--member: a results file needs --member I (0-based)")
         for flag in ("mu0", "kc", "N0", "F0"):
             if getattr(args, flag) is not None:
                 raise UsageError(f"--{flag}: taken from the results file; not with a FILE")
-        attrs = read_attrs(src)
-        if "config_json" not in attrs:
-            raise UsageError(f"{src}: no configuration stored (not an ensemble file)")
+        try:
+            attrs = check_file(src)[0]      # a damaged or foreign file: one line, exit 2
+        except StoreError as e:
+            raise UsageError(str(e)) from None
         try:
             spec = config.validate(json.loads(attrs["config_json"])).spec
         except config.ConfigError as e:
@@ -791,6 +796,8 @@ def _verify_source(args):
         if spec.mistuned:
             raise UsageError(f"{src}: verify does not take mistuned members yet")
         n = int(attrs.get("samples", 0))
+        if n == 0:
+            raise UsageError(f"{src}: no members (a bounds file); give a results file of a run")
         if not 0 <= args.member < n:
             raise UsageError(f"--member: expected an integer in 0..{n - 1}, got {args.member}")
         params = [read(src, k)[args.member] for k in ("mu0", "kc", "N0")]

@@ -95,12 +95,37 @@ def check_file(path):
                                  f"{expected}")
     g = read_group(path, "bounds")
     if g is not None:
-        n_f = ds["frequency"][1][0]
-        for k in ("upper", "lower"):
-            v = g[0].get(k)
-            if v is None or getattr(v, "shape", None) != (n_f,) or v.dtype.kind != "f":
-                raise StoreError(f"{path}: bounds/{k} is missing or not {n_f} numbers")
+        _check_bounds(path, *g, ds["frequency"][1][0])
     return a, cfg
+
+
+#: What ``bounds.results.read_bounds`` reads: datasets (name, dtype kinds, per frequency
+#: ``True`` or a leading frequency axis), then those of a certificate, then attributes.
+BOUNDS_DATASETS = (("upper", "f"), ("lower", "f"), ("upper_box", "f"), ("upper_force", "f"),
+                   ("limited_by", "iu"), ("K_upper", "c"), ("K_lower", "c"))
+CERTIFICATE_DATASETS = (("upper_certified", "f"), ("lower_certified", "f"),
+                        ("upper_witness", "f"), ("lower_witness", "f"),
+                        ("K_upper_witness", "c"), ("K_lower_witness", "c"),
+                        ("certified_converged", "iu"), ("upper_evaluations", "iu"),
+                        ("lower_evaluations", "iu"))
+BOUNDS_ATTRS = ("k_max_re", "k_max_im", "F_lim", "quantity", "beams")
+
+
+def _check_bounds(path, g, attrs, n_f):
+    """Every dataset and attribute of ``bounds/`` that the readers use, with one value
+    (or row) per frequency."""
+    names = BOUNDS_DATASETS + (CERTIFICATE_DATASETS if "upper_certified" in g else ())
+    for k, kinds in names:
+        v = g.get(k)
+        shape = getattr(v, "shape", ())
+        if v is None or not shape or shape[0] != n_f or v.dtype.kind not in kinds:
+            raise StoreError(f"{path}: bounds/{k} is missing or not {n_f} "
+                             f"{_kind_name(kinds)} values")
+    if "upper_certified" in g and "certify_budget" not in attrs:
+        raise StoreError(f"{path}: bounds/ lacks the attribute certify_budget")
+    for k in BOUNDS_ATTRS:
+        if k not in attrs:
+            raise StoreError(f"{path}: bounds/ lacks the attribute {k}")
 
 
 def _kind_name(kinds):

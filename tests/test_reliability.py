@@ -66,6 +66,26 @@ def test_a_second_writer_is_refused_and_changes_nothing(tmp_path, capsys, extra)
         stop(p)
 
 
+def test_an_engine_order_sweep_names_the_writer_of_any_order(tmp_path, capsys):
+    """The sweep checks every order's files before the first order runs, under each
+    order's lock: a writer of the second order is named, and nothing is written."""
+    (tmp_path / "sweep.toml").write_text(
+        '[model]\npreset = "disk-24"\nn_beams = 6\n[frequency]\nn = 20\n'
+        '[sampling]\nsamples = 4\n[peaks]\nenabled = false\n[bounds]\ncertify = false\n'
+        '[excitation]\nengine_orders = [1, 2]\n')
+    (tmp_path / "s-eo2.h5.partial").write_bytes(b"another run's partial file")
+    p = holder(tmp_path / "s-eo2.h5")
+    try:
+        before = snapshot(tmp_path)
+        rc = cli.main(["run", str(tmp_path / "sweep.toml"), "-o", str(tmp_path / "s.h5"),
+                       "--no-progress", "--no-figure"])
+        err = capsys.readouterr().err.strip()
+        assert rc == 2 and f"PID {p.pid}" in err and len(err.splitlines()) == 1, err
+        assert snapshot(tmp_path) == before
+    finally:
+        stop(p)
+
+
 def test_a_stale_lock_of_a_killed_run_blocks_nobody(tmp_path, capsys):
     out = tmp_path / "r.h5"
     p = holder(out)
@@ -259,6 +279,11 @@ DAMAGED = [
     (lambda h: h.attrs.__delitem__("config_json"), "no configuration record"),
     (lambda h: h.attrs.__setitem__("config_json", "{}"), "lacks"),
     (lambda h: h.attrs.__setitem__("layout_version", 99), "layout_version 99"),
+    # the bounds group: everything its reader uses
+    (lambda h: h["bounds"].__delitem__("upper_box"), "bounds/upper_box is missing"),
+    (lambda h: h["bounds"].__delitem__("upper_witness"), "bounds/upper_witness is missing"),
+    (_replace("bounds/K_upper", lambda d: d[:3]), "bounds/K_upper is missing or not 20"),
+    (lambda h: h["bounds"].attrs.__delitem__("k_max_re"), "lacks the attribute k_max_re"),
 ]
 
 
@@ -266,11 +291,13 @@ DAMAGED = [
 def test_edited_results_files_give_one_line_exit_2(tmp_path, capsys, how, message):
     res = _damaged(tmp_path, how)
     capsys.readouterr()
-    for argv in (["info", str(res)], ["plot", str(res), "-o", str(tmp_path / "f.png")]):
+    for argv in (["info", str(res)], ["plot", str(res), "-o", str(tmp_path / "f.png")],
+                 ["verify", str(res), "--f", "50", "--member", "0", "-o",
+                  str(tmp_path / "v.csv"), "--no-figure", "--no-progress"]):
         rc = cli.main(argv)
         err = capsys.readouterr().err.strip()
         assert rc == 2 and message in err and len(err.splitlines()) == 1, (argv, err)
-    assert not (tmp_path / "f.png").exists()
+    assert not (tmp_path / "f.png").exists() and not (tmp_path / "v.csv").exists()
 
 
 def test_a_nan_metric_marked_converged_is_reported_not_ranged(tmp_path, capsys):
