@@ -156,7 +156,7 @@ def auto_chunk(spec):
         per_sample += n_f * 4 * nb * 16 * (1 + n_h * (H > 1))       # per-sample receptances
     k = max(1, CHUNK_TARGET_BYTES // per_sample)
     if H > 1:
-        # a multi-harmonic point costs ~1000x a single-harmonic one: small chunks keep
+        # a multi-harmonic point costs tens of single-harmonic ones: small chunks keep
         # the progress bar and the checkpoints moving
         k = min(k, 32)
     return int(min(1 << (k.bit_length() - 1), spec.samples))

@@ -212,7 +212,7 @@ SPEC = {
                             "second-order moment relaxation where the first order leaves "
                             'it loose; "auto": where it applies (chains of 2-7 dampers '
                             "with a force limit), false: the first order alone (about a "
-                            "quarter of the time; looser near some resonances), true: an "
+                            "third of the time; looser near some resonances), true: an "
                             "error where it cannot run"),
     },
 }
