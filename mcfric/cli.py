@@ -867,6 +867,12 @@ def cmd_verify(args):
     bad = sum(not v.periodic for v in vs)
     if bad:
         print(f"not periodic: {bad} of {len(vs)} frequencies (reported, not averaged)")
+    # a harmonic-balance solve that did not converge is NaN in the table and the CSV
+    h1 = sum(bool(np.isnan(v.single).any()) for v in vs)
+    hm = sum(bool(np.isnan(v.multi).any()) for v in vs)
+    if h1 or hm:
+        print(f"harmonic balance not converged: H = 1 at {h1}, H = {args.harmonics} at {hm} "
+              f"of {len(vs)} frequencies (NaN in the table and the CSV, no difference)")
     print(f"csv: {out}")
     if not args.no_figure:
         png = out.with_suffix(".png")

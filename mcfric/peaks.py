@@ -77,12 +77,15 @@ class Peaks:
         Every beam's output amplitude at the peak, m.
     status : ndarray of int8, shape (n_s, count)
         0 refined to ``rtol``; 1 the maximum is at an end of the band (refined there);
-        2 not refined (a solver failed): the grid value; -1 no such peak (NaN).
+        2 not refined (a solver failed in the refinement, or at a grid neighbour, where
+        the peak may lie): the grid value; -1 no such peak (NaN).
     fold : ndarray of int8, shape (n_s, count)
         1 where the downward sweep around the peak reached another steady state, 0 where
         it reproduced the upward one, -1 where it could not be checked.
     freq_hz_down, metric_down : ndarray, shape (n_s, count)
-        The peak of the branch reached from above (equal to the above without a fold).
+        The peak of the branch reached from above (equal to the above without a fold;
+        where its refinement fails, the largest converged point of the downward sweep;
+        NaN where the peak has status 2).
     """
 
     freq_hz: np.ndarray
@@ -195,15 +198,24 @@ def file_report(path):
         return None
     from .store import read
 
-    largest, ratio, folds, unchecked = [], [], 0, 0
+    largest, ratio, folds, unchecked, grid_only = [], [], 0, 0, 0
     # blocks of ~1 MB of metric: memory stays flat in the number of members (8 bytes per
     # member are kept for the percentiles)
     block = max(1, (1 << 17) // max(1, len(read(path, "frequency"))))
-    names = ["metric", "peak_metric", "peak_metric_down", "fold"]
+    names = ["metric", "peak_metric", "peak_metric_down", "fold", "peak_status"]
     for _, arr in iter_records(path, names, block=block):
         both = np.concatenate([arr["peak_metric"], arr["peak_metric_down"]], axis=1)
         with np.errstate(invalid="ignore"):
-            big = np.nanmax(np.where(np.isnan(both), -np.inf, both), axis=1)
+            both = np.where(np.isnan(both), -np.inf, both)
+            big = np.nanmax(both, axis=1)
+        # members whose largest is an unrefined grid value (the upward peaks come first:
+        # a tie with the same value on the downward side counts as the upward peak's)
+        top = np.argmax(both, axis=1)
+        n_up = arr["peak_metric"].shape[1]
+        st = np.take_along_axis(arr["peak_status"], np.minimum(top, n_up - 1)[:, None], 1)
+        grid_only += int(np.count_nonzero((top < n_up) & (st[:, 0] == GRID)
+                                        & np.isfinite(big)))
+        with np.errstate(invalid="ignore"):
             grid = np.nanmax(np.where(np.isnan(arr["metric"]), -np.inf, arr["metric"]), axis=1)
         big = np.where(np.isfinite(big), big, np.nan)
         largest.append(big)
@@ -214,7 +226,7 @@ def file_report(path):
     ratio = np.concatenate(ratio) if ratio else np.empty(0)
     out = {"statistics": statistics(largest), "members": int(largest.size),
            "grid_ratio": float(np.nanmedian(ratio)) if np.isfinite(ratio).any() else np.nan,
-           "folds": folds, "unchecked": unchecked}
+           "folds": folds, "unchecked": unchecked, "grid_only": grid_only}
     g = read_group(path, "bounds")
     if g is not None and "peak_upper" in g[1]:
         out["bound_peak"] = float(g[1]["peak_upper"])
@@ -228,7 +240,9 @@ def report_text(report, unit):
     lines = [f"peaks:       each member's largest, refined: median {st['median']:.4g}, "
              f"95th percentile {st['p95']:.4g}, max {st['max']:.4g} {unit} "
              f"({st['members']} members; the grid's maximum is {report['grid_ratio']:.3g} "
-             f"of the refined peak, median)",
+             f"of the refined peak, median)"
+             + (f"; {report['grid_only']} of these largest peaks are grid values, not "
+                f"refined (a solver failed near them)" if report.get("grid_only") else ""),
              f"folds:       {report['folds']} of {report['members']} members have more than "
              f"one steady state near a peak"
              + (f" ({report['unchecked']} could not be checked)" if report["unchecked"]

@@ -249,3 +249,27 @@ def test_plot_marks_the_points_the_indicator_flags(tmp_path, capsys):
     capsys.readouterr()
     assert cli.main(["plot", str(res), "-o", str(tmp_path / "c.png"), "--no-indicator"]) == 0
     assert (tmp_path / "c.png").stat().st_size > 0
+
+
+def test_a_time_integration_whose_state_is_nan_is_not_periodic(two_beam):
+    """A state that is not finite (a blown-up integration) never reads as settled: the
+    kernel reports no periodic state and a NaN change (``max`` drops a NaN, so a
+    change computed by it alone read 0, "settled")."""
+    from mcfric.core.aft import harmonic_orders
+    from mcfric.core.time_integration import integrate
+
+    fr, z, u = two_beam.modal_arrays()
+    w = 2 * np.pi * fr
+    uc, uo, ud = (np.ascontiguousarray(u[:, :, i]) for i in range(3))
+    a, b = (x.astype(np.int64) for x in two_beam.dampers)
+    orders = harmonic_orders(3)
+    eta0 = np.full_like(w, np.nan)
+    y_h = np.zeros((len(orders), two_beam.n_beams), complex)
+    q_h = np.zeros((len(orders), two_beam.n_dampers), complex)
+    periods, change = integrate(
+        w, np.ascontiguousarray(z), uc, uo, ud,
+        np.ascontiguousarray(two_beam.force, dtype=np.complex128), 2 * np.pi * 20.0, a, b,
+        np.array([6000.0]), np.array([0.25]), eta0, np.zeros_like(w),
+        np.zeros(two_beam.n_dampers), orders, 1024, 1e-9, 3, 20, y_h, q_h,
+        np.zeros(two_beam.n_beams), np.zeros((1024, two_beam.n_beams)))
+    assert periods < 0 and np.isnan(change)

@@ -153,3 +153,27 @@ def test_folds_are_flagged_and_confirmed_by_independent_sweeps():
     np.testing.assert_allclose(ours, up, rtol=1e-6)
     # the refined upward peak is at the top of the upper branch, above every naive point
     assert m_up >= up.max()
+
+
+def test_a_peak_beside_a_failed_neighbour_is_flagged_not_refined():
+    """Where a grid neighbour of a member's largest point did not converge, the peak may
+    lie in that gap: the peak is the grid value with status 2 (not refined), not a flank
+    refined as if it were the end of the band."""
+    from mcfric.hbm import MAX_ITER, TOL
+    from mcfric.peaks import GRID, refine
+
+    model = mcfric.two_beam(0.22)
+    f = np.linspace(10.0, 150.0, 400)
+    mu0, kc = members(model, 4, 3)
+    r = mcfric.solve(model, f, mu0, kc, 0.5)
+    k = np.argmax(r.metric(), axis=1)
+    for i in range(4):
+        # the point above the grid maximum, as if its solve had failed
+        r.status[i, k[i] + 1] = -1
+        r.response[i, k[i] + 1] = np.nan
+    N0 = np.full_like(mu0, 0.5)
+    P = refine(model, r, 2 * np.pi * f, model.modal_arrays()[0][None], PeakSettings(count=1),
+               mu0.copy(), N0, kc.copy(), TOL, MAX_ITER)
+    assert np.all(P.status[:, 0] == GRID)
+    assert np.allclose(P.metric[:, 0], r.metric()[np.arange(4), k], rtol=1e-12, atol=0)
+    assert np.array_equal(P.freq_hz[:, 0], f[k])

@@ -81,7 +81,8 @@ def _evaluate(Q, orders, G, q0, kc, fs, n_time, F, dF, R, work, nd, n_h):
             R[j, h] = r
             err = max(err, abs(r))
             ss += r.real * r.real + r.imag * r.imag
-    if not math.isfinite(err):
+    # max() drops a NaN component; the sum of squares keeps it
+    if not (math.isfinite(err) and math.isfinite(ss)):
         ok = False
     return err, ss, ok
 

@@ -45,7 +45,8 @@ from .receptance import CONTACT, D11, D13, D21, D23, DRIVE, OUTPUT
 #: Status of a reported peak.
 PEAK_REFINED = 0        # a local maximum, refined to rtol
 PEAK_AT_EDGE = 1        # the largest values are at an end of the band: refined there
-PEAK_GRID = 2           # refinement failed (a solver did not converge): the grid value
+PEAK_GRID = 2           # not refined (a solver did not converge in the refinement or at a
+                        # grid neighbour, where the peak may lie): the grid value
 PEAK_NONE = -1          # fewer local maxima than asked (or no converged point): NaN
 #: Fold flags.
 FOLD_NONE = 0           # the downward sweep reproduces the upward one
@@ -452,8 +453,11 @@ def _member(i, omega, modal_f, zeta, u, force, a, b, mu0, N0, kc, tol, max_iter,
         # the bracket between the converged grid neighbours
         k_lo = k - 1 if k > 0 and status[i, k - 1] >= 0 else k
         k_hi = k + 1 if k < n_f - 1 and status[i, k + 1] >= 0 else k
-        edge = k_lo == k or k_hi == k
-        if k_lo == k_hi:                      # isolated point: nothing to refine
+        edge = k == 0 or k == n_f - 1
+        # beside a neighbour that did not converge the peak may lie in that gap: the
+        # grid value, flagged, not a flank refined as if it were the band's end
+        gap = (k_lo == k and k > 0) or (k_hi == k and k < n_f - 1)
+        if k_lo == k_hi or gap:
             pk_st[i, p] = PEAK_GRID
             pk_w[i, p], pk_m[i, p] = omega[k], M[k]
             pk_y[i, p, :] = y[i, k, :]
@@ -470,8 +474,13 @@ def _member(i, omega, modal_f, zeta, u, force, a, b, mu0, N0, kc, tol, max_iter,
             pk_st[i, p] = PEAK_GRID
             pk_w[i, p], pk_m[i, p] = omega[k], M[k]
             pk_y[i, p, :] = y[i, k, :]
+        elif not ok:
+            # refinement stopped short: the grid value, as the status says
+            pk_st[i, p] = PEAK_GRID
+            pk_w[i, p], pk_m[i, p] = omega[k], M[k]
+            pk_y[i, p, :] = y[i, k, :]
         else:
-            pk_st[i, p] = (PEAK_AT_EDGE if edge else PEAK_REFINED) if ok else PEAK_GRID
+            pk_st[i, p] = PEAK_AT_EDGE if edge else PEAK_REFINED
             pk_w[i, p], pk_m[i, p] = S[0][best], S[1][best]
             pk_y[i, p, :] = S[3][best]
         pkd_w[i, p], pkd_m[i, p] = pk_w[i, p], pk_m[i, p]
@@ -504,7 +513,9 @@ def _member(i, omega, modal_f, zeta, u, force, a, b, mu0, N0, kc, tol, max_iter,
                 break
             dn[g - k_bot] = n
             prev2, prev = prev, n
-            if status[i, g] >= 0 and abs(S[1][n] - M[g]) > FOLD_RTOL * max(S[1][n], M[g]):
+            if status[i, g] < 0:
+                complete = False              # no upward point to compare with here
+            elif abs(S[1][n] - M[g]) > FOLD_RTOL * max(S[1][n], M[g]):
                 differs = True
         if not differs:
             fold[i, p] = FOLD_NONE if complete else FOLD_UNCHECKED

@@ -70,6 +70,16 @@ def _axpy(out, x, alpha, y):
 
 
 @jit
+def _sum_abs(z):
+    """Sum of the moduli of a 2-D complex array (NaN or inf if any entry is)."""
+    s = 0.0
+    for i in range(z.shape[0]):
+        for j in range(z.shape[1]):
+            s += abs(z[i, j])
+    return s
+
+
+@jit
 def integrate(w, zeta, uc, uo, ud, force, omega, a, b, kc, fs, eta0, vel0, f0, orders,
               steps, tol, settle, max_periods, y_h, q_h, y_peak, history):
     """Integrate period by period until the harmonics settle.
@@ -223,7 +233,10 @@ def integrate(w, zeta, uc, uo, ud, force, omega, a, b, kc, fs, eta0, vel0, f0, o
                 change = max(change, abs(cur_q[h, j] - prev_q[h, j]))
                 prev_q[h, j] = cur_q[h, j]
         change = change / scale if scale > 0.0 else 0.0
-        if not math.isfinite(change):
+        # max() drops a NaN: a state that blew up must not read as settled
+        if not (math.isfinite(change) and math.isfinite(scale)
+                and math.isfinite(_sum_abs(cur_y) + _sum_abs(cur_q))):
+            change = math.nan
             break
         calm = calm + 1 if change <= tol else 0
         if calm >= settle:
