@@ -68,7 +68,7 @@ def _worker_threads():
     return max(1, min(int(n), numba.config.NUMBA_NUM_THREADS))
 
 
-def run_task(task, spec, start, stop):
+def run_task(task, spec, start, stop, fingerprint=None, expected=None):
     """Run ``task(spec, start, stop)`` on a worker, with the worker's thread count.
 
     Parameters
@@ -79,6 +79,12 @@ def run_task(task, spec, start, stop):
     spec : mcfric.spec.RunSpec
     start, stop : int
         The chunk's sample range.
+    fingerprint : callable, optional
+        Returns this worker's solver fingerprint; with ``expected``, a worker whose
+        fingerprint differs refuses the chunk (workers that joined after the start were
+        never checked).
+    expected : str, optional
+        The client's fingerprint.
 
     Returns
     -------
@@ -87,6 +93,10 @@ def run_task(task, spec, start, stop):
     seconds : float
         Time in ``task``, s.
     """
+    if expected is not None and fingerprint() != expected:
+        raise RuntimeError(f"this worker runs another solver (fingerprint {fingerprint()}, "
+                           f"the client's {expected}): install the same mcfric, numpy, "
+                           f"scipy and numba, on the same kind of CPU")
     n = _worker_threads()
     spec = dataclasses.replace(spec, execution=dataclasses.replace(spec.execution,
                                                                    threads=n))
@@ -142,6 +152,8 @@ class Cluster:
         self.n_workers = 0
         self.n_threads = 0
         self.startup_s = 0.0
+        # the fingerprint function and the client's value, checked by every chunk
+        self._fingerprint = (None, None)
 
     @classmethod
     def connect(cls, address, *, spec, task, fingerprint, verbose=False):
@@ -216,6 +228,7 @@ class Cluster:
                                     allow_other_workers=False, pure=False)
                    for w in workers}
         mine = fingerprint()
+        self._fingerprint = (fingerprint, mine)
         for w, f in futures.items():
             try:
                 theirs = f.result()
@@ -225,7 +238,7 @@ class Cluster:
             if theirs != mine:
                 raise ClusterError(f"worker {w} runs another solver (fingerprint {theirs}, "
                                    f"here {mine}): install the same mcfric, numpy, scipy "
-                                   f"and numba on every worker")
+                                   f"and numba on every worker, on one kind of CPU")
 
     def chunks(self, task, spec, chunks, timing):
         """Solve ``chunks`` on the cluster, yielding each as it completes.
@@ -277,7 +290,8 @@ class Cluster:
                 ab = next(todo, None)
                 if ab is None:
                     return
-                f = self.client.submit(run_task, task, spec, *ab, pure=False, retries=1)
+                f = self.client.submit(run_task, task, spec, *ab, *self._fingerprint,
+                                       pure=False, retries=1)
                 live[f.key] = (f, ab)
                 running.add(f)
 

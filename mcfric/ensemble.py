@@ -44,7 +44,8 @@ RECORD = "sample"
 #: Kernel output per chunk when run.chunk = 0 (auto).
 CHUNK_TARGET_BYTES = 32 << 20
 #: Source files whose change can change a result: a resume across such a change is refused.
-FINGERPRINT_FILES = ("core/*.py", "hbm.py", "model.py", "sampling.py")
+FINGERPRINT_FILES = ("core/*.py", "hbm.py", "model.py", "sampling.py", "metric.py",
+                     "peaks.py", "indicator.py", "ensemble.py", "config/configuration.py")
 
 
 class RunError(Exception):
@@ -126,19 +127,40 @@ class Summary:
 
 
 def fingerprint():
-    """sha256 of the sources that determine results, plus numpy/scipy/numba versions."""
-    import numba
-    import scipy
+    """sha256 of what determines a result's bits: the sources, the numpy, scipy, numba and
+    llvmlite versions, and the machine (the CPU features numpy's loops and numba's code
+    use; the same instructions on another CPU family can round differently)."""
+    global _FINGERPRINT
+    if _FINGERPRINT is None:
+        import llvmlite
+        import numba
+        import scipy
+        from llvmlite import binding
 
-    h = hashlib.sha256()
-    root = Path(__file__).parent
-    for pattern in FINGERPRINT_FILES:
-        for p in sorted(root.glob(pattern)):
-            h.update(p.relative_to(root).as_posix().encode())
-            h.update(p.read_bytes())
-    h.update(f"numpy {np.__version__} scipy {scipy.__version__} numba {numba.__version__}"
-             .encode())
-    return h.hexdigest()[:16]
+        h = hashlib.sha256()
+        root = Path(__file__).parent
+        for pattern in FINGERPRINT_FILES:
+            for p in sorted(root.glob(pattern)):
+                h.update(p.relative_to(root).as_posix().encode())
+                h.update(p.read_bytes())
+        h.update(f"numpy {np.__version__} scipy {scipy.__version__} numba {numba.__version__}"
+                 f" llvmlite {llvmlite.__version__}".encode())
+        h.update(f"cpu {binding.get_host_cpu_name()} {binding.get_host_cpu_features().flatten()}"
+                 f" numpy {_numpy_cpu_features()} svml {numba.config.USING_SVML}".encode())
+        _FINGERPRINT = h.hexdigest()[:16]
+    return _FINGERPRINT
+
+
+_FINGERPRINT = None
+
+
+def _numpy_cpu_features():
+    """The CPU features numpy's loops dispatch on here (sorted names)."""
+    try:
+        from numpy._core._multiarray_umath import __cpu_features__ as features
+    except ImportError:                              # numpy < 2
+        from numpy.core._multiarray_umath import __cpu_features__ as features
+    return ",".join(sorted(k for k, v in features.items() if v))
 
 
 def auto_chunk(spec):

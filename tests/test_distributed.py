@@ -311,3 +311,22 @@ def test_a_worker_with_another_solver_is_refused(tmp_path, capsys, monkeypatch):
     assert rc == 2 and err.count("\n") == 1, err
     assert "runs another solver (fingerprint worker-solver, here client-solver)" in err
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_chunk_refuses_a_worker_with_another_solver():
+    """Workers that join after the start were never checked: every chunk compares its
+    worker's fingerprint with the client's and refuses to solve on a mismatch."""
+    from mcfric.distributed import run_task
+
+    def task(spec, start, stop):
+        raise AssertionError("solved on a worker with another solver")
+
+    with pytest.raises(RuntimeError, match="runs another solver .fingerprint late, the "
+                                           "client's first"):
+        run_task(task, None, 0, 1, lambda: "late", "first")
+    assert run_task(lambda spec, a, b: {"a": a}, _spec(), 0, 1, lambda: "same", "same")[1] \
+        == {"a": 0}
+
+
+def _spec():
+    return config.validate(config.defaults()).spec
