@@ -659,8 +659,9 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
     from .moments import is_chain
     moments = resolve_moments(moments, is_chain(G), nd, F_lim)
     second_order = np.zeros(2, np.int64)
-    LAST_MOMENTS[:] = 0
-    LAST_POLISH[:] = 0
+    # the diagnostics of this call only (a stage that has nothing to do leaves zeros)
+    for last in (LAST_RELAXATION, LAST_SPLIT, LAST_MOMENTS, LAST_POLISH):
+        last[...] = 0
     split_used = np.zeros(2, np.int64)
     if budget is None:
         budget = default_budget(nd, relax)

@@ -619,7 +619,9 @@ def _sample(i, rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, tol, m
         for j in range(nd):
             Qsh_prev[j, 0] = Qsh[j, 0]
         if not ok:
-            st = 1 if have_prev else 0
+            # from here on the start is the single-harmonic solution (also at a first
+            # frequency, where there was no previous one to start from)
+            st = 1
             if sh:
                 for j in range(nd):
                     for h in range(n_h):
