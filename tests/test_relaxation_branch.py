@@ -12,7 +12,15 @@ from mcfric.bounds import compute_bounds
 from mcfric.core.relaxation import buffers, forms, inherit, relaxed_bound, spread, weights
 from mcfric.core.relaxation_branch import _split, branch, mirror_sign, mirrored, parts
 
-from .test_certified import F_LIM, K_MAX, chain, grid_points, physical_grid, random_admissible
+from .test_certified import (
+    F_LIM,
+    K_MAX,
+    chain,
+    check_witnesses,
+    grid_points,
+    physical_grid,
+    random_admissible,
+)
 from .test_force_ascent import arrays
 
 
@@ -213,6 +221,7 @@ def test_splitting_closes_eight_beam_gaps_and_stays_sound():
     assert np.count_nonzero(C.lower_gap <= 0.01) >= 4
     assert C.split_used[1] > 0
     _encloses_random(model, f, C, seed=3)
+    check_witnesses(model, f, C)
 
 
 def test_the_upper_bound_splits_deeper_than_the_lower():
@@ -233,6 +242,7 @@ def test_the_upper_bound_splits_deeper_than_the_lower():
     assert C.split_used[0] > C0.split_used[0]
     assert C.split_used[1] <= LOWER_SPLIT_BUDGET * len(f)
     _encloses_random(model, f, C, seed=5)
+    check_witnesses(model, f, C)
 
 
 def test_the_other_beams_get_a_share_after_the_first_spends_the_budget(monkeypatch):
@@ -255,6 +265,7 @@ def test_the_other_beams_get_a_share_after_the_first_spends_the_budget(monkeypat
     assert np.all(C.upper_gap <= 0.01)
     assert len(f) * SPLIT_BUDGET < C.split_used[0] <= len(f) * SPLIT_BUDGET * (1 + TAIL)
     _encloses_random(model, f, C, seed=11)
+    check_witnesses(model, f, C)
 
 
 def _beam_values(G, q0, ylin, H, K):
