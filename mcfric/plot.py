@@ -139,29 +139,41 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
             ax.plot(px[ok], py[ok], ".", color="0.15", ms=2.5, alpha=0.6,
                     label="refined member peaks")
     B = read_bounds(path)
+    band = None
     if B is not None:
-        up = B.upper[win] * scale[win]
-        lo = B.lower[win] * scale[win]
-        ax.fill_between(fw, np.where(lo > 0, lo, np.nan), up, color="tab:blue", alpha=0.12,
-                        lw=0)
-        ax.plot(fw, up, color="tab:blue", lw=2.0, label="upper bound")
-        ax.plot(fw, np.where(lo > 0, lo, np.nan), color="tab:red", lw=2.0, label="lower bound")
         C = B.certificate
+        if C is None:
+            # searched bounds only (--no-certify): the paper's construction, a search
+            up = B.upper[win] * scale[win]
+            lo = B.lower[win] * scale[win]
+            label = " (searched)"
+        else:
+            up = C.upper[win] * scale[win]
+            lo = C.lower[win] * scale[win]
+            label = " (certified)"
+        up = np.where(np.isfinite(up), up, np.nan)
+        band = lo, up
+        ax.plot(fw, up, color="tab:blue", lw=2.0, label="upper bound" + label)
+        ax.plot(fw, np.where(lo > 0, lo, np.nan), color="tab:red", lw=2.0,
+                label="lower bound" + label)
         if C is not None:
-            cu = C.upper[win] * scale[win]
-            cl = C.lower[win] * scale[win]
-            # the certified band, drawn where it differs visibly from the searched one
-            if np.any(np.abs(cu / up - 1) > 0.01) or np.any(np.abs(cl / np.where(lo > 0, lo, 1)
-                                                                 - 1) > 0.01):
-                ax.plot(fw, np.where(np.isfinite(cu), cu, np.nan), color="tab:blue", lw=1.0,
-                        ls="--", label="certified upper bound")
-                ax.plot(fw, np.where(cl > 0, cl, np.nan), color="tab:red", lw=1.0, ls="--",
-                        label="certified lower bound")
+            # the witnesses (attained by admissible describing functions: the true extreme
+            # lies between them and the certified bound) where the gap shows, > 1 %
+            wu = C.upper_witness[win] * scale[win]
+            wl = C.lower_witness[win] * scale[win]
+            for w, gap, color, name in ((wu, ~(up <= wu * 1.01), "tab:blue", "upper"),
+                                        (wl, ~(lo >= wl * 0.99), "tab:red", "lower")):
+                show = gap & (w > 0) & np.isfinite(w)
+                # one neighbour on each side: an isolated frequency shows as a segment
+                show = show | np.r_[show[1:], False] | np.r_[False, show[:-1]]
+                if show.any():
+                    ax.plot(fw, np.where(show, w, np.nan), color=color, lw=1.0, ls="--",
+                            label=f"{name} witness, where the gap is > 1 %")
         g = read_group(path, "bounds")[1]
         if "peak_upper" in g and lo_f <= g["peak_upper_frequency"] <= hi_f:
             fb = g["peak_upper_frequency"]
             ax.plot([fb], [g["peak_upper"] * omega_power(fb, quantity, stored)], "*",
-                    color="tab:blue", ms=9, label="refined peak of the upper bound")
+                    color="tab:blue", ms=9, label="refined peak of the upper bound (searched)")
     for mm in measured:
         g = mm.to_quantity(quantity)
         mf = g.frequency_hz
@@ -175,6 +187,13 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
     ax.set_yscale("log")
     ax.set_xlim(lo_f, hi_f)
     ax.autoscale(axis="y")
+    if band is not None:
+        # the band between the bounds; where only 0 is proved below, down to the axis
+        bottom, top = ax.get_ylim()
+        lo, up = band
+        ax.fill_between(fw, np.where(lo > 0, lo, bottom), up, color="tab:blue",
+                        alpha=0.12, lw=0)
+        ax.set_ylim(bottom, top)
     ax.set_xlabel("frequency [Hz]")
     unit = METRIC_UNITS[quantity].replace("^2", "$^2$")   # mathtext superscript
     ax.set_ylabel(f"{quantity} amplitude M [{unit}]")
