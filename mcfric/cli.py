@@ -463,6 +463,14 @@ def _run_one(args, cfg, out, resume_as=None):
         print(f"{out} already holds this run (same configuration and seed): nothing to do; "
               f"--force recomputes it")
     print(summary.text())
+    if summary.complete and (args.no_progress or args.resume):
+        # the bounds' summary was printed as they were computed only with progress on,
+        # and not at all where they came from an earlier session's partial file
+        from .bounds import read_bounds
+
+        B = read_bounds(out)
+        if B is not None:
+            print(B.summary())
     if summary.complete:
         check = _check_members(out)
         if check is not None:
@@ -693,13 +701,18 @@ def cmd_info(args):
     B = read_bounds(path)
     if B is not None and B.certificate is not None:
         lines.append(f"bounds:      {B.certificate.summary(B.freq_hz)}")
-    if a.get("complete") == 1:
-        lines.append(f"run time:    {a.get('wall_time_s', float('nan')):.1f} s "
+    elif B is not None:
+        lines.append("bounds:      searched only, not certified (--no-certify)")
+    if a.get("complete") == 1 and "wall_time_s" in a:
+        lines.append(f"run time:    {a['wall_time_s']:.1f} s "
                      f"(kernel {a.get('kernel_time_s', float('nan')):.1f} s) in the session "
                      f"that completed it")
-    lines.append(f"written by:  mcfric {a.get('mcfric_version')}, numba "
-                 f"{a.get('numba_version')}, numpy {a.get('numpy_version')}, HDF5 "
-                 f"{a.get('hdf5_version')}; created {a.get('created_utc')}")
+    # a bounds file records its mcfric version only
+    lines.append(f"written by:  mcfric {a.get('mcfric_version')}" + "".join(
+        f", {name} {a[key]}" for name, key in (("numba", "numba_version"),
+                                              ("numpy", "numpy_version"),
+                                              ("HDF5", "hdf5_version")) if key in a)
+        + (f"; created {a['created_utc']}" if "created_utc" in a else ""))
     lines.append("datasets:")
     for name, (dims, shape, dtype) in d["datasets"].items():
         lines.append(f"  {name:<20} {'(' + ', '.join(dims) + ')':<26} "

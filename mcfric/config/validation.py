@@ -269,5 +269,9 @@ def bounds_limits(c):
                              f'({s[which]["dist"]} has none): give F_lim in N or "none"')
         F_lim = 4.0 / math.pi * mu * n0
         if not F_lim > 0:
-            F_lim = math.inf      # no friction anywhere: the force constraint is void
+            # no friction anywhere: a force limit of 0 is no bound the certificate can
+            # take, and "none" (the box alone) would hide that: the user decides
+            raise InputError("bounds.F_lim", f'"auto" gives 4/pi x {mu:g} x {n0:g} = 0 N '
+                             f"(mu0 or N0 is 0 for every member): give F_lim in N, "
+                             f'"none", or set bounds.enabled = false')
     return float(k_max), float(k_im), float(F_lim)
