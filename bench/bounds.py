@@ -168,8 +168,8 @@ def main(argv=None):
             # the lower bound's other measure of tightness: its distance to the witness
             # relative to the upper bound (in the valleys the witness is ~1e-8 m, and 0
             # may be all that is proved there, a relative gap of 1)
-            "lower_gap_over_upper_quantiles": _quantiles(
-                (C.lower_witness - C.lower) / C.upper),
+            "lower_gap_over_upper_quantiles": _quantiles(np.where(
+                np.isfinite(C.upper), (C.lower_witness - C.lower) / C.upper, np.inf)),
             "upper_gap_by_band": _bands(f, C.upper_gap),
             "lower_gap_by_band": _bands(f, C.lower_gap),
             "certified_over_paper_by_band": _bands(f, C.upper / BC.upper),
@@ -243,7 +243,8 @@ def _quantiles(gap, qs=(0.5, 0.9, 0.95, 0.99)):
     """Quantiles and the largest of a relative gap over the frequencies (inf counts as
     the largest: a frequency where nothing was proved)."""
     g = np.where(np.isnan(gap), np.inf, gap)
-    out = {f"q{round(100 * q)}": float(np.quantile(g, q)) for q in qs}
+    # "higher": a quantile is a value of the data (interpolating with inf gives NaN)
+    out = {f"q{round(100 * q)}": float(np.quantile(g, q, method="higher")) for q in qs}
     out["max"] = float(g.max())
     return out
 

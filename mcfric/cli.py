@@ -463,9 +463,9 @@ def _run_one(args, cfg, out, resume_as=None):
         print(f"{out} already holds this run (same configuration and seed): nothing to do; "
               f"--force recomputes it")
     print(summary.text())
-    if summary.complete and (args.no_progress or args.resume):
+    if summary.complete and (args.no_progress or not summary.bounds_computed):
         # the bounds' summary was printed as they were computed only with progress on,
-        # and not at all where they came from an earlier session's partial file
+        # and not at all where they came from an earlier session's file
         from .bounds import read_bounds
 
         B = read_bounds(out)

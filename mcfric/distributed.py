@@ -96,7 +96,7 @@ def run_task(task, spec, start, stop, fingerprint=None, expected=None):
     if expected is not None and fingerprint() != expected:
         raise RuntimeError(f"this worker runs another solver (fingerprint {fingerprint()}, "
                            f"the client's {expected}): install the same mcfric, numpy, "
-                           f"scipy and numba, on the same kind of CPU")
+                           f"scipy, numba and llvmlite, on the same kind of CPU")
     n = _worker_threads()
     spec = dataclasses.replace(spec, execution=dataclasses.replace(spec.execution,
                                                                    threads=n))
@@ -237,8 +237,9 @@ class Cluster:
                                    f"{_first_line(e)}") from None
             if theirs != mine:
                 raise ClusterError(f"worker {w} runs another solver (fingerprint {theirs}, "
-                                   f"here {mine}): install the same mcfric, numpy, scipy "
-                                   f"and numba on every worker, on one kind of CPU")
+                                   f"here {mine}): install the same mcfric, numpy, scipy, "
+                                   f"numba and llvmlite on every worker, on one kind of "
+                                   f"CPU")
 
     def chunks(self, task, spec, chunks, timing):
         """Solve ``chunks`` on the cluster, yielding each as it completes.

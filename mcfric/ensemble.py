@@ -84,6 +84,9 @@ class Summary:
         The Dask scheduler of this call (``"local:N"`` or an address); "" for none.
     startup_s : float
         Of ``wall_s``, the cluster's start-up (connection, workers' kernel load), s.
+    bounds_computed : bool
+        Whether this call computed the bounds (a new file), rather than finding them in
+        an earlier session's partial or complete file.
     """
 
     path: Path
@@ -100,6 +103,7 @@ class Summary:
     harmonics: list | None = None
     cluster: str = ""
     startup_s: float = 0.0
+    bounds_computed: bool = False
 
     @property
     def points(self):
@@ -384,8 +388,9 @@ def prepare(spec, path, *, resume=False, force=False):
                            f"start again")
         fp = fingerprint()
         if attrs.get("solver_fingerprint") != fp:
-            raise RunError(f"cannot resume {part}: the solver code or numpy/scipy/numba "
-                           f"changed since it was started (fingerprint "
+            raise RunError(f"cannot resume {part}: the solver code, numpy/scipy/numba/"
+                           f"llvmlite or this machine's kind of CPU changed since it was "
+                           f"started (fingerprint "
                            f"{attrs.get('solver_fingerprint')} vs {fp}), so results would "
                            f"mix two versions; use --force to start again")
         try:
@@ -589,7 +594,9 @@ def _run_store(spec, final, what, found, progress, groups, t_start, cluster):
         store, not_conv_before = found
         done = store.done()
     try:
-        return _drive(spec, store, done, not_conv_before, progress, t_start, cluster)
+        summary = _drive(spec, store, done, not_conv_before, progress, t_start, cluster)
+        summary.bounds_computed = what == "new" and bool(groups)
+        return summary
     finally:
         store.close()
 

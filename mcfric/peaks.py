@@ -85,7 +85,7 @@ class Peaks:
     freq_hz_down, metric_down : ndarray, shape (n_s, count)
         The peak of the branch reached from above (equal to the above without a fold;
         where its refinement fails, the largest converged point of the downward sweep;
-        NaN where the peak has status 2).
+        NaN where a grid neighbour did not converge or the point is isolated).
     """
 
     freq_hz: np.ndarray

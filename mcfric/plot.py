@@ -163,9 +163,10 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
             wl = C.lower_witness[win] * scale[win]
             for w, gap, color, name in ((wu, ~(up <= wu * 1.01), "tab:blue", "upper"),
                                         (wl, ~(lo >= wl * 0.99), "tab:red", "lower")):
-                show = gap & (w > 0) & np.isfinite(w)
+                valid = (w > 0) & np.isfinite(w)
+                show = gap & valid
                 # one neighbour on each side: an isolated frequency shows as a segment
-                show = show | np.r_[show[1:], False] | np.r_[False, show[:-1]]
+                show = (show | np.r_[show[1:], False] | np.r_[False, show[:-1]]) & valid
                 if show.any():
                     ax.plot(fw, np.where(show, w, np.nan), color=color, lw=1.0, ls="--",
                             label=f"{name} witness, where the gap is > 1 %")
@@ -188,11 +189,12 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
     ax.set_xlim(lo_f, hi_f)
     ax.autoscale(axis="y")
     if band is not None:
-        # the band between the bounds; where only 0 is proved below, down to the axis
+        # the band between the bounds; where only 0 is proved below, down to the axis,
+        # and where nothing is proved above (no force limit), up to it
         bottom, top = ax.get_ylim()
         lo, up = band
-        ax.fill_between(fw, np.where(lo > 0, lo, bottom), up, color="tab:blue",
-                        alpha=0.12, lw=0)
+        ax.fill_between(fw, np.where(lo > 0, lo, bottom), np.where(up > 0, up, top),
+                        color="tab:blue", alpha=0.12, lw=0)
         ax.set_ylim(bottom, top)
     ax.set_xlabel("frequency [Hz]")
     unit = METRIC_UNITS[quantity].replace("^2", "$^2$")   # mathtext superscript

@@ -99,15 +99,17 @@ def check_file(path):
     return a, cfg
 
 
-#: What ``bounds.results.read_bounds`` reads: datasets (name, dtype kinds, per frequency
-#: ``True`` or a leading frequency axis), then those of a certificate, then attributes.
-BOUNDS_DATASETS = (("upper", "f"), ("lower", "f"), ("upper_box", "f"), ("upper_force", "f"),
-                   ("limited_by", "iu"), ("K_upper", "c"), ("K_lower", "c"))
-CERTIFICATE_DATASETS = (("upper_certified", "f"), ("lower_certified", "f"),
-                        ("upper_witness", "f"), ("lower_witness", "f"),
-                        ("K_upper_witness", "c"), ("K_lower_witness", "c"),
-                        ("certified_converged", "iu"), ("upper_evaluations", "iu"),
-                        ("lower_evaluations", "iu"))
+#: What ``bounds.results.read_bounds`` reads: datasets (name, dtype kinds, dimensions:
+#: 1 per frequency, 2 per frequency and damper), then those of a certificate, then
+#: attributes.
+BOUNDS_DATASETS = (("upper", "f", 1), ("lower", "f", 1), ("upper_box", "f", 1),
+                   ("upper_force", "f", 1), ("limited_by", "iu", 1), ("K_upper", "c", 2),
+                   ("K_lower", "c", 2))
+CERTIFICATE_DATASETS = (("upper_certified", "f", 1), ("lower_certified", "f", 1),
+                        ("upper_witness", "f", 1), ("lower_witness", "f", 1),
+                        ("K_upper_witness", "c", 2), ("K_lower_witness", "c", 2),
+                        ("certified_converged", "iu", 1), ("upper_evaluations", "iu", 1),
+                        ("lower_evaluations", "iu", 1))
 BOUNDS_ATTRS = ("k_max_re", "k_max_im", "F_lim", "quantity", "beams")
 
 
@@ -115,12 +117,13 @@ def _check_bounds(path, g, attrs, n_f):
     """Every dataset and attribute of ``bounds/`` that the readers use, with one value
     (or row) per frequency."""
     names = BOUNDS_DATASETS + (CERTIFICATE_DATASETS if "upper_certified" in g else ())
-    for k, kinds in names:
+    for k, kinds, ndim in names:
         v = g.get(k)
         shape = getattr(v, "shape", ())
-        if v is None or not shape or shape[0] != n_f or v.dtype.kind not in kinds:
+        if (v is None or len(shape) != ndim or shape[0] != n_f
+                or v.dtype.kind not in kinds):
             raise StoreError(f"{path}: bounds/{k} is missing or not {n_f} "
-                             f"{_kind_name(kinds)} values")
+                             f"{_kind_name(kinds)} values" + (" per damper" * (ndim == 2)))
     if "upper_certified" in g and "certify_budget" not in attrs:
         raise StoreError(f"{path}: bounds/ lacks the attribute certify_budget")
     for k in BOUNDS_ATTRS:

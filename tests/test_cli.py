@@ -167,8 +167,9 @@ def test_no_arguments_runs_the_embedded_default(tmp_path, monkeypatch, capsys):
 
     def fake_run(cfg, path, **kw):
         seen.update(cfg=cfg, path=path, **kw)
+        # a new run, whose bounds' summary was printed as they were computed
         return ensemble.Summary(Path(path), cfg.samples, 1000, cfg.samples, cfg.samples, 0,
-                                1.0, 0.9, True)
+                                1.0, 0.9, True, bounds_computed=True)
 
     monkeypatch.chdir(tmp_path)
     monkeypatch.setattr(ensemble, "run", fake_run)
