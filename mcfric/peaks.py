@@ -205,12 +205,11 @@ def file_report(path):
     names = ["metric", "peak_metric", "peak_metric_down", "fold", "peak_status"]
     for _, arr in iter_records(path, names, block=block):
         both = np.concatenate([arr["peak_metric"], arr["peak_metric_down"]], axis=1)
-        with np.errstate(invalid="ignore"):
-            both = np.where(np.isnan(both), -np.inf, both)
-            big = np.nanmax(both, axis=1)
-        # members whose largest is an unrefined grid value (the upward peaks come first:
-        # a tie with the same value on the downward side counts as the upward peak's)
+        both = np.where(np.isnan(both), -np.inf, both)
+        # each member's largest, and whether it is an unrefined grid value (the upward
+        # peaks come first: a tie on the downward side counts as the upward peak's)
         top = np.argmax(both, axis=1)
+        big = np.take_along_axis(both, top[:, None], 1)[:, 0]
         n_up = arr["peak_metric"].shape[1]
         st = np.take_along_axis(arr["peak_status"], np.minimum(top, n_up - 1)[:, None], 1)
         grid_only += int(np.count_nonzero((top < n_up) & (st[:, 0] == GRID)

@@ -116,7 +116,8 @@ BOUNDS_ATTRS = ("k_max_re", "k_max_im", "F_lim", "quantity", "beams")
 def _check_bounds(path, g, attrs, n_f):
     """Every dataset and attribute of ``bounds/`` that the readers use, with one value
     (or row) per frequency."""
-    names = BOUNDS_DATASETS + (CERTIFICATE_DATASETS if "upper_certified" in g else ())
+    certified = "upper_certified" in g
+    names = BOUNDS_DATASETS + (CERTIFICATE_DATASETS if certified else ())
     for k, kinds, ndim in names:
         v = g.get(k)
         shape = getattr(v, "shape", ())
@@ -124,9 +125,7 @@ def _check_bounds(path, g, attrs, n_f):
                 or v.dtype.kind not in kinds):
             raise StoreError(f"{path}: bounds/{k} is missing or not {n_f} "
                              f"{_kind_name(kinds)} values" + (" per damper" * (ndim == 2)))
-    if "upper_certified" in g and "certify_budget" not in attrs:
-        raise StoreError(f"{path}: bounds/ lacks the attribute certify_budget")
-    for k in BOUNDS_ATTRS:
+    for k in BOUNDS_ATTRS + (("certify_budget",) if certified else ()):
         if k not in attrs:
             raise StoreError(f"{path}: bounds/ lacks the attribute {k}")
 

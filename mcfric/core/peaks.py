@@ -470,12 +470,8 @@ def _member(i, omega, modal_f, zeta, u, force, a, b, mu0, N0, kc, tol, max_iter,
             _log_s(s, i, g, nd, x)
             idx[t] = _seed(omega[g], x, y[i, g], M[g], S)
         best, ok = _refine(idx, np.bool_(True), P, S, rtol)
-        if best < 0:
-            pk_st[i, p] = PEAK_GRID
-            pk_w[i, p], pk_m[i, p] = omega[k], M[k]
-            pk_y[i, p, :] = y[i, k, :]
-        elif not ok:
-            # refinement stopped short: the grid value, as the status says
+        if best < 0 or not ok:
+            # refinement failed or stopped short: the grid value, as the status says
             pk_st[i, p] = PEAK_GRID
             pk_w[i, p], pk_m[i, p] = omega[k], M[k]
             pk_y[i, p, :] = y[i, k, :]

@@ -234,8 +234,7 @@ def integrate(w, zeta, uc, uo, ud, force, omega, a, b, kc, fs, eta0, vel0, f0, o
                 prev_q[h, j] = cur_q[h, j]
         change = change / scale if scale > 0.0 else 0.0
         # max() drops a NaN: a state that blew up must not read as settled
-        if not (math.isfinite(change) and math.isfinite(scale)
-                and math.isfinite(_sum_abs(cur_y) + _sum_abs(cur_q))):
+        if not (math.isfinite(change) and math.isfinite(_sum_abs(cur_y) + _sum_abs(cur_q))):
             change = math.nan
             break
         calm = calm + 1 if change <= tol else 0
