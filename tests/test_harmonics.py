@@ -273,3 +273,21 @@ def test_a_time_integration_whose_state_is_nan_is_not_periodic(two_beam):
         np.zeros(two_beam.n_dampers), orders, 1024, 1e-9, 3, 20, y_h, q_h,
         np.zeros(two_beam.n_beams), np.zeros((1024, two_beam.n_beams)))
     assert periods < 0 and np.isnan(change)
+
+
+def test_the_memory_check_counts_the_threads_the_solve_uses(two_beam, monkeypatch):
+    """The Newton workspaces are per thread: a limit between the need on one thread and
+    on two refuses two threads and lets one run (the check once ran before the thread
+    count was set, with the process's count)."""
+    import numba
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        pytest.skip("needs two threads")
+    H, n_f = 5, 4
+    n_h = (H + 1) // 2
+    per_thread = 8.0 * (2 * two_beam.n_dampers * n_h) ** 2
+    one = 16.0 * n_h * n_f * 4 * two_beam.n_beams + per_thread
+    monkeypatch.setattr(hbm, "MAX_HARMONIC_BYTES", one + per_thread / 2)
+    f = np.linspace(20, 30, n_f)
+    with pytest.raises(ValueError, match="harmonics: H = 5 needs"):
+        hbm.solve(two_beam, f, 0.3, 6000.0, 0.5, harmonics=H, n_threads=2)
+    assert hbm.solve(two_beam, f, 0.3, 6000.0, 0.5, harmonics=H, n_threads=1).status.shape
