@@ -174,10 +174,15 @@ def test_certificate_round_trips_through_a_file(tmp_path):
                {"bounds": to_group(B)}, {})
     R = read_bounds(path).certificate
     for name in ("upper", "lower", "upper_witness", "lower_witness", "K_upper", "K_lower",
-                 "converged", "evaluations", "second_order", "moments", "rtol", "budget"):
+                 "converged", "evaluations", "second_order", "first_order", "moments", "rtol",
+                 "budget"):
         np.testing.assert_array_equal(getattr(R, name), getattr(B.certificate, name))
     assert R.rtol == 0.005
-    assert R.summary(f).startswith("certified (first order; tolerance 0.5 %): upper within 1 %")
+    assert R.summary(f).startswith("certified (first order; stopping 0.5 % from the "
+                                   "witnesses): upper within 1 %")
+    assert "failed" not in R.summary(f)
+    R.first_order = np.array([10, 2])
+    assert "2 of 10 first-order relaxations failed" in R.summary(f)
 
 
 def test_skipping_certification_and_bad_budget():

@@ -393,7 +393,7 @@ def test_certify_with_moments_tightens_and_stays_sound():
     assert C1.moments and not C0.moments and C0.second_order[0] == 0
     assert C1.second_order[0] >= 1
     assert C1.summary(f).startswith(f"certified (second order: {C1.second_order[0]} "
-                                    f"relaxations; tolerance 1 %)")
+                                    f"relaxations; stopping 1 % from the witnesses)")
     assert np.all(C1.upper <= C0.upper * (1 + 1e-12))
     assert np.any(C1.upper < C0.upper * 0.99)
     assert np.all(C1.upper >= C1.upper_witness)

@@ -26,7 +26,7 @@ from .test_force_ascent import arrays
 
 def _buffers(nd, nb, lower):
     """The kernels' buffers with a force limit, and a ``stats`` counter."""
-    return (*buffers(nd, nb, True, lower), np.zeros(3, np.int64))
+    return (*buffers(nd, nb, True, lower), np.zeros(5, np.int64))
 
 
 def _relaxed(G, q0, ylin, H, lo, hi, beam, goal, buf, theta=None, plo=None, phi=None):
@@ -220,6 +220,8 @@ def test_splitting_closes_eight_beam_gaps_and_stays_sound():
     assert np.count_nonzero(C0.lower_gap <= 0.01) <= 1
     assert np.count_nonzero(C.lower_gap <= 0.01) >= 4
     assert C.split_used[1] > 0
+    # every relaxation counted, the whole box's and the parts'; none failed here
+    assert C.first_order[0] > C.split_used.sum() and C.first_order[1] == 0
     _encloses_random(model, f, C, seed=3)
     check_witnesses(model, f, C)
 
@@ -295,9 +297,9 @@ def test_mirrored_parts_prove_the_mirror_beam():
     bound3, used, n = branch(G, q0, ylin, H, K_MAX, K_MAX, F_LIM, 3, whole, 0.0, 80, *buf,
                              np.empty((0, nd), complex), prt)
     assert n > 20 and bound3 < whole
-    stats = np.zeros(4, np.int64)
+    stats = np.zeros(5, np.int64)
     bound4, used = mirrored(G, q0, ylin, H, F_LIM, 4, np.inf, prt, n, *buf[:-1], stats)
-    assert used == 0 and stats[3] == n
+    assert used == 0 and stats[4] == n and stats[3] == 0
     assert abs(bound4 - bound3) <= 0.01 * bound3
     rng = np.random.default_rng(3)
     K = _in_part(np.zeros(nd, complex), np.full(nd, K_MAX * (1 + 1j)), 3000, rng)
@@ -338,3 +340,20 @@ def test_spread_is_the_variance_of_K_over_the_mixture():
     var = (wq * np.abs(K - mean[:, None]) ** 2).sum(axis=1) / wq.sum(axis=1)
     assert np.allclose(out, var, rtol=1e-6, atol=1e-9 * K_MAX ** 2)
     assert out.max() > 1e-3 * K_MAX ** 2
+
+
+def test_a_relaxation_that_verifies_nothing_is_counted_as_failed():
+    """A part whose data are not finite verifies no multipliers: the bound is NaN (the
+    caller keeps the one before) and the relaxation is counted as made and as failed;
+    a good one is counted as made only."""
+    model = mcfric.eight_beam(0.25)
+    G, q0, ylin, H = (x[0] for x in arrays(model, np.array([73.0])))
+    nd, nb = 7, 8
+    lo, hi = np.zeros(nd, complex), np.full(nd, K_MAX * (1 + 1j))
+    buf = _buffers(nd, nb, False)
+    assert np.isfinite(_relaxed(G, q0, ylin, H, lo, hi, 3, 0.0, buf))
+    assert buf[-1][2] == 1 and buf[-1][3] == 0
+    bad = q0.copy()
+    bad[2] = np.nan
+    assert np.isnan(_relaxed(G, bad, ylin, H, lo, hi, 3, 0.0, buf))
+    assert buf[-1][2] == 2 and buf[-1][3] == 1

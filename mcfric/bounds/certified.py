@@ -78,10 +78,11 @@ LOWER_SPLIT_BUDGET = 800
 #: Open parts of least lower bound whose relaxations are rounded, where splitting leaves
 #: the lower bound loose, as starts for the lower witness's descent.
 ROUNDED_PARTS = 4
-#: Newton steps, barrier rounds and relaxations of the last call, upper and lower (for
-#: the docs' measurements); the split's also the mirrored parts verified.
-LAST_RELAXATION = np.zeros((2, 3), np.int64)
-LAST_SPLIT = np.zeros((2, 4), np.int64)
+#: Newton steps, barrier rounds, relaxations and failed relaxations of the last call,
+#: upper and lower (for the docs' measurements); the split's also the mirrored parts
+#: verified.
+LAST_RELAXATION = np.zeros((2, 4), np.int64)
+LAST_SPLIT = np.zeros((2, 5), np.int64)
 #: Second-order bounds of the last call taken from the mirror beam's duals, relaxations
 #: of parts (:mod:`.moments_branch`; also counted as solved), and of those the geometric
 #: branch's.
@@ -134,6 +135,10 @@ class Certificate:
     second_order : ndarray of int, shape (2,)
         Second-order moment relaxations (:mod:`.moments`) of the upper bound solved, and
         of those failed (solver or verification; the first-order bound kept there).
+    first_order : ndarray of int, shape (2,)
+        First-order relaxations (:mod:`mcfric.core.relaxation`) of the whole box and of
+        its parts, upper and lower bound together, and of those failed (nothing
+        verified: the bound before them kept, valid and looser).
     split : int
         Relaxations of parts of the box per frequency and bound at most
         (:mod:`mcfric.core.relaxation_branch`; 0: none).
@@ -162,6 +167,7 @@ class Certificate:
     split_used: np.ndarray = field(default_factory=lambda: np.zeros(2, np.int64))
     moments: bool = False
     rtol: float = RTOL_ONE_DAMPER
+    first_order: np.ndarray = field(default_factory=lambda: np.zeros(2, np.int64))
 
     @property
     def upper_gap(self):
@@ -206,7 +212,12 @@ class Certificate:
             order = (f"second order: {solved} relaxations" + (f", {failed} failed (first-"
                      f"order bound kept there)" if failed else "") if solved
                      else "second order: none needed")
-        text = (f"certified ({order}; tolerance {100 * self.rtol:.3g} %): upper within 1 % "
+        relaxed, failed = (int(x) for x in self.first_order)
+        if failed:
+            order += (f"; {failed} of {relaxed} first-order relaxations failed (the bound "
+                      f"before each kept)")
+        text = (f"certified ({order}; stopping {100 * self.rtol:.3g} % from the witnesses): "
+                f"upper within 1 % "
                 f"of its witness at {np.count_nonzero(up <= 0.01)} of {n} frequencies "
                 f"(largest gap {_pct(up[k_up])} at {f[k_up]:.4g} Hz); lower within 1 % or "
                 f"{ATOL_FRACTION:g} x upper at {n - np.count_nonzero(loose)}")
@@ -403,7 +414,7 @@ def _relaxed(args, kr, ki, F_lim, want_max, cert, wit, rtol, atol):
     got = np.full(n_f, np.inf if want_max else 0.0)
     floor = np.ascontiguousarray(wit)
     target = np.ascontiguousarray(target)
-    stats = np.zeros((64, 3), np.int64)
+    stats = np.zeros((64, 4), np.int64)
     in_threads(lambda item: relax_frequencies(*args, kr, ki, F_lim, want_max, floor,
                                               target, np.asarray(item[1], np.int64), got,
                                               K_round, beam_bounds, stats[item[0]]),
@@ -430,7 +441,7 @@ def _split(args, kr, ki, F_lim, want_max, cert, wit, rtol, atol, beam_bounds, bu
     from tqdm import tqdm
 
     got = cert.copy()
-    stats = np.zeros((64, 4), np.int64)
+    stats = np.zeros((64, 5), np.int64)
     args_ = (*args, kr, ki, F_lim, want_max, np.ascontiguousarray(cert),
              np.ascontiguousarray(target), int(budget))
     # up to a second per frequency: a bar on stderr (shown on a terminal only)
@@ -753,6 +764,8 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
         ok = ok | _met(want_max, cert, wit, rtol, atol)
         out[want_max] = (cert, wit, K, ev, ok)
     (up, wu, Ku, eu, ou), (lo, wl, Kl, el, ol) = out[True], out[False]
+    first_order = (LAST_RELAXATION[:, 2:4] + LAST_SPLIT[:, 2:4]).sum(axis=0)
     return Certificate(up * scale, lo * scale, wu * scale, wl * scale, Ku, Kl,
                        np.stack([ou, ol]), np.stack([eu, el]), int(budget), bool(relax),
-                       second_order, split if relax else 0, split_used, bool(moments), rtol)
+                       second_order, split if relax else 0, split_used, bool(moments), rtol,
+                       first_order)

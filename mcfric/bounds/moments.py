@@ -276,7 +276,7 @@ def first_order_bound(G, q0, ylin, H, F_lim, beam, part, goal=0.0):
     lo, hi = part
     theta = np.full(len(x) + 1, np.nan)
     b = rx.relaxed_bound(G, q0, ylin, H, lo, hi, float(F_lim), np.int64(beam), float(goal),
-                         V, idx, S, x, cvec, pos, simplex, grow, ws, np.zeros(3, np.int64),
+                         V, idx, S, x, cvec, pos, simplex, grow, ws, np.zeros(5, np.int64),
                          theta, lo, hi)
     return b if b >= 0.0 else math.inf  # NaN: not verified
 

@@ -84,6 +84,7 @@ def to_group(B):
         attrs["certify_rtol"] = np.float64(C.rtol)
         attrs["certify_split"] = np.int64(C.split)
         attrs["certify_split_relaxations"] = np.asarray(C.split_used, np.int64)
+        attrs["certify_first_order"] = np.asarray(C.first_order, np.int64)
     return variables, attrs
 
 
@@ -108,7 +109,8 @@ def read_bounds(path):
                            np.asarray(a.get("certify_split_relaxations", [0, 0]), np.int64),
                            bool(a.get("certify_moments", 0)),
                            # files before it was stored: 0.5 % then for every model
-                           float(a.get("certify_rtol", 5e-3)))
+                           float(a.get("certify_rtol", 5e-3)),
+                           np.asarray(a.get("certify_first_order", [0, 0]), np.int64))
     return Bounds(read(path, "frequency"), g["upper"], g["lower"], g["upper_box"],
                   g["upper_force"], g["limited_by"], g["K_upper"], g["K_lower"],
                   float(a["k_max_re"]), float(a["k_max_im"]), float(a["F_lim"]),

@@ -794,7 +794,8 @@ def relaxed_bound(G, q0, ylin, H, lo, hi, F_lim, beam, goal, V, idx, S, x, cvec,
     """The verified bound over the dampers in ``[lo_j, hi_j]`` (N/m) and the force limit
     (m): of ``|y_beam|`` from above (``beam >= 0``), of ``max_b |y_b|`` from below
     (``beam < 0``); ``nan`` where nothing verified (rounded outwards). The solver stops
-    once it proves ``goal`` (m); ``stats[2]`` counts the relaxation.
+    once it proves ``goal`` (m); ``stats[2]`` counts the relaxation, and ``stats[3]`` it
+    again where nothing verified.
 
     ``theta`` (shape (m + 1,)): the multipliers (unscaled, :func:`weights`) and weight
     ratio a relaxation of the part ``[plo, phi]`` holding this one saved (``theta[0]``
@@ -824,6 +825,7 @@ def relaxed_bound(G, q0, ylin, H, lo, hi, F_lim, beam, goal, V, idx, S, x, cvec,
                 goal2 if beam >= 0 else -goal2, ws, stats, warm, save)
     theta[0] = np.nan
     if np.isnan(val):
+        stats[3] += 1
         return np.nan
     theta[:m] = save[:m] * w
     theta[m] = save[m]
@@ -842,7 +844,8 @@ def relax_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, floor, target, fr
     and stops at the first below the running maximum (``floor[k]`` to begin, a witness);
     each relaxation stops once it proves its beam below ``max(running maximum,
     target[k])``. The lower bound stops once it reaches ``target[k]``. ``stats``
-    (int64, shape (3,)): Newton steps, barrier rounds and relaxations are added to it.
+    (int64, shape (4,)): Newton steps, barrier rounds, relaxations and failed relaxations
+    (nothing verified: the bound before them kept) are added to it.
     ``K_round[k]`` (shape (2, nd)): the :func:`rounded` candidates of the minimum's
     relaxation, or of the beam with the largest upper bound (N/m; left as they are
     where none was solved);
@@ -892,6 +895,8 @@ def relax_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, floor, target, fr
                     if not np.isnan(t):
                         xprev[:] = x
                         have = True
+                    else:
+                        stats[3] += 1
                 bound = eq10[b]
                 if not np.isnan(t):
                     bound = min(bound, math.sqrt(max(t, 0.0) * ys) * (1.0 + 1e-14))

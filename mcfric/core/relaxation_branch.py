@@ -179,7 +179,7 @@ def mirrored(G, q0, ylin, H, F_lim, beam, goal, prt, n, V, idx, S, x, cvec, pos,
             t = shifted(x, shift, V, idx, S, pos, simplex, ws)
             if not np.isnan(t):
                 b = math.sqrt(max(t, 0.0) * ys) * (1.0 + 1e-14)
-            stats[3] += 1
+            stats[4] += 1
         if not b <= goal and not np.isnan(th[i, 0]):
             _reverse(th[i], nd, per, theta)
             b = relaxed_bound(G, q0, ylin, H, lo, hi, F_lim, beam, goal, V, idx, S, x,
@@ -380,8 +380,9 @@ def branch_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, cert, target, bu
     running maximum or ``target[k]``; each beam's branch and bound stops once it proves
     the beam below both. On a chain that is its own mirror image a beam whose mirror
     beam was just proved takes its mirrored parts (:func:`mirrored`) and is split only
-    where they fail. ``stats`` (int64, shape (4,)): Newton steps, barrier rounds,
-    relaxations and mirrored parts verified are added to it.
+    where they fail. ``stats`` (int64, shape (5,)): Newton steps, barrier rounds,
+    relaxations, failed relaxations (nothing verified) and mirrored parts verified are
+    added to it.
     """
     n_f, nd = q0.shape
     nb = ylin.shape[1]
