@@ -243,6 +243,10 @@ def test_every_member_of_a_24_blade_disk_lies_within_its_bounds(F0):
     assert np.all(inside), (np.count_nonzero(~inside), np.nanmax(M / B.upper),
                             np.nanmin(M / B.lower))
     assert np.nanmax(M / B.upper) > 0.3        # the bound is not vacuous
+    # and inside the certificate (the relaxation's, a tuned ring of 24 blades)
+    C = B.certificate
+    assert C.relaxed and np.all(C.contains(M))
+    assert np.count_nonzero(C.lower > 0) >= 70
 
 
 def test_bad_ring_input_is_one_line_and_writes_nothing(tmp_path, monkeypatch, capsys):
@@ -345,3 +349,32 @@ def test_the_ring_coordinate_search_takes_the_bordered_elimination():
         q = np.linalg.solve(np.eye(24) + G[k] * K[None, :], q0[k])
         ref = np.abs(ylin[k] - H[k] @ (K * q)).max()
         assert abs(v - ref) <= 1e-9 * ref
+
+
+def test_tuned_rings_above_seven_dampers_are_certified_by_the_relaxation():
+    """Tuned rings of 8 and 12 blades under travelling waves, six frequencies: the
+    relaxation of the whole box tightens Eq. 10 and 0, with one relaxation per frequency
+    and bound (the other blades take its multipliers turned), and the certificate
+    encloses 3000 random admissible points per frequency (physical-space solves). A
+    mistuned ring is not turned and keeps Eq. 10 and 0."""
+    from mcfric.bounds import compute_bounds
+
+    from .test_certified import F_LIM, K_MAX, random_admissible
+
+    f = np.array([12.0, 15.0, 80.0, 90.0, 104.0, 120.0])
+    for n, eo in ((8, 1), (12, 2)):
+        model = mcfric.disk(n, eo, 1.1)
+        B = compute_bounds(model, f, K_MAX, F_lim=F_LIM)
+        C = B.certificate
+        assert C.relaxed and C.first_order[1] == 0
+        assert C.first_order[0] <= 2 * len(f)
+        assert np.count_nonzero(C.upper < 0.8 * B.upper_force) >= 4
+        assert np.count_nonzero(C.lower > 0) >= 4
+        assert np.all(C.upper >= C.upper_witness) and np.all(C.lower <= C.lower_witness)
+        for k, fk in enumerate(f):
+            M = random_admissible(model, fk, 3000, 10 * n + k)
+            assert len(M) > 300
+            assert C.lower[k] <= M.min() and M.max() <= C.upper[k], (n, fk)
+    mistuned = _ring(8, mistuned=True, F0=1.1)
+    C = compute_bounds(mistuned, f, K_MAX, F_lim=F_LIM).certificate
+    assert not C.relaxed and np.all(C.lower == 0)

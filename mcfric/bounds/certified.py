@@ -47,8 +47,12 @@ RTOL_ONE_DAMPER = 5e-3
 ATOL_FRACTION = 1e-3
 #: Above this many dampers the branch and bound proves nothing beyond the force bound and
 #: 0 within any practical budget (measured: the docs' bounds page), so it is not run: the
-#: certificate is then Eq. 10 and 0, with the witnesses.
+#: certificate is then Eq. 10 and 0, with the witnesses ...
 MAX_DAMPERS = 7
+#: ... but on a tuned ring under a travelling wave of up to this many dampers the
+#: relaxation of the whole box tightens them (one relaxation per frequency and bound; its
+#: time grows about with the cube of the dampers: the docs' performance page).
+MAX_TURNED = 24
 #: The ascent to the upper witness over the admissible set, per frequency: random points
 #: of the box tried (besides no damper and the search's box optimum) ...
 WITNESS_POOL = 200
@@ -398,12 +402,13 @@ def _from_neighbours(args, kr, ki, F_lim, want_max, cert, wit, K, stop, rtol, at
     return wit
 
 
-def _relaxed(args, kr, ki, F_lim, want_max, cert, wit, rtol, atol):
+def _relaxed(args, kr, ki, F_lim, want_max, cert, wit, rtol, atol, turn=False):
     """``cert`` improved by the semidefinite relaxation of the whole box
     (:mod:`mcfric.core.relaxation`) where it is not yet within the tolerance of its
-    witness; the relaxation's rounded points (n_f, 2, nd; N/m, NaN where none:
-    :func:`mcfric.core.relaxation.rounded`) and each beam's proven bound
-    (n_f, nb; m, ``inf`` where not relaxed; the upper bound's only)."""
+    witness (``turn``: a tuned ring's arrays, :func:`certify`'s ``turned``); the
+    relaxation's rounded points (n_f, 2, nd; N/m, NaN where none:
+    :func:`mcfric.core.relaxation.rounded`) and each beam's proven bound (n_f, nb; m,
+    ``inf`` where not relaxed; the upper bound's only)."""
     n_f, nd = args[1].shape
     loose = np.flatnonzero(~_met(want_max, cert, wit, rtol, atol))
     target = _target(want_max, wit, rtol, atol)
@@ -417,7 +422,8 @@ def _relaxed(args, kr, ki, F_lim, want_max, cert, wit, rtol, atol):
     stats = np.zeros((64, 4), np.int64)
     in_threads(lambda item: relax_frequencies(*args, kr, ki, F_lim, want_max, floor,
                                               target, np.asarray(item[1], np.int64), got,
-                                              K_round, beam_bounds, stats[item[0]]),
+                                              K_round, beam_bounds, stats[item[0]],
+                                              bool(turn)),
                enumerate(np.array_split(loose, min(len(loose), 64))))
     LAST_RELAXATION[int(not want_max)] = stats.sum(axis=0)
     cert = np.fmin(cert, got) if want_max else np.fmax(cert, got)
@@ -627,7 +633,7 @@ def _pct(x):
 
 
 def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
-            rtol=None, split=None, moments=False):
+            rtol=None, split=None, moments=False, turned=False):
     """Certified bounds from contact-space arrays (all beams of the metric).
 
     Parameters
@@ -644,7 +650,7 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
     budget : int, optional
         Enclosures per frequency and bound; default :func:`default_budget` (0 above
         ``MAX_DAMPERS`` dampers: the certificate is then Eq. 10 and 0, with the
-        witnesses).
+        witnesses, or, with ``turned``, their relaxation of the whole box).
     rtol : float, optional
         Relative tolerance of the branch and bound and the relaxations (their goal above
         the upper witness, below the lower); default :func:`default_rtol`.
@@ -659,6 +665,12 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
         :func:`resolve_moments`; ``"auto"``: where it applies): about a second per
         relaxation, a few per frequency where the first-order one is loose. Default
         False here; :func:`mcfric.bounds.compute_bounds` defaults to ``"auto"``.
+    turned : bool
+        The model is a tuned ring under a travelling wave, every beam of it in the
+        metric (:func:`mcfric.bounds.rotation_invariant`): above ``MAX_DAMPERS`` and up
+        to ``MAX_TURNED`` dampers, with a force limit, the relaxation of the whole box
+        then tightens Eq. 10 and 0 (one relaxation per frequency and bound: the other
+        beams take its multipliers turned, verified on their own forms).
 
     Returns
     -------
@@ -667,6 +679,9 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
     n_f, nd = q0.shape
     # the relaxation needs the force limit (its multiplier makes the start definite)
     relax = RELAX and np.isfinite(F_lim) and 2 <= nd <= MAX_DAMPERS
+    # rings above MAX_DAMPERS: the relaxation of the whole box alone
+    turn = bool(turned) and ylin.shape[1] == nd
+    whole = RELAX and np.isfinite(F_lim) and turn and MAX_DAMPERS < nd <= MAX_TURNED
     from .moments import is_chain
     moments = resolve_moments(moments, is_chain(G), nd, F_lim)
     second_order = np.zeros(2, np.int64)
@@ -712,7 +727,7 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
                    _chunks(n_f))
         if relax:
             cert, K_round, beam_bounds = _relaxed(args, kr, ki, F_lim, want_max, cert, wit,
-                                                  rtol, atol)
+                                                  rtol, atol, turn)
             if want_max:
                 # where the relaxation is (nearly) tight its primal point is (nearly) the
                 # maximiser: climb from it to a better witness
@@ -757,6 +772,8 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
                 # where it is still loose, each beam on its own by a gradient method
                 wit = _polish(args, kr, ki, F_lim, np.fmin(cert, force), wit, K,
                               beam_bounds, rtol)
+        elif whole:
+            cert = _relaxed(args, kr, ki, F_lim, want_max, cert, wit, rtol, atol, turn)[0]
         if want_max:
             cert = np.maximum(np.fmin(cert, force), wit)
         else:
@@ -766,6 +783,7 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
     (up, wu, Ku, eu, ou), (lo, wl, Kl, el, ol) = out[True], out[False]
     first_order = (LAST_RELAXATION[:, 2:4] + LAST_SPLIT[:, 2:4]).sum(axis=0)
     return Certificate(up * scale, lo * scale, wu * scale, wl * scale, Ku, Kl,
-                       np.stack([ou, ol]), np.stack([eu, el]), int(budget), bool(relax),
+                       np.stack([ou, ol]), np.stack([eu, el]), int(budget),
+                       bool(relax or whole),
                        second_order, split if relax else 0, split_used, bool(moments), rtol,
                        first_order)

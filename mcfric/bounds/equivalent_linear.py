@@ -286,7 +286,9 @@ def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity
         lower, K_lower = lower[0], K_lower[0]
         scale = omega ** QUANTITIES.index(quantity)
         cert = (certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget,
-                        split=split, moments=moments) if certified else None)
+                        split=split, moments=moments,
+                        turned=invariant and sel == list(range(model.n_beams)))
+                if certified else None)
     return Bounds(f, upper * scale, lower * scale, upper_box * scale, upper_force * scale,
                   limited_by, K_upper, K_lower, kr, ki, F_lim, quantity, beams, cert)
 

@@ -51,6 +51,10 @@ CHOLESKY_MARGIN = 1e-11
 #: :func:`rounded` (a mixture of maximisers is not rank one).
 PURIFY_RANK = 3
 PURIFY_SAMPLES = 256
+#: On a ring, a beam's turned multipliers are taken where they prove it at most this far
+#: (relative) above the last solved beam's bound: on a tuned ring they prove the same
+#: bound but for the margin :func:`shifted` adds to make ``Z`` definite.
+TURN_SLACK = 1e-6
 
 
 @jit
@@ -776,6 +780,17 @@ def inherit(theta, lo, hi, plo, phi, per):
 
 
 @jit
+def turned(a, nd, per, s, out):
+    """``out``: the multipliers ``a`` (of the unscaled forms, :func:`weights`) with the
+    dampers' forms turned by ``s`` places (damper ``j``'s to ``j + s`` mod ``nd``), the
+    rest as they are: a certificate of beam ``b`` made one of beam ``b + s`` on a ring."""
+    out[:] = a
+    for j in range(nd):
+        for f in range(per):
+            out[((j + s) % nd) * per + f] = a[j * per + f]
+
+
+@jit
 def per_damper(force):
     """Forms per damper in :func:`forms`: the rectangle's four sides, its disc, and the
     force limit where one is given (``force``)."""
@@ -836,7 +851,7 @@ def relaxed_bound(G, q0, ylin, H, lo, hi, F_lim, beam, goal, V, idx, S, x, cvec,
 
 @jit(nogil=True)
 def relax_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, floor, target, freqs, out,
-                      K_round, beam_bounds, stats):
+                      K_round, beam_bounds, stats, turn):
     """Certified bounds over the whole box ``[0, kr] x [0, ki]`` at ``freqs``: ``out[k]``
     the upper bound of ``max_b |y_b|`` (``want_max``) or the lower one (m).
 
@@ -851,12 +866,24 @@ def relax_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, floor, target, fr
     where none was solved);
     ``beam_bounds[k]`` (shape (nb,), m; upper bound only): a proven bound of each beam's
     ``|y_b|``, its force bound where it was not relaxed.
+
+    ``turn``: the arrays are a tuned ring's under a travelling wave, every beam in
+    order (``nb == nd``, damper ``j`` between beams ``j`` and ``j + 1``). A beam is then
+    first tried with the last solved beam's multipliers turned by the beams between them
+    (:func:`turned`): turning such a ring maps the admissible set onto itself and one
+    beam's response onto another's, so they prove the same bound (verified here on each
+    beam's own forms, like any start).
     """
     n_f, nd = q0.shape
     nb = ylin.shape[1]
     V, idx, S, x, cvec, pos, simplex, grow, ws = buffers(nd, nb, np.isfinite(F_lim),
                                                          not want_max)
     m = len(x)
+    ring = turn and nb == nd
+    per = per_damper(np.isfinite(F_lim))
+    wprev = np.empty(m)
+    wcur = np.empty(m)
+    xun = np.empty(m)
     lo = np.zeros(nd, np.complex128)
     hi = np.full(nd, complex(kr, ki))
     eq10 = np.empty(nb)
@@ -871,6 +898,8 @@ def relax_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, floor, target, fr
             beam_bounds[k, :] = eq10
             R = floor[k]
             have = False
+            bprev = 0
+            ref = 0.0
             for b in np.argsort(-eq10):
                 if eq10[b] <= R:
                     break
@@ -878,7 +907,20 @@ def relax_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, floor, target, fr
                                   S, x, cvec, pos, simplex, grow)
                 goal = max(R, target[k])
                 t = np.nan
-                if have:
+                if have and ring:
+                    weights(S, nd, per, wcur)
+                    for i in range(m):
+                        xun[i] = xprev[i] * wprev[i]
+                    turned(xun, nd, per, (b - bprev) % nd, xw)
+                    for i in range(m):
+                        xw[i] /= wcur[i]
+                    t = shifted(xw, shift, V, idx, S, pos, simplex, ws)
+                    lim = max(goal, ref * (1.0 + TURN_SLACK))
+                    if t <= lim * lim / ys:
+                        x[:] = xw
+                    else:
+                        t = np.nan
+                elif have:
                     # the multipliers of the beam before often prove this one below
                     # the running maximum already; if not, a cold start from x (one
                     # from these multipliers often stalls higher)
@@ -895,6 +937,10 @@ def relax_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, floor, target, fr
                     if not np.isnan(t):
                         xprev[:] = x
                         have = True
+                        if ring:
+                            weights(S, nd, per, wprev)
+                            bprev = b
+                            ref = math.sqrt(max(t, 0.0) * ys)
                     else:
                         stats[3] += 1
                 bound = eq10[b]
