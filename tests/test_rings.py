@@ -355,11 +355,14 @@ def test_tuned_rings_above_seven_dampers_are_certified_by_the_relaxation():
     """Tuned rings of 8 and 12 blades under travelling waves, six frequencies: the
     relaxation of the whole box tightens Eq. 10 and 0, with one relaxation per frequency
     and bound (the other blades take its multipliers turned), and the certificate
-    encloses 3000 random admissible points per frequency (physical-space solves). A
-    mistuned ring is not turned and keeps Eq. 10 and 0."""
+    encloses 3000 random admissible points per frequency (physical-space solves). The
+    upper witness, climbed from the relaxation's rounded points, is above all of them
+    (before the climb it was up to 40 % below the best at 120 Hz), and both witnesses
+    are admissible and attain their values. A mistuned ring is not turned and keeps
+    Eq. 10 and 0."""
     from mcfric.bounds import compute_bounds
 
-    from .test_certified import F_LIM, K_MAX, random_admissible
+    from .test_certified import F_LIM, K_MAX, check_witnesses, random_admissible
 
     f = np.array([12.0, 15.0, 80.0, 90.0, 104.0, 120.0])
     for n, eo in ((8, 1), (12, 2)):
@@ -375,6 +378,8 @@ def test_tuned_rings_above_seven_dampers_are_certified_by_the_relaxation():
             M = random_admissible(model, fk, 3000, 10 * n + k)
             assert len(M) > 300
             assert C.lower[k] <= M.min() and M.max() <= C.upper[k], (n, fk)
+            assert M.max() <= C.upper_witness[k], (n, fk)
+        check_witnesses(model, f, C)
     mistuned = _ring(8, mistuned=True, F0=1.1)
     C = compute_bounds(mistuned, f, K_MAX, F_lim=F_LIM).certificate
     assert not C.relaxed and np.all(C.lower == 0)

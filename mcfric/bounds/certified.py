@@ -773,7 +773,20 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
                 wit = _polish(args, kr, ki, F_lim, np.fmin(cert, force), wit, K,
                               beam_bounds, rtol)
         elif whole:
-            cert = _relaxed(args, kr, ki, F_lim, want_max, cert, wit, rtol, atol, turn)[0]
+            cert, K_round, _ = _relaxed(args, kr, ki, F_lim, want_max, cert, wit, rtol,
+                                        atol, turn)
+            # a ring's witnesses are six solves: climb, or descend, from the relaxation's
+            # rounded points (where it is nearly tight they are nearly the optimisers)
+            if want_max:
+                stop = np.fmin(cert / (1 + rtol), box_max)
+                todo = np.flatnonzero(~np.isnan(K_round[:, 0, 0]) & (wit < stop))
+                Kw, Mw = joint_witnesses(args, kr, ki, F_lim, K_round, stop, todo, pool=0,
+                                         climb=2)
+                better = Mw > wit
+                wit = np.where(better, Mw, wit)
+                K[better] = Kw[better]
+            else:
+                _descend(args, kr, ki, F_lim, K_round, cert, wit, K, rtol, atol)
         if want_max:
             cert = np.maximum(np.fmin(cert, force), wit)
         else:
