@@ -198,12 +198,12 @@ def solve(model, freq_hz, mu0, kc, N0=0.5, *, modal_freq_hz=None, tol=TOL,
     harmonics, n_time = check_harmonics(harmonics, n_time)
     if peaks is not None and (harmonics > 1 or aft):
         raise ValueError("peaks: refinement is single-harmonic only (harmonics = 1)")
-    rec = model.receptances(omega, modal_freq_hz)
     with threads(n_threads):
         if harmonics > 1 or aft:
             # inside: the Newton workspaces are per thread, so the need depends on it
             check_harmonic_memory(model, harmonics, n_time, len(f),
                                   1 if modal_freq_hz is None else n_s)
+        rec = model.receptances(omega, modal_freq_hz)
         out = allocate(n_s, len(f), model.n_beams, nd, numba.get_num_threads())
         args = run_kernel(model, rec, omega, p["mu0"], p["N0"], p["kc"], tol, max_iter, *out)
         result = HBMResult(f, *out, mu0=p["mu0"], kc=p["kc"], N0=p["N0"])

@@ -357,3 +357,19 @@ def test_a_relaxation_that_verifies_nothing_is_counted_as_failed():
     bad[2] = np.nan
     assert np.isnan(_relaxed(G, bad, ylin, H, lo, hi, 3, 0.0, buf))
     assert buf[-1][2] == 2 and buf[-1][3] == 1
+    # the whole box's upper bound, beam by beam: the first beam's (largest Eq. 10) cold
+    # solve fails and is counted, and the frequency keeps the force bound, above which
+    # no other beam can be
+    from mcfric.core.branch_bound import force_bounds
+    from mcfric.core.relaxation import relax_frequencies
+
+    G2, q02, ylin2, H2 = (np.ascontiguousarray(np.stack([x, x])) for x in (G, q0, ylin, H))
+    q02[1, 2] = np.nan
+    out = np.empty(2)
+    stats = np.zeros(4, np.int64)
+    relax_frequencies(G2, q02, ylin2, H2, K_MAX, K_MAX, F_LIM, True, np.zeros(2), np.zeros(2),
+                      np.array([1], np.int64), out, np.full((2, 2, nd), np.nan + 0j),
+                      np.full((2, nb), np.inf), stats, False)
+    eq10 = np.empty(nb)
+    force_bounds(ylin, H, F_LIM, eq10)
+    assert stats[2] == 1 and stats[3] == 1 and out[1] == eq10.max()

@@ -383,3 +383,29 @@ def test_tuned_rings_above_seven_dampers_are_certified_by_the_relaxation():
     mistuned = _ring(8, mistuned=True, F0=1.1)
     C = compute_bounds(mistuned, f, K_MAX, F_lim=F_LIM).certificate
     assert not C.relaxed and np.all(C.lower == 0)
+
+
+def test_turned_multipliers_prove_the_bound_of_every_blade():
+    """An 8-blade tuned ring, three frequencies: the whole box's upper bound with each
+    blade's relaxation solved (no turning) and with the first blade's multipliers turned
+    for the others agree to 1e-6, the latter with one relaxation per frequency."""
+    from mcfric.core.receptance import contact_space
+    from mcfric.core.relaxation import relax_frequencies
+
+    from .test_certified import F_LIM, K_MAX
+
+    model = mcfric.disk(8, 1, 1.1)
+    f = np.array([15.0, 80.0, 120.0])
+    a, b = model.dampers
+    arrays = [np.ascontiguousarray(x) for x in
+              contact_space(model.receptances(2 * np.pi * f)[0], model.force, a, b)]
+    got = {}
+    for turn in (False, True):
+        out = np.empty(3)
+        stats = np.zeros(4, np.int64)
+        relax_frequencies(*arrays, K_MAX, K_MAX, F_LIM, True, np.zeros(3), np.zeros(3),
+                          np.arange(3, dtype=np.int64), out, np.full((3, 2, 8), np.nan + 0j),
+                          np.full((3, 8), np.inf), stats, turn)
+        got[turn] = out, stats[2]
+    np.testing.assert_allclose(got[True][0], got[False][0], rtol=1e-6)
+    assert got[True][1] == 3 and got[False][1] > 12

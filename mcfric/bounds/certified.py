@@ -135,7 +135,8 @@ class Certificate:
         Enclosures evaluated.
     budget : int
     relaxed : bool
-        Whether the semidefinite relaxation tightened the branch and bound's bounds.
+        Whether the semidefinite relaxation ran: after the branch and bound (two to seven
+        dampers), or alone (tuned rings of 8 to ``MAX_TURNED`` blades).
     second_order : ndarray of int, shape (2,)
         Second-order moment relaxations (:mod:`.moments`) of the upper bound solved, and
         of those failed (solver or verification; the first-order bound kept there).
@@ -407,15 +408,16 @@ def _relaxed(args, kr, ki, F_lim, want_max, cert, wit, rtol, atol, turn=False):
     (:mod:`mcfric.core.relaxation`) where it is not yet within the tolerance of its
     witness (``turn``: a tuned ring's arrays, :func:`certify`'s ``turned``); the
     relaxation's rounded points (n_f, 2, nd; N/m, NaN where none:
-    :func:`mcfric.core.relaxation.rounded`) and each beam's proven bound (n_f, nb; m,
-    ``inf`` where not relaxed; the upper bound's only)."""
+    :func:`mcfric.core.relaxation.rounded`), each beam's proven bound (n_f, nb; m,
+    ``inf`` where not relaxed; the upper bound's only), and the numbers of relaxations
+    made and failed (2,)."""
     n_f, nd = args[1].shape
     loose = np.flatnonzero(~_met(want_max, cert, wit, rtol, atol))
     target = _target(want_max, wit, rtol, atol)
     K_round = np.full((n_f, 2, nd), np.nan + 0j)
     beam_bounds = np.full((n_f, args[2].shape[1]), np.inf)
     if not len(loose):
-        return cert, K_round, beam_bounds
+        return cert, K_round, beam_bounds, np.zeros(2, np.int64)
     got = np.full(n_f, np.inf if want_max else 0.0)
     floor = np.ascontiguousarray(wit)
     target = np.ascontiguousarray(target)
@@ -425,9 +427,10 @@ def _relaxed(args, kr, ki, F_lim, want_max, cert, wit, rtol, atol, turn=False):
                                               K_round, beam_bounds, stats[item[0]],
                                               bool(turn)),
                enumerate(np.array_split(loose, min(len(loose), 64))))
-    LAST_RELAXATION[int(not want_max)] = stats.sum(axis=0)
+    total = stats.sum(axis=0)
+    LAST_RELAXATION[int(not want_max)] = total
     cert = np.fmin(cert, got) if want_max else np.fmax(cert, got)
-    return cert, K_round, beam_bounds
+    return cert, K_round, beam_bounds, total[2:4]
 
 
 def _split(args, kr, ki, F_lim, want_max, cert, wit, rtol, atol, beam_bounds, budget):
@@ -435,14 +438,15 @@ def _split(args, kr, ki, F_lim, want_max, cert, wit, rtol, atol, beam_bounds, bu
     branch and bound over relaxations of parts of the box
     (:mod:`mcfric.core.relaxation_branch`), ``budget`` relaxations per frequency at most;
     ``beam_bounds`` (the upper bound's) is updated in place. Returns the new ``cert``,
-    the number of relaxations, and for the lower bound the rounded points of the
+    the number of relaxations, for the lower bound the rounded points of the
     :data:`ROUNDED_PARTS` open parts of least bound where it stays loose (n_f,
-    2 ROUNDED_PARTS, nd; N/m, NaN where none)."""
+    2 ROUNDED_PARTS, nd; N/m, NaN where none), and the numbers of relaxations made
+    (the lower bound's roundings included) and failed (2,)."""
     n_f, nd = args[1].shape
     K_round = np.full((n_f, 0 if want_max else 2 * ROUNDED_PARTS, nd), np.nan + 0j)
     loose = np.flatnonzero(~_met(want_max, cert, wit, rtol, atol) & np.isfinite(cert))
     if not len(loose) or budget <= 0:
-        return cert, 0, K_round
+        return cert, 0, K_round, np.zeros(2, np.int64)
     target = _target(want_max, wit, rtol, atol)
     from tqdm import tqdm
 
@@ -459,9 +463,10 @@ def _split(args, kr, ki, F_lim, want_max, cert, wit, rtol, atol, beam_bounds, bu
             bar.update(len(item[1]))
 
         in_threads(step, enumerate(np.array_split(loose, min(len(loose), 64))))
-    LAST_SPLIT[int(not want_max)] = stats.sum(axis=0)
+    total = stats.sum(axis=0)
+    LAST_SPLIT[int(not want_max)] = total
     return ((np.fmin(cert, got) if want_max else np.fmax(cert, got)),
-            int(stats[:, 2].sum()), K_round)
+            int(total[2]), K_round, total[2:4])
 
 
 def _descend(args, kr, ki, F_lim, starts, cert, wit, K, rtol, atol):
@@ -685,6 +690,7 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
     from .moments import is_chain
     moments = resolve_moments(moments, is_chain(G), nd, F_lim)
     second_order = np.zeros(2, np.int64)
+    first_order = np.zeros(2, np.int64)
     # the diagnostics of this call only (a stage that has nothing to do leaves zeros)
     for last in (LAST_RELAXATION, LAST_SPLIT, LAST_MOMENTS, LAST_POLISH):
         last[...] = 0
@@ -726,8 +732,9 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
                                        np.asarray(freqs, np.int64), c, x, k, e, o),
                    _chunks(n_f))
         if relax:
-            cert, K_round, beam_bounds = _relaxed(args, kr, ki, F_lim, want_max, cert, wit,
-                                                  rtol, atol, turn)
+            cert, K_round, beam_bounds, n = _relaxed(args, kr, ki, F_lim, want_max, cert,
+                                                     wit, rtol, atol, turn)
+            first_order += n
             if want_max:
                 # where the relaxation is (nearly) tight its primal point is (nearly) the
                 # maximiser: climb from it to a better witness
@@ -754,9 +761,11 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
                 _descend(args, kr, ki, F_lim, K_round, cert, wit, K, rtol, atol)
                 # and from the neighbouring frequencies' lower witnesses
                 _from_neighbours(args, kr, ki, F_lim, False, cert, wit, K, None, rtol, atol)
-            cert, used, K_parts = _split(args, kr, ki, F_lim, want_max, cert, wit, rtol,
-                                         atol, beam_bounds,
-                                         split if want_max else min(split, LOWER_SPLIT_BUDGET))
+            cert, used, K_parts, n = _split(args, kr, ki, F_lim, want_max, cert, wit, rtol,
+                                            atol, beam_bounds,
+                                            split if want_max else min(split,
+                                                                       LOWER_SPLIT_BUDGET))
+            first_order += n
             split_used[int(not want_max)] = used
             if not want_max:
                 # the parts' relaxations are tighter, and a part holds one of a mirror
@@ -773,8 +782,9 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
                 wit = _polish(args, kr, ki, F_lim, np.fmin(cert, force), wit, K,
                               beam_bounds, rtol)
         elif whole:
-            cert, K_round, _ = _relaxed(args, kr, ki, F_lim, want_max, cert, wit, rtol,
-                                        atol, turn)
+            cert, K_round, _, n = _relaxed(args, kr, ki, F_lim, want_max, cert, wit, rtol,
+                                           atol, turn)
+            first_order += n
             # a ring's witnesses are six solves: climb, or descend, from the relaxation's
             # rounded points (where it is nearly tight they are nearly the optimisers)
             if want_max:
@@ -794,7 +804,6 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
         ok = ok | _met(want_max, cert, wit, rtol, atol)
         out[want_max] = (cert, wit, K, ev, ok)
     (up, wu, Ku, eu, ou), (lo, wl, Kl, el, ol) = out[True], out[False]
-    first_order = (LAST_RELAXATION[:, 2:4] + LAST_SPLIT[:, 2:4]).sum(axis=0)
     return Certificate(up * scale, lo * scale, wu * scale, wl * scale, Ku, Kl,
                        np.stack([ou, ol]), np.stack([eu, el]), int(budget),
                        bool(relax or whole),

@@ -223,7 +223,7 @@ def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity
         Relaxations of parts of the box per frequency where the relaxation of the whole
         box leaves the upper bound loose, the lower bound at most 800 of them (0: none;
         default :data:`.certified.SPLIT_BUDGET`, 3200:
-        :mod:`mcfric.core.relaxation_branch`).
+        :mod:`mcfric.core.relaxation_branch`; two to seven dampers only).
     moments : bool or "auto"
         Also tighten the certified upper bound by the second-order moment relaxation
         where the first-order one leaves it loose (:mod:`.moments`; chains of 2-7

@@ -357,8 +357,11 @@ def branch(G, q0, ylin, H, kr, ki, F_lim, beam, root, goal, budget, V, idx, S, x
             if not np.isfinite(val[i]):
                 break
             th2[:] = th[i]
+            # for its primal point only: a failure here loses no bound, so is not counted
+            failed = stats[3]
             relaxed_bound(G, q0, ylin, H, los[i], his[i], F_lim, beam, goal, V, idx, S, x,
                           cvec, pos, simplex, grow, ws, stats, th2, los[i], his[i])
+            stats[3] = failed
             if rounded(x, V, idx, S, kr, ki, F_lim, ws, Kc):
                 K_round[2 * r:2 * r + 2] = Kc
             val[i] = -sgn * np.inf
