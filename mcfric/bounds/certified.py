@@ -469,6 +469,18 @@ def _split(args, kr, ki, F_lim, want_max, cert, wit, rtol, atol, beam_bounds, bu
             int(total[2]), K_round, total[2:4])
 
 
+def _climb(args, kr, ki, F_lim, starts, stop, wit, K, climb):
+    """``wit`` improved (returned; ``K`` in place) by climbs from ``starts`` (n_f, n_s,
+    nd; N/m, frequencies whose first row is NaN skipped), ``climb`` of them per
+    frequency and no random pool, where the witness is below ``stop`` (n_f,; m):
+    :func:`joint_witnesses`."""
+    todo = np.flatnonzero(~np.isnan(starts[:, 0, 0]) & (wit < stop))
+    Kw, Mw = joint_witnesses(args, kr, ki, F_lim, starts, stop, todo, pool=0, climb=climb)
+    better = Mw > wit
+    K[better] = Kw[better]
+    return np.where(better, Mw, wit)
+
+
 def _descend(args, kr, ki, F_lim, starts, cert, wit, K, rtol, atol):
     """Lower witnesses improved, where the lower bound is loose, by descents from
     ``starts`` (n_f, n_s, nd; N/m, NaN rows skipped:
@@ -739,12 +751,7 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
                 # where the relaxation is (nearly) tight its primal point is (nearly) the
                 # maximiser: climb from it to a better witness
                 stop = np.fmin(cert / (1 + rtol), box_max)
-                todo = np.flatnonzero(~np.isnan(K_round[:, 0, 0]) & (wit < stop))
-                Kw, Mw = joint_witnesses(args, kr, ki, F_lim, K_round[:, :1], stop, todo,
-                                         pool=0, climb=1)
-                better = Mw > wit
-                wit = np.where(better, Mw, wit)
-                K[better] = Kw[better]
+                wit = _climb(args, kr, ki, F_lim, K_round[:, :1], stop, wit, K, 1)
                 # then in each beam's own dampers' forces (no ridge there near a
                 # resonance), from the witness and both rounded points
                 wit = _force_ascent(args, kr, ki, F_lim,
@@ -788,13 +795,8 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
             # a ring's witnesses are six solves: climb, or descend, from the relaxation's
             # rounded points (where it is nearly tight they are nearly the optimisers)
             if want_max:
-                stop = np.fmin(cert / (1 + rtol), box_max)
-                todo = np.flatnonzero(~np.isnan(K_round[:, 0, 0]) & (wit < stop))
-                Kw, Mw = joint_witnesses(args, kr, ki, F_lim, K_round, stop, todo, pool=0,
-                                         climb=2)
-                better = Mw > wit
-                wit = np.where(better, Mw, wit)
-                K[better] = Kw[better]
+                wit = _climb(args, kr, ki, F_lim, K_round, np.fmin(cert / (1 + rtol), box_max),
+                             wit, K, 2)
             else:
                 _descend(args, kr, ki, F_lim, K_round, cert, wit, K, rtol, atol)
         if want_max:

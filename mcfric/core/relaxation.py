@@ -907,26 +907,23 @@ def relax_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, floor, target, fr
                                   S, x, cvec, pos, simplex, grow)
                 goal = max(R, target[k])
                 t = np.nan
-                if have and ring:
-                    weights(S, nd, per, wcur)
-                    for i in range(m):
-                        xun[i] = xprev[i] * wprev[i]
-                    turned(xun, nd, per, (b - bprev) % nd, xw)
-                    for i in range(m):
-                        xw[i] /= wcur[i]
-                    t = shifted(xw, shift, V, idx, S, pos, simplex, ws)
-                    lim = max(goal, ref * (1.0 + TURN_SLACK))
-                    if t <= lim * lim / ys:
-                        x[:] = xw
+                if have:
+                    # the multipliers of the beam before (on a ring, turned) often prove
+                    # this one below the running maximum already; if not, a cold start
+                    # from x (one from these multipliers often stalls higher)
+                    lim = goal
+                    if ring:
+                        weights(S, nd, per, wcur)
+                        for i in range(m):
+                            xun[i] = xprev[i] * wprev[i]
+                        turned(xun, nd, per, (b - bprev) % nd, xw)
+                        for i in range(m):
+                            xw[i] /= wcur[i]
+                        lim = max(goal, ref * (1.0 + TURN_SLACK))
                     else:
-                        t = np.nan
-                elif have:
-                    # the multipliers of the beam before often prove this one below
-                    # the running maximum already; if not, a cold start from x (one
-                    # from these multipliers often stalls higher)
-                    xw[:] = xprev
+                        xw[:] = xprev
                     t = shifted(xw, shift, V, idx, S, pos, simplex, ws)
-                    if t <= goal * goal / ys:
+                    if t <= lim * lim / ys:
                         x[:] = xw
                     else:
                         t = np.nan
