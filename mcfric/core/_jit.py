@@ -1,5 +1,11 @@
 """The one place that sets the numba policy of every kernel in :mod:`mcfric.core`."""
 
+import functools
+import hashlib
+import inspect
+import warnings
+from pathlib import Path
+
 import numba
 
 # cache=True: a later process loads machine code instead of compiling (~0.2 s vs ~30 s).
@@ -12,13 +18,53 @@ _POLICY = dict(cache=True, error_model="numpy")
 # np.bool_(...): one compile instead of several.
 
 
+@functools.cache
+def source_stamp(directory):
+    """sha256 of every ``*.py`` file in ``directory`` (names and contents, sorted).
+
+    numba stamps a kernel's cache with its own file's hash alone, so a kernel whose file
+    is unchanged keeps the machine code of callees (and constants) from other files as
+    they were when it compiled: after an edit or an upgrade it would silently run old
+    code. :mod:`mcfric.core` imports nothing else from mcfric, so the hash of all its
+    sources covers everything a kernel's code can hold.
+    """
+    h = hashlib.sha256()
+    for p in sorted(Path(directory).glob("*.py")):
+        h.update(p.name.encode() + b"\0" + p.read_bytes() + b"\0")
+    return h.digest()
+
+
+def _stamp_with_package(dispatcher):
+    """Give ``dispatcher``'s numba cache the stamp of its whole source directory.
+
+    Uses numba's cache internals (``Dispatcher._cache._cache_file._source_stamp``, as in
+    numba 0.59-0.68); where they are missing, the kernel compiles without a cache rather
+    than risk stale code.
+    """
+    cache_file = getattr(getattr(dispatcher, "_cache", None), "_cache_file", None)
+    if cache_file is None or not hasattr(cache_file, "_source_stamp"):
+        warnings.warn(f"numba {numba.__version__}: cannot stamp the kernel cache; "
+                      "compiling without one", RuntimeWarning, stacklevel=3)
+        from numba.core.caching import NullCache
+        dispatcher._cache = NullCache()
+        return dispatcher
+    directory = Path(inspect.getfile(dispatcher.py_func)).resolve().parent
+    cache_file._source_stamp = source_stamp(directory)
+    return dispatcher
+
+
 def jit(*args, **kwargs):
-    """``numba.njit`` with the project's policy (cache, numpy error model)."""
+    """``numba.njit`` with the project's policy (cache, numpy error model).
+
+    The cache is stamped with the hash of every source in the kernel's directory (see
+    :func:`source_stamp`), not of its own file alone.
+    """
     opts = dict(_POLICY)
     opts.update(kwargs)
     if args and callable(args[0]):
-        return numba.njit(**opts)(args[0])
-    return numba.njit(*args, **opts)
+        return _stamp_with_package(numba.njit(**opts)(args[0]))
+    decorate = numba.njit(*args, **opts)
+    return lambda func: _stamp_with_package(decorate(func))
 
 
 def inline_jit(func):

@@ -1,0 +1,52 @@
+"""The kernels' numba cache follows every source of mcfric/core, not only a kernel's own
+file: numba alone would keep a caller's machine code, with its callees from other files
+inlined as they were, until the caller's own file changed."""
+
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import mcfric.core
+from mcfric.core._jit import source_stamp
+
+from .test_signatures import _kernels
+
+
+def test_every_kernel_is_stamped_with_all_of_core():
+    core = Path(mcfric.core.__file__).resolve().parent
+    stamp = source_stamp(core)
+    kernels = dict(_kernels())
+    assert len(kernels) > 50
+    wrong = [name for name, k in kernels.items()
+             if k._cache._cache_file._source_stamp != stamp]
+    assert not wrong
+
+
+def _run(directory, cache):
+    out = subprocess.run(
+        [sys.executable, "-c", "import caller; print(caller.f(1.0))"], cwd=directory,
+        env={"PYTHONPATH": str(directory), "NUMBA_CACHE_DIR": str(cache), "PATH": ""},
+        capture_output=True, text=True, check=True)
+    return float(out.stdout.split()[-1])
+
+
+def test_editing_a_callee_in_another_file_recompiles_the_caller(tmp_path):
+    """Two files as in mcfric/core: ``caller.f`` calls ``callee.g``. After ``g``'s file
+    changes, a new process must run the new ``g`` through ``f``, though ``f``'s file did
+    not change and its compiled code sits in the cache."""
+    (tmp_path / "caller.py").write_text(textwrap.dedent("""
+        from mcfric.core._jit import jit
+        from callee import g
+
+        @jit
+        def f(x):
+            return g(x) * 10.0
+    """))
+    callee = tmp_path / "callee.py"
+    callee.write_text("from mcfric.core._jit import jit\n\n@jit\ndef g(x):\n    return x + 1.0\n")
+    cache = tmp_path / "cache"
+    assert _run(tmp_path, cache) == 20.0
+    assert _run(tmp_path, cache) == 20.0            # from the cache
+    callee.write_text(callee.read_text().replace("x + 1.0", "x + 2.0"))
+    assert _run(tmp_path, cache) == 30.0
