@@ -338,7 +338,9 @@ def _value(x, mu, V, idx, S, cvec, pos, simplex, m, ws):
 @jit
 def solve(x, shift, V, idx, S, cvec, pos, simplex, grow, target, ws, stats, warm, save):
     """Improve the multipliers ``x`` (in place) and return the best *verified* value of
-    the shift variable ``x[shift]`` (``nan`` if none verified).
+    the shift variable ``x[shift]`` (``nan`` if none verified; where no round's iterate
+    verifies, the first iterate that reached ``target`` and then the last one shifted
+    are tried, see :func:`_rescued`).
 
     Parameters
     ----------
@@ -387,8 +389,9 @@ def solve(x, shift, V, idx, S, cvec, pos, simplex, grow, target, ws, stats, warm
     if simplex.any():
         nu += 1.0
     if warm > 0.0:
-        return _rounds(x, shift, warm * max(abs(x[shift]), 1e-300) / nu, nu, V, idx, S,
-                       gstart, cvec, pos, simplex, target, ws, stats, save)
+        val = _rounds(x, shift, warm * max(abs(x[shift]), 1e-300) / nu, nu, V, idx, S,
+                      gstart, cvec, pos, simplex, target, ws, stats, save)
+        return _rescued(val, x, shift, V, idx, S, cvec, pos, simplex, ws)
     # start: the leading block positive definite, then the shift from its Schur complement
     x[shift] = 0.0
     found = False
@@ -405,8 +408,24 @@ def solve(x, shift, V, idx, S, cvec, pos, simplex, grow, target, ws, stats, warm
     r = _schur(Z, L, W, nn)
     # sgn x_shift + r > 0, with a margin
     x[shift] = (1.0 + abs(r) - r) / sgn
-    return _rounds(x, shift, max(abs(x[shift]), 1e-300) / nu, nu, V, idx, S, gstart, cvec,
-                   pos, simplex, target, ws, stats, save)
+    val = _rounds(x, shift, max(abs(x[shift]), 1e-300) / nu, nu, V, idx, S, gstart, cvec,
+                  pos, simplex, target, ws, stats, save)
+    return _rescued(val, x, shift, V, idx, S, cvec, pos, simplex, ws)
+
+
+@jit
+def _rescued(val, x, shift, V, idx, S, cvec, pos, simplex, ws):
+    """``val``, or where no iterate verified (``nan``) the last one's multipliers with the
+    shift set just past the least value that makes ``Z`` definite (:func:`shifted`, with
+    its wider margins; ``nan`` if that fails too). Where a part holds no admissible
+    point, the barrier runs its multipliers off towards ``t -> -inf`` (the minimum's
+    ``s -> +inf``) until its Newton system fails, and no round verifies at those scales;
+    the shifted point does, with ``t < 0``: a proof that the part is empty.
+    """
+    if not np.isnan(val):
+        return val
+    v = shifted(x, shift, V, idx, S, pos, simplex, ws)
+    return np.nan if np.isnan(v) else cvec[shift] * x[shift]
 
 
 @jit
@@ -418,6 +437,9 @@ def _rounds(x, shift, mu, nu, V, idx, S, gstart, cvec, pos, simplex, target, ws,
     m = len(x)
     best = np.nan
     steps = 0
+    # the first iterate at the target: where no round verifies, it is tried last
+    xc = np.empty(m)
+    kept = False
     save[m] = np.nan
     while steps < MAX_STEPS:
         for inner in range(STEPS_PER_ROUND):
@@ -438,6 +460,9 @@ def _rounds(x, shift, mu, nu, V, idx, S, gstart, cvec, pos, simplex, target, ws,
                 step *= 0.5
             if moved:
                 x[:] = xn
+                if not kept and cvec[shift] * x[shift] <= target:
+                    xc[:] = x
+                    kept = True
             if not moved or lam2 < CENTRED ** 2 or steps >= MAX_STEPS:
                 break
         stats[1] += 1
@@ -455,6 +480,11 @@ def _rounds(x, shift, mu, nu, V, idx, S, gstart, cvec, pos, simplex, target, ws,
         if mu * nu <= TOL * abs(x[shift]):
             break
         mu *= MU_FACTOR
+    if np.isnan(best) and kept and verified(xc, V, idx, S, m, pos, simplex, ws):
+        # an empty part's multipliers run off (t -> -inf) until the Newton system fails,
+        # where they no longer verify; early on they do, and prove it empty (t < 0)
+        best = cvec[shift] * xc[shift]
+        xb[:] = xc
     if not np.isnan(best):
         x[:] = xb
     return best
