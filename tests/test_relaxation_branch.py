@@ -360,8 +360,8 @@ def test_a_relaxation_that_verifies_nothing_is_counted_as_failed():
     # the whole box's upper bound, beam by beam: the first beam's (largest Eq. 10) cold
     # solve fails and is counted, and the frequency keeps the force bound, above which
     # no other beam can be
+    from mcfric.core.box_relaxation import relax_frequencies
     from mcfric.core.branch_bound import force_bounds
-    from mcfric.core.relaxation import relax_frequencies
 
     G2, q02, ylin2, H2 = (np.ascontiguousarray(np.stack([x, x])) for x in (G, q0, ylin, H))
     q02[1, 2] = np.nan

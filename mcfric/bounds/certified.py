@@ -18,10 +18,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..core import force_ascent, force_newton
+from ..core.box_relaxation import relax_frequencies
 from ..core.branch_bound import certify_frequencies
 from ..core.joint_ascent import values, witnesses
 from ..core.joint_descent import lowest
-from ..core.relaxation import relax_frequencies
 from ..core.relaxation_branch import branch_frequencies, mirror_sign
 from ..threads import in_threads
 from .search import _chunks
