@@ -7,8 +7,10 @@ import sys
 import textwrap
 from pathlib import Path
 
+import pytest
+
 import mcfric.core
-from mcfric.core._jit import source_stamp
+from mcfric.core._jit import jit, source_stamp
 
 from .test_signatures import _kernels
 
@@ -50,3 +52,10 @@ def test_editing_a_callee_in_another_file_recompiles_the_caller(tmp_path):
     assert _run(tmp_path, cache) == 20.0            # from the cache
     callee.write_text(callee.read_text().replace("x + 1.0", "x + 2.0"))
     assert _run(tmp_path, cache) == 30.0
+
+
+def test_explicit_signatures_are_refused():
+    """numba compiles an explicit signature, and loads or saves its cache, inside the
+    decorator: before the stamp could be set. So ``jit`` takes none."""
+    with pytest.raises(TypeError, match="signatures"):
+        jit("float64(float64)")

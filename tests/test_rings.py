@@ -415,7 +415,7 @@ def test_turned_multipliers_prove_the_bound_of_every_blade():
 def test_tied_multipliers_give_the_lower_relaxation_of_a_tuned_ring(mistuned):
     """A 12-blade ring, five frequencies: the lower bound's relaxation with every
     damper's multipliers tied (``tied_relaxation``: 7 unknowns) proves what the full
-    relaxation (85) proves, to 0.2 %, on a tuned ring, and lies below 3000 random
+    relaxation (84) proves, to 0.2 %, on a tuned ring, and lies below 3000 random
     admissible points per frequency (physical-space solves). On a mistuned ring the
     tying no longer holds an optimum, but what it verifies (verified on the full forms)
     is still a bound below every random admissible point."""
@@ -449,3 +449,35 @@ def test_tied_multipliers_give_the_lower_relaxation_of_a_tuned_ring(mistuned):
         if not mistuned:
             assert abs(tied / full - 1) < 2e-3, fk
     assert tied_ok >= 4
+
+
+def test_the_whole_box_lower_bound_of_a_tuned_ring_is_tied():
+    """An 8-blade tuned ring, three frequencies: the whole box's lower bound with
+    ``turn`` (multipliers tied across dampers) proves what the full relaxation proves,
+    to 0.2 %, and its rounded points are set; a frequency whose data are not finite
+    verifies nothing either way, is counted as one failed relaxation (the tied attempt
+    uncounted) and keeps 0."""
+    from mcfric.core.box_relaxation import relax_frequencies
+    from mcfric.core.receptance import contact_space
+
+    from .test_certified import F_LIM, K_MAX
+
+    model = mcfric.disk(8, 1, 1.1)
+    f = np.array([15.0, 80.0, 120.0, 120.0])
+    a, b = model.dampers
+    arrays = [np.ascontiguousarray(x) for x in
+              contact_space(model.receptances(2 * np.pi * f)[0], model.force, a, b)]
+    arrays[1][3, 2] = np.nan
+    got = {}
+    for turn in (False, True):
+        out = np.full(4, -1.0)
+        K_round = np.full((4, 2, 8), np.nan + 0j)
+        stats = np.zeros(4, np.int64)
+        relax_frequencies(*arrays, K_MAX, K_MAX, F_LIM, False, np.zeros(4), np.full(4, np.inf),
+                          np.arange(4, dtype=np.int64), out, K_round,
+                          np.full((4, 8), np.inf), stats, turn)
+        got[turn] = out
+        assert np.isfinite(K_round[:3]).all() and np.isnan(K_round[3]).all()
+        assert stats[2] == 4 and stats[3] == 1 and out[3] == 0.0
+    assert np.all(got[True][:3] > 0)
+    np.testing.assert_allclose(got[True][:3], got[False][:3], rtol=2e-3)

@@ -85,10 +85,9 @@ def test_no_kernel_is_compiled_for_a_literal_or_an_unsigned_index():
     offenders = {name: [str(s) for s in sigs if _against_the_rule(s)]
                  for name, sigs in cached.items()}
     offenders = {k: v for k, v in offenders.items() if v}
-    # an index keeps the signatures of callers since changed as long as the kernel's own
-    # module is unchanged: after editing call sites, clear the cache before trusting this
-    assert not offenders, (f"kernels compiled against the signature rule (or stale: clear "
-                           f"mcfric/core/__pycache__ or NUMBA_CACHE_DIR): {offenders}")
+    # every index is stamped with all of core's sources (_jit.py): an edit anywhere in
+    # core empties them, so no signature here is left from earlier call sites
+    assert not offenders, f"kernels compiled against the signature rule: {offenders}"
     # the runs above reach the kernels called from kernels too
     for name in ("relaxation.relaxed_bound", "relaxation_branch.branch", "newton.newton",
                  "multi_harmonic._stuck_back", "aft._segment", "peaks._val"):

@@ -43,8 +43,11 @@ def _stamp_with_package(dispatcher):
     """
     cache_file = getattr(getattr(dispatcher, "_cache", None), "_cache_file", None)
     if cache_file is None or not hasattr(cache_file, "_source_stamp"):
-        warnings.warn(f"numba {numba.__version__}: cannot stamp the kernel cache; "
-                      "compiling without one", RuntimeWarning, stacklevel=3)
+        global _WARNED
+        if not _WARNED:
+            _WARNED = True
+            warnings.warn(f"numba {numba.__version__}: cannot stamp the kernel caches; "
+                          "compiling without them", RuntimeWarning, stacklevel=2)
         from numba.core.caching import NullCache
         dispatcher._cache = NullCache()
         return dispatcher
@@ -53,18 +56,26 @@ def _stamp_with_package(dispatcher):
     return dispatcher
 
 
+_WARNED = False
+
+
 def jit(*args, **kwargs):
     """``numba.njit`` with the project's policy (cache, numpy error model).
 
     The cache is stamped with the hash of every source in the kernel's directory (see
-    :func:`source_stamp`), not of its own file alone.
+    :func:`source_stamp`), not of its own file alone. Explicit signatures are refused:
+    numba would compile them, and load or save the cache, before the stamp is set.
     """
     opts = dict(_POLICY)
     opts.update(kwargs)
+    stamp = _stamp_with_package if opts["cache"] else (lambda d: d)
     if args and callable(args[0]):
-        return _stamp_with_package(numba.njit(**opts)(args[0]))
-    decorate = numba.njit(*args, **opts)
-    return lambda func: _stamp_with_package(decorate(func))
+        return stamp(numba.njit(**opts)(args[0]))
+    if args:
+        raise TypeError("mcfric.core._jit.jit: no explicit signatures (lazy compilation "
+                        "only, so that the cache stamp is set first)")
+    decorate = numba.njit(**opts)
+    return lambda func: stamp(decorate(func))
 
 
 def inline_jit(func):

@@ -415,12 +415,17 @@ def _rescued(val, x, shift, V, idx, S, cvec, pos, simplex, ws):
     its wider margins; ``nan`` if that fails too). Where a part holds no admissible
     point, the barrier runs its multipliers off towards ``t -> -inf`` (the minimum's
     ``s -> +inf``) until its Newton system fails, and no round verifies at those scales;
-    the shifted point does, with ``t < 0``: a proof that the part is empty.
+    the shifted point often does: a valid bound, and for the maximum with ``t < 0`` a
+    proof that the part is empty.
     """
     if not np.isnan(val):
         return val
+    last = x[shift]
     v = shifted(x, shift, V, idx, S, pos, simplex, ws)
-    return np.nan if np.isnan(v) else cvec[shift] * x[shift]
+    if np.isnan(v):
+        x[shift] = last             # the last iterate as it was, for rounded()
+        return np.nan
+    return cvec[shift] * x[shift]
 
 
 @jit

@@ -81,10 +81,10 @@ def tied_lower(G, q0, ylin, H, lo, hi, F_lim, goal, V, idx, S, x, cvec, pos, sim
     (every beam in order, ``nb == nd``); ``nan`` where nothing verified. Stops once it
     proves ``goal`` (m). ``x`` receives the verified full multipliers (for
     :func:`.relaxation.rounded`); ``stats`` as for :func:`.relaxation.solve` (Newton
-    steps, rounds, relaxations; a failure is left to the caller's fallback)."""
+    steps, rounds, and the relaxation where it verified: a failure is left uncounted to
+    the caller's fallback)."""
     shift, ys = forms(G, q0, ylin, H, lo, hi, F_lim, np.int64(-1), V, idx, S, x, cvec, pos,
                       simplex, grow)
-    stats[2] += 1
     nd, nb, m, nn = len(q0), len(ylin), len(x), V.shape[0]
     per = per_damper(np.isfinite(F_lim))
     w = np.empty(m)
@@ -94,15 +94,14 @@ def tied_lower(G, q0, ylin, H, lo, hi, F_lim, goal, V, idx, S, x, cvec, pos, sim
     B = np.empty((k, nn, nn), np.complex128)
     C0 = np.empty((nn, nn), np.complex128)
     y = np.zeros(k)
-    y[per] = 1.0
+    # the constant part (1/nb sum_b Y_b), the shift's form and each tied form, assembled
+    # as the full forms are
     _expand(y, w, nd, per, nb, shift, simplex, x)
     _assemble(x, 1.0, V, idx, S, C, T, Z, m)
-    # the constant part (1/nb sum_b Y_b) and each tied form, assembled as the full forms
     C0[:, :] = Z
     x[:] = 0.0
     x[shift] = 1.0
     _assemble(x, 0.0, V, idx, S, C, T, Z, m)
-    C0 -= Z
     B[per] = Z
     for f in range(per):
         y[:] = 0.0
@@ -208,5 +207,6 @@ def tied_lower(G, q0, ylin, H, lo, hi, F_lim, goal, V, idx, S, x, cvec, pos, sim
         mu *= MU_FACTOR
     if np.isnan(best):
         return np.nan
+    stats[2] += 1                   # a failure is the caller's: the full relaxation runs
     x[:] = xb
     return math.sqrt(max(-best * ys, 0.0)) * (1.0 - 1e-14)
