@@ -481,3 +481,25 @@ def test_the_whole_box_lower_bound_of_a_tuned_ring_is_tied():
         assert stats[2] == 4 and stats[3] == 1 and out[3] == 0.0
     assert np.all(got[True][:3] > 0)
     np.testing.assert_allclose(got[True][:3], got[False][:3], rtol=2e-3)
+
+
+def test_tuned_rings_above_24_blades_get_a_tied_lower_bound():
+    """A 32-blade tuned ring, three frequencies: above ``MAX_TURNED`` the upper
+    certificate stays Eq. 10 (no relaxation of it), and the lower one is the tied
+    relaxation's, above 0 and below 2000 random admissible points per frequency
+    (physical-space solves)."""
+    from mcfric.bounds import compute_bounds
+
+    from .test_certified import F_LIM, K_MAX, random_admissible
+
+    model = mcfric.disk(32, 2, 1.1)
+    f = np.array([30.0, 90.0, 125.0])
+    B = compute_bounds(model, f, K_MAX, F_lim=F_LIM)
+    C = B.certificate
+    assert C.relaxed and C.first_order[0] == len(f) and C.first_order[1] == 0
+    np.testing.assert_allclose(C.upper, np.maximum(B.upper_force, C.upper_witness), rtol=1e-6)
+    assert np.all(C.lower > 0) and np.all(C.lower <= C.lower_witness)
+    for k, fk in enumerate(f):
+        M = random_admissible(model, fk, 2000, 70 + k)
+        assert len(M) > 200
+        assert C.lower[k] <= M.min(), fk
