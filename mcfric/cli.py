@@ -903,9 +903,15 @@ def _stop_signals_interrupt():
     if threading.current_thread() is not threading.main_thread():
         return {}
 
+    from . import ensemble
+
     def handler(signum, frame):
+        # also noted: raised inside a ctypes callback (numba compiling) the exception is
+        # printed and dropped, and the run checks the note between chunks
+        ensemble.STOP_SIGNALS.append(signal.Signals(signum).name)
         raise KeyboardInterrupt(signal.Signals(signum).name)
 
+    ensemble.STOP_SIGNALS.clear()
     previous = {}
     for name in ("SIGTERM", "SIGHUP"):
         if hasattr(signal, name):

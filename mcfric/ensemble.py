@@ -41,6 +41,10 @@ from .store import Store, StoreError, allocated_bytes, iter_records, partial_pat
 from .store.lock import LockError, OutputLock
 
 RECORD = "sample"
+#: Names of the stop signals (SIGTERM, SIGHUP) the command line received during this run:
+#: the run stops before its next chunk even where the KeyboardInterrupt the signal raised
+#: was dropped (inside a ctypes callback, while numba compiles).
+STOP_SIGNALS = []
 #: Kernel output per chunk when run.chunk = 0 (auto).
 CHUNK_TARGET_BYTES = 32 << 20
 #: Source files whose change can change a result: a resume across such a change is refused.
@@ -782,6 +786,8 @@ def _drive(spec, store, done, not_conv_before, progress, t_start, cluster=None):
     interrupted = False
     try:
         for item in source:
+            if STOP_SIGNALS:
+                raise KeyboardInterrupt(STOP_SIGNALS[-1])
             _put(q, item, w, err)
             del item
     except KeyboardInterrupt:

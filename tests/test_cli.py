@@ -162,6 +162,33 @@ def test_info_of_a_partial_file(tmp_path, monkeypatch, capsys):
     assert rc == 0 and "INCOMPLETE: 20 of 50 samples done" in out
 
 
+def test_a_stop_signal_dropped_while_compiling_still_stops_the_run(tmp_path, monkeypatch,
+                                                                    capsys):
+    """A SIGTERM whose KeyboardInterrupt was raised inside a ctypes callback (numba
+    compiling) is printed and dropped there; the handler's note stops the run before
+    its next chunk: exit 130, resumable, as for a delivered one."""
+    import signal
+
+    monkeypatch.chdir(tmp_path)
+    real = hbm.solve
+    calls = {"n": 0}
+
+    def dropped(*a, **k):
+        calls["n"] += 1
+        if calls["n"] == 3:
+            try:
+                signal.raise_signal(signal.SIGTERM)
+            except KeyboardInterrupt:
+                pass                # what the ctypes callback does with it
+        return real(*a, **k)
+
+    monkeypatch.setattr(ensemble.hbm, "solve", dropped)
+    rc, _, err = call(["run", "two-beam", "--samples", "50", "--n-freq", "10", "--chunk", "10",
+                       "-o", "p.h5", "--no-progress", "--no-certify"], capsys)
+    assert rc == 130 and "20 of 50 samples saved" in err and "--resume" in err
+    assert ensemble.STOP_SIGNALS == ["SIGTERM"]
+
+
 def test_no_arguments_runs_the_embedded_default(tmp_path, monkeypatch, capsys):
     seen = {}
 
