@@ -75,10 +75,9 @@ def _sparse_product(V, C, T):
 
 
 @jit
-def _assemble(x, coef_const, V, idx, S, C, T, Z, m):
-    """``Z = V C V^H`` with ``C = sum_i x_i S_i`` (+ the constant form, weight
-    ``coef_const``) scattered on the basis."""
-    nn, nv = V.shape
+def scatter(x, coef_const, V, idx, S, C, T, m):
+    """``C = sum_i x_i S_i`` (+ the constant form, weight ``coef_const``) scattered on
+    the basis, and ``T = V C``."""
     C[:, :] = 0.0
     for i in range(m + 1):
         w = x[i] if i < m else coef_const
@@ -86,6 +85,13 @@ def _assemble(x, coef_const, V, idx, S, C, T, Z, m):
             for b in range(2):
                 C[idx[i, a], idx[i, b]] += w * S[i, a, b]
     _sparse_product(V, C, T)
+
+
+@jit
+def _assemble(x, coef_const, V, idx, S, C, T, Z, m):
+    """``Z = V C V^H`` with ``C`` and ``T = V C`` from :func:`scatter`."""
+    nn, nv = V.shape
+    scatter(x, coef_const, V, idx, S, C, T, m)
     for j in range(nn):
         for k in range(j, nn):
             acc = 0j
