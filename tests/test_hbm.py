@@ -234,3 +234,30 @@ def test_bad_input_names_the_argument(eight_beam, change, name):
 def test_bad_model_names_the_argument(build, name):
     with pytest.raises(ValueError, match=name):
         build()
+
+
+@pytest.mark.parametrize("name,law", [("two-beam", "coulomb"), ("eight-beam", "coulomb"),
+                                      ("two-beam", "cubic")])
+def test_a_point_that_fails_never_reports_a_passing_residual(name, law):
+    """A frequency whose receptances are NaN (the kernels given them directly, past the
+    input checks) fails for every sample: its NaN iterates once made the residual read
+    0.0 (``max(0.0, nan)``); it must read ``inf``, never a value below ``tol``, in the
+    one-damper, chain and dense kernels, while the other frequencies converge."""
+    from mcfric.hbm import allocate, run_kernel
+
+    model = getattr(mcfric.presets, name.replace("-", "_"))()
+    if law != "coulomb":
+        model = dataclasses.replace(model, contact_law=law)
+    nd, f = model.n_dampers, np.linspace(10.0, 150.0, 20)
+    omega = 2 * np.pi * f
+    rec = model.receptances(omega).copy()
+    rec[:, 5] = np.nan
+    mu0, N0, kc = np.full((3, nd), 0.3), np.full((3, nd), 0.5), np.full((3, nd), 1.5e4)
+    out = allocate(3, len(f), model.n_beams, nd)
+    run_kernel(model, rec, omega, mu0, N0, kc, 1e-10, 50, *out)
+    status, residual = out[2], out[4]
+    failed = np.zeros(status.shape, bool)
+    failed[:, 5] = True
+    assert np.all(status[failed] == -1) and np.all(status[~failed] >= 0)
+    assert np.all(residual[failed] == np.inf)
+    assert np.all(residual[~failed] <= 1e-10)

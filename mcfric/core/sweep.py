@@ -48,7 +48,9 @@ status : ndarray of int8, shape (n_s, n_f)
 iterations : ndarray of int16, shape (n_s, n_f)
     Out: iterations used, all attempts together.
 residual : ndarray of float64, shape (n_s, n_f)
-    Out: ``max_j |s_j kc_j A_j / (mu0_j N0_j) - 1|`` at the returned point.
+    Out: ``max_j |s_j kc_j A_j / (mu0_j N0_j) - 1|`` over the sliding dampers at the
+    returned point; ``inf`` where not finite, and at a point that did not converge
+    whose last iterate would pass (it never reads as converged).
 """
 
 import math
@@ -204,8 +206,18 @@ def _abs_expm1(f):
 
 
 @inline_jit
+def _reported(res, ok, tol):
+    """The residual written for a point: ``inf`` where it is not finite, or where a point
+    that failed would show a passing one (no sliding damper to measure, say): a failed
+    point never reads as converged."""
+    if not math.isfinite(res) or (not ok and res <= tol):
+        return math.inf
+    return res
+
+
+@inline_jit
 def _write_point(rec, r, k, force, a, b, K, q, f, x, active, s_off, sq, l, ok, st, its,
-                 i, y, s, status, iterations, residual, fb, nd, n_beams):
+                 i, y, s, status, iterations, residual, fb, nd, n_beams, tol):
     """Outputs of one (sample, frequency): ``y2 = D23 F + D21 B^T f``, ``f_j = -K_j q_j``.
 
     The state is column ``l`` of the (nd, lanes) arrays ``K``, ``q``, ``f``, ``x``,
@@ -216,7 +228,7 @@ def _write_point(rec, r, k, force, a, b, K, q, f, x, active, s_off, sq, l, ok, s
     for j in range(nd):
         if active[j, l]:
             res = max(res, _abs_expm1(f[j, l]))
-    residual[i, k] = res if math.isfinite(res) else math.inf
+    residual[i, k] = _reported(res, ok, tol)
     if not ok:
         status[i, k] = NOT_CONVERGED
         for bb in range(n_beams):
@@ -375,7 +387,7 @@ def _chain_batch(g, rec, force, a, b, W, mu0, N0, kc, tol, max_iter,
             for j in range(nd):
                 if actl[j, l]:
                     res = max(res, _abs_expm1(f[j, l]))
-            residual[i, k] = res if math.isfinite(res) else math.inf
+            residual[i, k] = _reported(res, good, tol)
             if not good:
                 status[i, k] = NOT_CONVERGED
                 for bb in range(n_beams):
@@ -476,7 +488,7 @@ def _dense_sample(i, rec, force, a, b, W, mu0, N0, kc, tol, max_iter,
             q2[j, 0] = w[1][j]
             f2[j, 0] = w[2][j]
         _write_point(rec, r, k, force, a, b, K2, q2, f2, xg, act2, off2, sq2, 0, ok, st,
-                     its, i, y, s, status, iterations, residual, fb, nd, n_beams)
+                     its, i, y, s, status, iterations, residual, fb, nd, n_beams, tol)
         if ok:
             have = _remember(xp, 0, xg, have, nd)
         else:
@@ -625,8 +637,7 @@ def _one_damper_batch(g, rec, force, a, b, W, mu0, N0, kc, tol, max_iter,
                     for m in range(N_PREDICT):
                         xh[m, l] = 0.0
             iterations[i, k] = min(its, 32767)
-            res = _abs_expm1(f)
-            residual[i, k] = res if math.isfinite(res) else math.inf
+            residual[i, k] = _reported(_abs_expm1(f), ok, tol)
             if not ok:
                 status[i, k] = NOT_CONVERGED
                 for bb in range(n_beams):
