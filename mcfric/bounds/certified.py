@@ -54,8 +54,9 @@ MAX_DAMPERS = 7
 #: time grows about with the cube of the dampers: the docs' performance page).
 MAX_TURNED = 24
 #: ... and of up to this many the lower bound alone (its relaxation with the multipliers
-#: tied across dampers: about 0.1 s per frequency at 72 blades, growing with the cube).
-MAX_TIED = 72
+#: tied across dampers is cheap, a Fourier barrier; the descents from its rounded points
+#: to the witness cost more: the docs' performance page).
+MAX_TIED = 96
 #: The ascent to the upper witness over the admissible set, per frequency: random points
 #: of the box tried (besides no damper and the search's box optimum) ...
 WITNESS_POOL = 200
