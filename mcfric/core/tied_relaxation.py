@@ -191,7 +191,7 @@ def tied_lower(G, q0, ylin, H, lo, hi, F_lim, goal, V, idx, S, x, cvec, pos, sim
             _assemble(x, 1.0, V, idx, S, C, T, Z, m)
             worst = _departure(Z, nd)
     # the constant's column in one mode: the travelling wave's
-    k0 = 0
+    k0 = np.int64(0)
     bmax = 0.0
     for i in range(nd):
         s = 0.0
