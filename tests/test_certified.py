@@ -400,7 +400,13 @@ def test_the_lower_bound_is_not_tight_where_no_upper_bound_is_proved():
                     np.zeros((n, 1), complex), np.zeros((n, 1), complex),
                     np.zeros((2, n), bool), np.zeros((2, n), np.int64), 0)
     assert not C.lower_tight.any()
-    assert "lower within 1 % or 0.001 x upper at 0" in C.summary(np.array([10.0, 20.0, 30.0]))
+    text = C.summary(np.array([10.0, 20.0, 30.0]))
+    assert "lower within 1 % or 0.001 x upper at 0" in text
+    # no budget (a ring above seven dampers): no budget ran out, no branch and bound ran
+    assert "no branch and bound above 7 dampers" in text and "budget" not in text
+    C.budget = 200
+    assert "tolerance not met within the budget at 3 frequencies" in C.summary(
+        np.array([10.0, 20.0, 30.0]))
 
 
 def test_force_bounds_are_rounded_outwards():

@@ -233,10 +233,14 @@ class Certificate:
                 f"{ATOL_FRACTION:g} x upper at {n - np.count_nonzero(loose)}")
         if loose.any():
             text += f" (largest gap elsewhere {_pct(lo_gap[k_lo])} at {f[k_lo]:.4g} Hz)"
+        # without a budget (above MAX_DAMPERS) no branch and bound ran: say so, not that
+        # a budget ran out
+        why = ("within the budget" if self.budget > 0 else
+               f"(no branch and bound above {MAX_DAMPERS} dampers)")
         for row, name in enumerate(("upper", "lower")):
             out = ~self.converged[row]
             if out.any():
-                text += (f"; {name}: tolerance not met within the budget at "
+                text += (f"; {name}: tolerance not met {why} at "
                          f"{np.count_nonzero(out)} frequencies in {f[out].min():.4g}-"
                          f"{f[out].max():.4g} Hz (valid there, looser)")
         return text
