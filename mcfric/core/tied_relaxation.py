@@ -190,20 +190,24 @@ def tied_lower(G, q0, ylin, H, lo, hi, F_lim, goal, V, idx, S, x, cvec, pos, sim
             # a tuned ring's (its beams' responses turn into each other)?
             _assemble(x, 1.0, V, idx, S, C, T, Z, m)
             worst = _departure(Z, nd)
-    # the constant's column in one mode: the travelling wave's
+    # the constant's column in one mode, the travelling wave's: the other modes' parts
+    # measured against each form's own size (the forms' scales differ by powers of two)
+    size = np.empty(k + 1)
+    for a in range(k + 1):
+        size[a] = max(np.abs(LA[a]).max(), np.abs(BE[a]).max(), abs(GA[a])) + 1e-300
     k0 = np.int64(0)
     bmax = 0.0
     for i in range(nd):
         s = 0.0
         for a in range(k + 1):
-            s += abs(BE[a, i])
+            s += abs(BE[a, i]) / size[a]
         if s > bmax:
             bmax = s
             k0 = i
     for a in range(k + 1):
         for i in range(nd):
-            if i != k0 and abs(BE[a, i]) > CIRCULANT_TOL * (abs(BE[a, k0]) + 1e-300) * nd:
-                worst = max(worst, 1.0)
+            if i != k0:
+                worst = max(worst, abs(BE[a, i]) / (size[a] * nd))
     if not worst <= CIRCULANT_TOL or not np.isfinite(LA).all():
         return np.nan
     BE0 = BE[:, k0].copy()
