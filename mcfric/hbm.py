@@ -55,7 +55,9 @@ class HBMResult:
         -1 not converged.
     iterations : ndarray of int16, shape (n_s, n_f)
     residual : ndarray, shape (n_s, n_f)
-        ``max_j |s_j kc_j A_j / (mu0_j N0_j) - 1|`` of the returned point.
+        ``max_j |s_j kc_j A_j / (mu0_j N0_j) - 1|`` of the returned point (single
+        harmonic: over the sliding dampers; ``inf`` where not finite, and where a point
+        that did not converge would show a passing value).
     mu0, kc, N0 : ndarray, shape (n_s, nd)
         The parameters solved for (N0 in N, kc in N/m).
     peaks : Peaks or None

@@ -233,9 +233,8 @@ class Certificate:
                 f"{ATOL_FRACTION:g} x upper at {n - np.count_nonzero(loose)}")
         if loose.any():
             text += f" (largest gap elsewhere {_pct(lo_gap[k_lo])} at {f[k_lo]:.4g} Hz)"
-        # without a budget (above MAX_DAMPERS) no branch and bound ran: say so, not that
-        # a budget ran out
-        why = ("within the budget" if self.budget > 0 else
+        # above MAX_DAMPERS no branch and bound runs: say so, not that a budget ran out
+        why = ("within the budget" if self.K_upper.shape[1] <= MAX_DAMPERS else
                f"(no branch and bound above {MAX_DAMPERS} dampers)")
         for row, name in enumerate(("upper", "lower")):
             out = ~self.converged[row]

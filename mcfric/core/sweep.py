@@ -199,10 +199,13 @@ def _abs_expm1(f):
 
     Converged points have ``|f| <= 1e-10``, where three terms of the series are exact to
     rounding (truncation ``f^3/24`` relative), which saves a libm call per point.
+    ``inf`` for a NaN ``f``.
     """
     if abs(f) < 1e-5:
         return abs(f * (1.0 + f * (0.5 + f * (1.0 / 6.0))))
-    return abs(math.expm1(f))
+    r = abs(math.expm1(f))
+    # NaN as inf: a max over dampers would drop it (max(0.0, nan) is 0.0)
+    return r if r == r else math.inf
 
 
 @inline_jit

@@ -46,8 +46,9 @@ STEPS_PER_ROUND = 100
 MAX_STEPS = 600
 #: Barrier rounds at most (each shrinks the weight tenfold: far more than needed).
 MAX_ROUNDS = 40
-#: Largest departure from a circulant damper block, and from one Fourier mode in the
-#: constant's column, relative to the largest entry, taken as a tuned ring's.
+#: Largest departure taken as a tuned ring's: of ``Z``'s damper block from a circulant
+#: (relative to ``Z``'s largest entry), and of each form's last column from one Fourier
+#: mode (relative to the form's largest eigenvalue or Fourier coefficient).
 CIRCULANT_TOL = 1e-9
 
 
@@ -186,12 +187,16 @@ def tied_lower(G, q0, ylin, H, lo, hi, F_lim, goal, V, idx, S, x, cvec, pos, sim
                 if simplex[i]:
                     x[i] = 0.0
         GA[a] = _spectrum(x, 1.0 if a == 0 else 0.0, V, idx, S, C, T, m, LA[a], BE[a])
-        if a == 0:
-            # a tuned ring's (its beams' responses turn into each other)?
-            _assemble(x, 1.0, V, idx, S, C, T, Z, m)
-            worst = _departure(Z, nd)
+    # a tuned ring's? The damper block of Z with every tied multiplier 1 (the constant
+    # part and every form at once) must be circulant
+    y[:] = 1.0
+    y[per] = 0.0
+    _expand(y, w, nd, per, nb, shift, simplex, x)
+    _assemble(x, 1.0, V, idx, S, C, T, Z, m)
+    worst = _departure(Z, nd)
     # the constant's column in one mode, the travelling wave's: the other modes' parts
-    # measured against each form's own size (the forms' scales differ by powers of two)
+    # measured against each form's largest eigenvalue or Fourier coefficient (the forms'
+    # scales differ by powers of two)
     size = np.empty(k + 1)
     for a in range(k + 1):
         size[a] = max(np.abs(LA[a]).max(), np.abs(BE[a]).max(), abs(GA[a])) + 1e-300
@@ -207,7 +212,7 @@ def tied_lower(G, q0, ylin, H, lo, hi, F_lim, goal, V, idx, S, x, cvec, pos, sim
     for a in range(k + 1):
         for i in range(nd):
             if i != k0:
-                worst = max(worst, abs(BE[a, i]) / (size[a] * nd))
+                worst = max(worst, abs(BE[a, i]) / size[a])
     if not worst <= CIRCULANT_TOL or not np.isfinite(LA).all():
         return np.nan
     BE0 = BE[:, k0].copy()
