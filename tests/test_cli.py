@@ -142,18 +142,28 @@ def test_run_info_and_figure(tmp_path, monkeypatch, capsys):
     assert (tmp_path / "r.h5").stat().st_mtime_ns == mtime
 
 
-def test_info_of_a_partial_file(tmp_path, monkeypatch, capsys):
-    monkeypatch.chdir(tmp_path)
+def _before_third_solve(monkeypatch, action):
+    """The ensemble's ``hbm.solve`` with ``action()`` run before its third call (the
+    third chunk)."""
     real = hbm.solve
     calls = {"n": 0}
 
-    def stop(*a, **k):
+    def wrapped(*a, **k):
         calls["n"] += 1
         if calls["n"] == 3:
-            raise KeyboardInterrupt
+            action()
         return real(*a, **k)
 
-    monkeypatch.setattr(ensemble.hbm, "solve", stop)
+    monkeypatch.setattr(ensemble.hbm, "solve", wrapped)
+
+
+def test_info_of_a_partial_file(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+
+    def stop():
+        raise KeyboardInterrupt
+
+    _before_third_solve(monkeypatch, stop)
     rc, _, err = call(["run", "two-beam", "--samples", "50", "--n-freq", "10", "--chunk", "10",
                        "-o", "p.h5", "--no-progress"], capsys)
     assert rc == 130 and "20 of 50 samples saved" in err and "--resume" in err
@@ -170,19 +180,14 @@ def test_a_stop_signal_dropped_while_compiling_still_stops_the_run(tmp_path, mon
     import signal
 
     monkeypatch.chdir(tmp_path)
-    real = hbm.solve
-    calls = {"n": 0}
 
-    def dropped(*a, **k):
-        calls["n"] += 1
-        if calls["n"] == 3:
-            try:
-                signal.raise_signal(signal.SIGTERM)
-            except KeyboardInterrupt:
-                pass                # what the ctypes callback does with it
-        return real(*a, **k)
+    def dropped():
+        try:
+            signal.raise_signal(signal.SIGTERM)
+        except KeyboardInterrupt:
+            pass                    # what the ctypes callback does with it
 
-    monkeypatch.setattr(ensemble.hbm, "solve", dropped)
+    _before_third_solve(monkeypatch, dropped)
     rc, _, err = call(["run", "two-beam", "--samples", "50", "--n-freq", "10", "--chunk", "10",
                        "-o", "p.h5", "--no-progress", "--no-certify"], capsys)
     assert rc == 130 and "20 of 50 samples saved" in err and "--resume" in err

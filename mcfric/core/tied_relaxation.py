@@ -118,8 +118,9 @@ def _combine(y, LA, GA, BE, lam):
 
 
 @jit
-def _value(y, mu, c, npos, LA, GA, BE, k0, lam):
-    """The barrier ``c.y / mu - log det Z - sum log y_pos`` (``inf`` outside)."""
+def _at(y, mu, c, npos, lam, gam, bet, k0):
+    """The barrier ``c.y / mu - log det Z - sum log y_pos`` (``inf`` outside) from the
+    spectrum at ``y`` (:func:`_combine`)."""
     f = 0.0
     for i in range(len(y)):
         f += c[i] * y[i] / mu
@@ -127,7 +128,6 @@ def _value(y, mu, c, npos, LA, GA, BE, k0, lam):
             if not y[i] > 0.0:
                 return np.inf
             f -= math.log(y[i])
-    gam, bet = _combine(y, LA, GA, BE, lam)
     for i in range(len(lam)):
         if not lam[i] > 0.0:
             return np.inf
@@ -137,6 +137,24 @@ def _value(y, mu, c, npos, LA, GA, BE, k0, lam):
     if not det > 0.0:
         return np.inf
     return f - math.log(det)
+
+
+@jit
+def _value(y, mu, c, npos, LA, GA, BE, k0, lam):
+    """The barrier at ``y`` (:func:`_at`), its spectrum formed into ``lam``."""
+    gam, bet = _combine(y, LA, GA, BE, lam)
+    return _at(y, mu, c, npos, lam, gam, bet, k0)
+
+
+@jit
+def _complement(y, per, LA, GA, BE, k0, lam, yz):
+    """``Z``'s Schur complement at the constant, ``gamma - |beta|^2 / lam_k0``, for the
+    tied multipliers ``y`` with the shift's (``y[per]``) set to 0: minus the least shift
+    that makes ``Z`` definite (``yz``: scratch)."""
+    yz[:] = y
+    yz[per] = 0.0
+    gam, bet = _combine(yz, LA, GA, BE, lam)
+    return gam - (bet.real ** 2 + bet.imag ** 2) / lam[k0]
 
 
 @jit
@@ -235,8 +253,8 @@ def tied_lower(G, q0, ylin, H, lo, hi, F_lim, goal, V, idx, S, x, cvec, pos, sim
             y[:per] *= 2.0
     if not found:
         return np.nan
-    gam, bet = _combine(y, LA, GA, BE0, lam)
-    r = gam - (bet.real ** 2 + bet.imag ** 2) / lam[k0]
+    yn = np.empty(k)
+    r = _complement(y, per, LA, GA, BE0, k0, lam, yn)
     sgn = S[shift, 0, 0].real
     y[per] = (1.0 + abs(r) - r) / sgn
     c = np.zeros(k)
@@ -248,7 +266,6 @@ def tied_lower(G, q0, ylin, H, lo, hi, F_lim, goal, V, idx, S, x, cvec, pos, sim
     Hm = np.empty((k, k))
     Lh = np.zeros((k, k))
     dy = np.empty(k)
-    yn = np.empty(k)
     dD = np.empty(k)
     xb = np.empty(m)
     Y = np.empty((MAX_ROUNDS, k))
@@ -257,11 +274,11 @@ def tied_lower(G, q0, ylin, H, lo, hi, F_lim, goal, V, idx, S, x, cvec, pos, sim
     steps = 0
     while steps < MAX_STEPS:
         for inner in range(STEPS_PER_ROUND):
-            f0 = _value(y, mu, c, per, LA, GA, BE0, k0, lam)
+            gam, bet = _combine(y, LA, GA, BE0, lam)
+            f0 = _at(y, mu, c, per, lam, gam, bet, k0)
             if not f0 < np.inf:
                 steps = MAX_STEPS
                 break
-            gam, bet = _combine(y, LA, GA, BE0, lam)
             lk = lam[k0]
             det = lk * gam - (bet.real ** 2 + bet.imag ** 2)
             for a in range(k):
@@ -317,10 +334,7 @@ def tied_lower(G, q0, ylin, H, lo, hi, F_lim, goal, V, idx, S, x, cvec, pos, sim
         # last does not verify)
         Y[nr] = y
         nr += 1
-        yn[:] = y
-        yn[per] = 0.0
-        gam, bet = _combine(yn, LA, GA, BE0, lam)
-        estimate = (bet.real ** 2 + bet.imag ** 2) / lam[k0] - gam
+        estimate = -_complement(y, per, LA, GA, BE0, k0, lam, yn)
         done = (mu * nu <= TOL * abs(y[per]) or steps >= MAX_STEPS
                 or nr == len(Y))
         if estimate <= target or done:
@@ -332,12 +346,12 @@ def tied_lower(G, q0, ylin, H, lo, hi, F_lim, goal, V, idx, S, x, cvec, pos, sim
             if best <= target or done:
                 break
         mu *= MU_FACTOR
-    for back in range(nr - 2, -1, -1):
-        if not np.isnan(best):
-            break
+    back = nr - 2
+    while np.isnan(best) and back >= 0:
         _expand(Y[back], w, nd, per, nb, shift, simplex, x)
         best = shifted(x, shift, V, idx, S, pos, simplex, ws)
         xb[:] = x
+        back -= 1
     if np.isnan(best):
         return np.nan
     stats[2] += 1                   # a failure is the caller's: the full relaxation runs
