@@ -369,7 +369,7 @@ def test_a_relaxation_that_verifies_nothing_is_counted_as_failed():
     stats = np.zeros(4, np.int64)
     relax_frequencies(G2, q02, ylin2, H2, K_MAX, K_MAX, F_LIM, True, np.zeros(2), np.zeros(2),
                       np.array([1], np.int64), out, np.full((2, 2, nd), np.nan + 0j),
-                      np.full((2, nb), np.inf), stats, False)
+                      np.full((2, nb), np.inf), stats, False, np.int64(0))
     eq10 = np.empty(nb)
     force_bounds(ylin, H, F_LIM, eq10)
     assert stats[2] == 1 and stats[3] == 1 and out[1] == eq10.max()

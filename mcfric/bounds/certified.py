@@ -22,6 +22,7 @@ from ..core.box_relaxation import relax_frequencies
 from ..core.branch_bound import certify_frequencies
 from ..core.joint_ascent import values, witnesses
 from ..core.joint_descent import lowest
+from ..core.partly_tied_relaxation import NEAR
 from ..core.relaxation_branch import branch_frequencies, mirror_sign
 from ..threads import in_threads
 from .search import _chunks
@@ -53,9 +54,10 @@ MAX_DAMPERS = 7
 #: relaxation of the whole box tightens them (one relaxation per frequency and bound; its
 #: time grows about with the cube of the dampers: the docs' performance page).
 MAX_TURNED = 24
-#: ... and of up to this many the lower bound alone (its relaxation with the multipliers
-#: tied across dampers is cheap, a Fourier barrier; the descents from its rounded points
-#: to the witness cost more: the docs' performance page).
+#: ... and of up to this many with the multipliers tied across dampers (the lower
+#: bound's all, the upper bound's but near the beam: Fourier barriers, cheap; the checks
+#: of every beam's turned multipliers and the descents to the witnesses cost more: the
+#: docs' performance page).
 MAX_TIED = 96
 #: The ascent to the upper witness over the admissible set, per frequency: random points
 #: of the box tried (besides no damper and the search's box optimum) ...
@@ -140,8 +142,8 @@ class Certificate:
     budget : int
     relaxed : bool
         Whether the semidefinite relaxation ran: after the branch and bound (two to seven
-        dampers), or alone (tuned rings of 8 to ``MAX_TURNED`` blades; of up to
-        ``MAX_TIED`` for the lower bound).
+        dampers), or alone (tuned rings of 8 to ``MAX_TURNED`` blades; up to
+        ``MAX_TIED`` with the multipliers tied across dampers).
     second_order : ndarray of int, shape (2,)
         Second-order moment relaxations (:mod:`.moments`) of the upper bound solved, and
         of those failed (solver or verification; the first-order bound kept there).
@@ -411,10 +413,12 @@ def _from_neighbours(args, kr, ki, F_lim, want_max, cert, wit, K, stop, rtol, at
     return wit
 
 
-def _relaxed(args, kr, ki, F_lim, want_max, cert, wit, rtol, atol, turn=False):
+def _relaxed(args, kr, ki, F_lim, want_max, cert, wit, rtol, atol, turn=False, near=0):
     """``cert`` improved by the semidefinite relaxation of the whole box
     (:mod:`mcfric.core.relaxation`) where it is not yet within the tolerance of its
-    witness (``turn``: a tuned ring's arrays, :func:`certify`'s ``turned``); the
+    witness (``turn``: a tuned ring's arrays, :func:`certify`'s ``turned``; ``near > 0``:
+    the upper bound's multipliers tied but at the ``2 near`` dampers next to the beam,
+    :mod:`mcfric.core.partly_tied_relaxation`); the
     relaxation's rounded points (n_f, 2, nd; N/m, NaN where none:
     :func:`mcfric.core.relaxation.rounded`), each beam's proven bound (n_f, nb; m,
     ``inf`` where not relaxed; the upper bound's only), and the numbers of relaxations
@@ -433,7 +437,7 @@ def _relaxed(args, kr, ki, F_lim, want_max, cert, wit, rtol, atol, turn=False):
     in_threads(lambda item: relax_frequencies(*args, kr, ki, F_lim, want_max, floor,
                                               target, np.asarray(item[1], np.int64), got,
                                               K_round, beam_bounds, stats[item[0]],
-                                              bool(turn)),
+                                              bool(turn), np.int64(near)),
                enumerate(np.array_split(loose, min(len(loose), 64))))
     total = stats.sum(axis=0)
     LAST_RELAXATION[int(not want_max)] = total
@@ -696,7 +700,8 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
         to ``MAX_TURNED`` dampers, with a force limit, the relaxation of the whole box
         then tightens Eq. 10 and 0 (one relaxation per frequency and bound: the other
         beams take its multipliers turned, verified on their own forms); up to
-        ``MAX_TIED`` dampers it tightens the lower bound 0 alone.
+        ``MAX_TIED`` dampers the relaxations with the multipliers tied across dampers
+        (the upper bound's but near the beam) tighten them.
 
     Returns
     -------
@@ -708,8 +713,8 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
     # rings above MAX_DAMPERS: the relaxation of the whole box alone
     turn = bool(turned) and ylin.shape[1] == nd
     whole = RELAX and np.isfinite(F_lim) and turn and MAX_DAMPERS < nd <= MAX_TURNED
-    # larger tuned rings: the lower bound alone (tied multipliers, cheap; the upper
-    # bound's relaxation takes seconds per frequency there)
+    # larger tuned rings: tied multipliers (the full relaxation takes seconds per
+    # frequency there)
     tied = RELAX and np.isfinite(F_lim) and turn and MAX_TURNED < nd <= MAX_TIED
     from .moments import is_chain
     moments = resolve_moments(moments, is_chain(G), nd, F_lim)
@@ -800,9 +805,9 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
                 # where it is still loose, each beam on its own by a gradient method
                 wit = _polish(args, kr, ki, F_lim, np.fmin(cert, force), wit, K,
                               beam_bounds, rtol)
-        elif whole or (tied and not want_max):
+        elif whole or tied:
             cert, K_round, _, n = _relaxed(args, kr, ki, F_lim, want_max, cert, wit, rtol,
-                                           atol, turn)
+                                           atol, turn, NEAR if tied else 0)
             first_order += n
             # a ring's witnesses are six solves: climb, or descend, from the relaxation's
             # rounded points (where it is nearly tight they are nearly the optimisers)

@@ -1,6 +1,7 @@
 """Certified bounds over the whole box at every frequency, from the relaxation of
 :mod:`.relaxation`: the upper bound beam by beam, the lower bound at once (on a tuned
-ring with the multipliers tied across dampers, :mod:`.tied_relaxation`)."""
+ring with the multipliers tied across dampers, :mod:`.tied_relaxation`; on a large one
+the upper bound's tied but near the beam, :mod:`.partly_tied_relaxation`)."""
 
 import math
 
@@ -8,6 +9,7 @@ import numpy as np
 
 from ._jit import jit
 from .branch_bound import force_bounds
+from .partly_tied_relaxation import partly_tied_upper
 from .relaxation import (
     buffers,
     forms,
@@ -29,7 +31,7 @@ TURN_SLACK = 1e-6
 
 @jit(nogil=True)
 def relax_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, floor, target, freqs, out,
-                      K_round, beam_bounds, stats, turn):
+                      K_round, beam_bounds, stats, turn, near):
     """Certified bounds over the whole box ``[0, kr] x [0, ki]`` at ``freqs``: ``out[k]``
     the upper bound of ``max_b |y_b|`` (``want_max``) or the lower one (m).
 
@@ -52,7 +54,11 @@ def relax_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, floor, target, fr
     beam's response onto another's, so they prove the same bound (verified here on each
     beam's own forms, like any start). The lower bound then ties each damper's
     multipliers across dampers (:func:`.tied_relaxation.tied_lower`; the full relaxation
-    where that verifies nothing).
+    where that verifies nothing). ``near > 0``: the upper bound's relaxation ties them
+    but at the ``2 near`` dampers next to the beam
+    (:func:`.partly_tied_relaxation.partly_tied_upper`; its forms' ``Z`` is Fourier
+    diagonal but for a low-rank part: for rings too large for the full relaxation,
+    where that verifies nothing the beam keeps its force bound).
     """
     n_f, nd = q0.shape
     nb = ylin.shape[1]
@@ -108,9 +114,16 @@ def relax_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, floor, target, fr
                     else:
                         t = np.nan
                 if np.isnan(t):
-                    stats[2] += 1
-                    t = solve(x, shift, V, idx, S, cvec, pos, simplex, grow,
-                              goal * goal / ys, ws, stats, 0.0, save)
+                    if ring and near > 0:
+                        t = partly_tied_upper(G[k], q0[k], ylin[k], H[k], lo, hi, F_lim, b,
+                                              goal, V, idx, S, x, cvec, pos, simplex, grow,
+                                              ws, stats, near)
+                        if np.isnan(t):
+                            stats[2] += 1       # it counts only the verified ones
+                    else:
+                        stats[2] += 1
+                        t = solve(x, shift, V, idx, S, cvec, pos, simplex, grow,
+                                  goal * goal / ys, ws, stats, 0.0, save)
                     if not np.isnan(t):
                         xprev[:] = x
                         have = True

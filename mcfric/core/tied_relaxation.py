@@ -172,25 +172,18 @@ def _expand(y, w, nd, per, nb, shift, simplex, x):
 
 
 @jit
-def tied_lower(G, q0, ylin, H, lo, hi, F_lim, goal, V, idx, S, x, cvec, pos, simplex, grow,
-               ws, stats):
-    """The verified lower bound of ``max_b |y_b|`` (m) over the dampers in ``[lo_j, hi_j]``
-    (N/m) and the force limit, for the arrays of a tuned ring under a travelling wave
-    (every beam in order, ``nb == nd``); ``nan`` where nothing verified (or the arrays
-    are not a tuned ring's). Stops once it proves ``goal`` (m). ``x`` receives the
-    verified full multipliers (for :func:`.relaxation.rounded`); ``stats`` as for
-    :func:`.relaxation.solve` (Newton steps, rounds, and the relaxation where it
-    verified: a failure is left uncounted to the caller's fallback)."""
-    shift, ys = forms(G, q0, ylin, H, lo, hi, F_lim, np.int64(-1), V, idx, S, x, cvec, pos,
-                      simplex, grow)
-    nd, nb, m, nn = len(q0), len(ylin), len(x), V.shape[0]
-    per = per_damper(np.isfinite(F_lim))
-    w = np.empty(m)
-    weights(S, nd, per, w)
+def tied_spectra(w, nd, per, nb, shift, coef, V, idx, S, x, simplex, ws):
+    """The spectra (:func:`_spectrum`) of the parts of ``Z`` with every damper's
+    multipliers tied, on a tuned ring: row 0 the constant part (the constant form with
+    weight ``coef``, every simplex weight ``1 / nb``), rows ``1 .. per`` each tied form,
+    row ``per + 1`` the shift's form. Returns ``(LA, GA, BE0, k0)``: the eigenvalues
+    (``per + 2``, ``nd``), the constant's diagonal entries, their couplings to mode
+    ``k0`` (the travelling wave's); ``k0 = -1`` where the arrays are not a tuned ring's
+    (``x``: scratch)."""
+    m = len(x)
     C, T, Z = ws[0], ws[1], ws[2]
     k = per + 1
-    # the spectra of the constant part (1/nb sum_b Y_b), of each tied form and of the
-    # shift's form, each assembled as the full forms are
+    # each part assembled as the full forms are
     LA = np.empty((k + 1, nd))
     GA = np.empty(k + 1)
     BE = np.empty((k + 1, nd), np.complex128)
@@ -204,13 +197,13 @@ def tied_lower(G, q0, ylin, H, lo, hi, F_lim, goal, V, idx, S, x, cvec, pos, sim
             for i in range(m):
                 if simplex[i]:
                     x[i] = 0.0
-        GA[a] = _spectrum(x, 1.0 if a == 0 else 0.0, V, idx, S, C, T, m, LA[a], BE[a])
+        GA[a] = _spectrum(x, coef if a == 0 else 0.0, V, idx, S, C, T, m, LA[a], BE[a])
     # a tuned ring's? The damper block of Z with every tied multiplier 1 (the constant
     # part and every form at once) must be circulant
     y[:] = 1.0
     y[per] = 0.0
     _expand(y, w, nd, per, nb, shift, simplex, x)
-    _assemble(x, 1.0, V, idx, S, C, T, Z, m)
+    _assemble(x, coef, V, idx, S, C, T, Z, m)
     worst = _departure(Z, nd)
     # the constant's column in one mode, the travelling wave's: the other modes' parts
     # measured against each form's largest eigenvalue or Fourier coefficient (the forms'
@@ -232,8 +225,31 @@ def tied_lower(G, q0, ylin, H, lo, hi, F_lim, goal, V, idx, S, x, cvec, pos, sim
             if i != k0:
                 worst = max(worst, abs(BE[a, i]) / size[a])
     if not worst <= CIRCULANT_TOL or not np.isfinite(LA).all():
+        k0 = np.int64(-1)
+    return LA, GA, BE[:, k0].copy(), k0
+
+
+@jit
+def tied_lower(G, q0, ylin, H, lo, hi, F_lim, goal, V, idx, S, x, cvec, pos, simplex, grow,
+               ws, stats):
+    """The verified lower bound of ``max_b |y_b|`` (m) over the dampers in ``[lo_j, hi_j]``
+    (N/m) and the force limit, for the arrays of a tuned ring under a travelling wave
+    (every beam in order, ``nb == nd``); ``nan`` where nothing verified (or the arrays
+    are not a tuned ring's). Stops once it proves ``goal`` (m). ``x`` receives the
+    verified full multipliers (for :func:`.relaxation.rounded`); ``stats`` as for
+    :func:`.relaxation.solve` (Newton steps, rounds, and the relaxation where it
+    verified: a failure is left uncounted to the caller's fallback)."""
+    shift, ys = forms(G, q0, ylin, H, lo, hi, F_lim, np.int64(-1), V, idx, S, x, cvec, pos,
+                      simplex, grow)
+    nd, nb, m, nn = len(q0), len(ylin), len(x), V.shape[0]
+    per = per_damper(np.isfinite(F_lim))
+    w = np.empty(m)
+    weights(S, nd, per, w)
+    k = per + 1
+    LA, GA, BE0, k0 = tied_spectra(w, nd, per, nb, shift, 1.0, V, idx, S, x, simplex, ws)
+    if k0 < 0:
         return np.nan
-    BE0 = BE[:, k0].copy()
+    y = np.zeros(k)
     lam = np.empty(nd)
     # start: damper 0's multipliers, the force limit's grown until the damper block is
     # definite, then s from the Schur complement (as relaxation.solve)
