@@ -19,6 +19,7 @@ from .relaxation import (
     shifted,
     solve,
     turned,
+    verified,
     weights,
 )
 from .tied_relaxation import tied_lower
@@ -106,9 +107,16 @@ def relax_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, floor, target, fr
                         for i in range(m):
                             xw[i] /= wcur[i]
                         lim = max(goal, ref * (1.0 + TURN_SLACK))
+                        # on a tuned ring they prove the solved beam's bound: checked
+                        # at that shift (one factorisation), the least shift sought
+                        # (two) only where that fails
+                        xw[shift] = (ref * (1.0 + TURN_SLACK)) ** 2 / ys
+                        if verified(xw, V, idx, S, m, pos, simplex, ws):
+                            t = xw[shift]
                     else:
                         xw[:] = xprev
-                    t = shifted(xw, shift, V, idx, S, pos, simplex, ws)
+                    if np.isnan(t):
+                        t = shifted(xw, shift, V, idx, S, pos, simplex, ws)
                     if t <= lim * lim / ys:
                         x[:] = xw
                     else:

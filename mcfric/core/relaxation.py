@@ -94,13 +94,20 @@ def _assemble(x, coef_const, V, idx, S, C, T, Z, m):
     scatter(x, coef_const, V, idx, S, C, T, m)
     for j in range(nn):
         for k in range(j, nn):
-            acc = 0j
-            for b in range(nv):
-                acc += T[j, b] * V[k, b].conjugate()
-            Z[j, k] = acc
-            Z[k, j] = acc.conjugate()
+            Z[j, k] = 0j
+    # the same sums in the same order, without the zero terms of V (most: a damper's p
+    # is a unit vector, and on a ring a q or y touches two or three dampers)
+    for b in range(nv):
+        for k in range(nn):
+            vkb = V[k, b].conjugate()
+            if vkb == 0:
+                continue
+            for j in range(k + 1):
+                Z[j, k] += T[j, b] * vkb
     for j in range(nn):
         Z[j, j] = Z[j, j].real
+        for k in range(j + 1, nn):
+            Z[k, j] = Z[j, k].conjugate()
 
 
 @jit
@@ -192,12 +199,14 @@ def verified(x, V, idx, S, m, pos, simplex, ws):
                 Cabs[idx[i, a], idx[i, b]] += w * abs(S[i, a, b])
     nv = V.shape[1]
     _sparse_product(Vabs, Cabs, Tabs)
-    for j in range(nn):
+    Zabs[:, :] = 0.0
+    for b in range(nv):
         for k in range(nn):
-            acc = 0.0
-            for b in range(nv):
-                acc += Tabs[j, b] * Vabs[k, b]
-            Zabs[j, k] = acc
+            vkb = Vabs[k, b]
+            if vkb == 0.0:
+                continue
+            for j in range(nn):
+                Zabs[j, k] += Tabs[j, b] * vkb
     frob = math.sqrt((Zabs ** 2).sum())
     trace = 0.0
     for j in range(nn):
