@@ -713,3 +713,47 @@ def test_partly_tied_multipliers_bound_a_tuned_ring_from_above():
     for k in range(n_f):
         force_bounds(arrays[2][k], arrays[3][k], F_LIM, eq10[k])
     np.testing.assert_array_equal(beams, eq10)
+
+
+def test_the_partly_tied_relaxation_declines_what_it_cannot_tie():
+    """``partly_tied_upper`` returns ``nan`` (no exception) where the beam's response is
+    not finite or ``2 r`` is not below the number of dampers, and ``relax_frequencies``
+    runs the full relaxation there: on an 8-blade ring ``near = 6`` gives the bits of
+    ``near = 0``."""
+    from mcfric.core.box_relaxation import relax_frequencies
+    from mcfric.core.partly_tied_relaxation import partly_tied_upper
+    from mcfric.core.receptance import contact_space
+    from mcfric.core.relaxation import buffers
+
+    from .test_certified import F_LIM, K_MAX
+
+    model = mcfric.disk(16, 2, 1.1)
+    a, b = model.dampers
+    G, q0, ylin, H = [np.ascontiguousarray(x[0]) for x in contact_space(
+        model.receptances(2 * np.pi * np.array([40.0]))[0], model.force, a, b)]
+    lo, hi = np.zeros(16, complex), np.full(16, K_MAX * (1 + 1j))
+
+    def upper(H, r):
+        return partly_tied_upper(G, q0, ylin, H, lo, hi, F_LIM, np.int64(5), 0.0,
+                                 *buffers(16, 16, True, False), np.zeros(5, np.int64),
+                                 np.int64(r))
+
+    assert np.isfinite(upper(H, 2))
+    bad = H.copy()
+    bad[5, 3] = np.nan
+    assert np.isnan(upper(bad, 2))
+    assert np.isnan(upper(H, 8))
+    model = mcfric.disk(8, 1, 1.1)
+    f = np.array([15.0, 80.0])
+    a, b = model.dampers
+    arrays = [np.ascontiguousarray(x) for x in
+              contact_space(model.receptances(2 * np.pi * f)[0], model.force, a, b)]
+    got = []
+    for near in (0, 6):
+        out = np.empty(2)
+        relax_frequencies(*arrays, K_MAX, K_MAX, F_LIM, True, np.zeros(2), np.zeros(2),
+                          np.arange(2, dtype=np.int64), out, np.full((2, 2, 8), np.nan + 0j),
+                          np.full((2, 8), np.inf), np.zeros(4, np.int64), True,
+                          np.int64(near))
+        got.append(out)
+    assert np.array_equal(got[0], got[1])

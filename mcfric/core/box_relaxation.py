@@ -59,7 +59,8 @@ def relax_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, floor, target, fr
     but at the ``2 near`` dampers next to the beam
     (:func:`.partly_tied_relaxation.partly_tied_upper`; its forms' ``Z`` is Fourier
     diagonal but for a low-rank part: for rings too large for the full relaxation,
-    where that verifies nothing the beam keeps its force bound).
+    where that verifies nothing the beam keeps its force bound; the full relaxation
+    where ``2 near >= nd``).
     """
     n_f, nd = q0.shape
     nb = ylin.shape[1]
@@ -122,7 +123,7 @@ def relax_frequencies(G, q0, ylin, H, kr, ki, F_lim, want_max, floor, target, fr
                     else:
                         t = np.nan
                 if np.isnan(t):
-                    if ring and near > 0:
+                    if ring and 0 < 2 * near < nd:
                         t = partly_tied_upper(G[k], q0[k], ylin[k], H[k], lo, hi, F_lim, b,
                                               goal, V, idx, S, x, cvec, pos, simplex, grow,
                                               ws, stats, near)

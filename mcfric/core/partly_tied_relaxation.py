@@ -12,13 +12,14 @@ tied form ``f`` gets ``y_f``, a near damper's ``y_f + delta_f``. Then
 ``Z_c`` the tied forms and the shift (circulant damper block, the constant's column in
 the travelling wave's Fourier mode: diagonal but for one 2 x 2 block in the Fourier
 basis) and ``U`` the ``R = 4 r + 2`` functionals the rest touches (each near damper's
-``q`` and ``p``, the constant, the beam's ``y_b``). With ``M = U^H Z_c^-1 U = L L^H``,
-``log det Z = log det Z_c + log det (I + L^H G L)`` and ``Z^-1 = Z_c^-1 - P Q P^H``
-(``P = Z_c^-1 U``, ``Q = (I + G M)^-1 G``), so a Newton step of the log-det barrier
-costs ``O(nd R^2)`` instead of ``O(nd^3)``. The barrier also keeps ``Z_c`` definite (a
-restriction: it only finds multipliers). They are expanded onto the full forms and
-verified there (:func:`.relaxation.shifted`), so neither the tying, the Fourier basis
-nor their rounding can reach the bound.
+``q`` and ``p``, the constant, the beam's ``y_b``), ``U = W T`` with ``W`` an
+orthonormal basis of their span (:func:`_basis`). With ``M = W^H Z_c^-1 W = L L^H``
+and ``G' = T G T^H``, ``log det Z = log det Z_c + log det (I + L^H G' L)`` and
+``Z^-1 = Z_c^-1 - P Q P^H`` (``P = Z_c^-1 W``, ``Q = (I + G' M)^-1 G'``), so a Newton
+step of the log-det barrier costs ``O(nd R^2)`` instead of ``O(nd^3)``. The barrier
+also keeps ``Z_c`` definite (a restriction: it only finds multipliers). They are
+expanded onto the full forms and verified there (:func:`.relaxation.shifted`), so
+neither the tying, the Fourier basis nor their rounding can reach the bound.
 """
 
 import math
@@ -71,7 +72,7 @@ def _fourier(V, cols, Uh):
 @jit
 def _basis(Uh):
     """``(W, T)``: orthonormal columns ``W`` spanning ``Uh``'s and ``T`` with
-    ``Uh = W T`` (to ``BASIS_TOL``)."""
+    ``Uh = W T`` (to ``BASIS_TOL``); no columns where ``Uh`` is not finite."""
     R = Uh.shape[1]
     norms = np.ones(R)
     Un = np.empty_like(Uh)
@@ -83,6 +84,8 @@ def _basis(Uh):
             norms[c] = math.sqrt(s)
         for k in range(Uh.shape[0]):
             Un[k, c] = Uh[k, c] / norms[c]
+    if not np.isfinite(Un).all():
+        return np.empty((Uh.shape[0], 0), np.complex128), np.empty((0, R), np.complex128)
     u, sv, vh = np.linalg.svd(Un, full_matrices=False)
     rho = 0
     for i in range(len(sv)):
@@ -156,7 +159,7 @@ def _factor(v, per, LA, GA, BE, k0, W, T, gconst, pa, pb, Sd, lam, blk, P, M, Lm
             M[r, s] = acc
             M[s, r] = acc.conjugate()
         M[r, r] = M[r, r].real
-    if np.isnan(cholesky(M, Lm, rho)):
+    if not np.isfinite(cholesky(M, Lm, rho)):
         return np.nan
     _low_rank(v, per, gconst, pa, pb, Sd, Gm)
     # Gp = T G T^H with G sparse (a few entries per row)
@@ -183,7 +186,7 @@ def _factor(v, per, LA, GA, BE, k0, W, T, gconst, pa, pb, Sd, lam, blk, P, M, Lm
             H2[s, r] = acc.conjugate()
         H2[r, r] = H2[r, r].real + 1.0
     l2 = cholesky(H2, L2, rho)
-    if np.isnan(l2):
+    if not np.isfinite(l2):
         return np.nan
     return logdet + l2
 
@@ -205,7 +208,7 @@ def _value(v, mu, per, tnorm, LA, GA, BE, k0, W, T, gconst, pa, pb, Sd, work):
         f -= math.log(s)
     logdet = _factor(v, per, LA, GA, BE, k0, W, T, gconst, pa, pb, Sd, lam, blk, P, M, Lm,
                      Gm, Gp, H2, L2, yt)
-    if np.isnan(logdet):
+    if not np.isfinite(logdet):
         return np.inf
     return f - logdet
 
@@ -234,10 +237,12 @@ def _derivatives(v, mu, per, tnorm, LA, GA, BE, k0, T, pa, pb, Sd, work, g, Hm):
             for i in range(rho):
                 acc += Gp[r, i] * M[i, s]
             A[r, s] = acc
-    piv = np.empty(rho, np.int64)
+    piv = np.zeros(rho, np.int64)
     Q = np.empty((rho, rho), np.complex128)
     col = np.empty(rho, np.complex128)
-    lu_factor(A, piv, rho)
+    if lu_factor(A, piv, rho) != 0:
+        g[:] = np.nan                   # the caller's solve then stops
+        return
     for s in range(rho):
         col[:] = Gp[:, s]
         lu_solve(A, piv, col, rho)
@@ -430,6 +435,8 @@ def _setup(G, q0, ylin, H, lo, hi, F_lim, beam, V, idx, S, x, cvec, pos, simplex
     Uh = np.empty((nn, R), np.complex128)
     _fourier(V, cols, Uh)
     W, T = _basis(Uh)
+    if W.shape[1] == 0:
+        k0 = np.int64(-1)
     for n in range(2 * r):
         for f in range(per):
             d = n * per + f
@@ -466,11 +473,12 @@ def partly_tied_upper(G, q0, ylin, H, lo, hi, F_lim, beam, goal, V, idx, S, x, c
     travelling wave (every beam in order, ``nb == nd``), the multipliers tied but at the
     ``2 r`` dampers next to the beam: the shift's verified value (as
     :func:`.relaxation.solve`: times the scale :func:`.relaxation.forms` returns, a
-    bound of ``|y_beam|^2``, m^2), ``nan`` where nothing verified or the arrays are not
-    a tuned ring's. Stops once it proves ``goal`` (m). ``x`` receives the verified full
-    multipliers; ``stats`` as for :func:`.relaxation.solve` (Newton steps, rounds, and
-    the relaxation where it verified)."""
-    nd, nb, m, nn = len(q0), len(ylin), len(x), V.shape[0]
+    bound of ``|y_beam|^2``, m^2; at worst its start's), ``nan`` where the start does not
+    verify or the arrays are not a tuned ring's. Stops once it proves ``goal`` (m).
+    ``x`` receives the verified full multipliers; ``stats`` as for
+    :func:`.relaxation.solve` (Newton steps, rounds, and the relaxation where it
+    verified)."""
+    nd, nb, nn = len(q0), len(ylin), V.shape[0]
     if nb != nd or not 0 < 2 * r < nd:
         return np.nan
     (shift, ys, per, w, LA, GA, BE, k0, near, W, T, pa, pb, Sd,
@@ -499,6 +507,9 @@ def partly_tied_upper(G, q0, ylin, H, lo, hi, F_lim, beam, goal, V, idx, S, x, c
             v[:per] *= 2.0
     if np.isnan(t0):
         return np.nan
+    # the start is verified: a bound already, which the rounds only improve on
+    best = t0
+    xb = x.copy()
     sgn = S[shift, 0, 0].real
     v[per] = (t0 + 1.0 + abs(t0)) / sgn
     tnorm = cvec[shift]
@@ -510,11 +521,10 @@ def partly_tied_upper(G, q0, ylin, H, lo, hi, F_lim, beam, goal, V, idx, S, x, c
     Lh = np.zeros((k, k))
     dv = np.empty(k)
     vn = np.empty(k)
-    xb = np.empty(m)
     Vs = np.empty((MAX_ROUNDS, k))
     nr = 0
-    best = np.nan
     steps = 0
+    found = False
     while steps < MAX_STEPS:
         for inner in range(STEPS_PER_ROUND):
             f0 = _value(v, mu, per, tnorm, LA, GA, BE, k0, W, T, gconst, pa, pb, Sd, work)
@@ -557,20 +567,24 @@ def partly_tied_upper(G, q0, ylin, H, lo, hi, F_lim, beam, goal, V, idx, S, x, c
         if sgn * v[per] <= target or done:
             _expand(v, w, nd, per, near, shift, x)
             val = shifted(x, shift, V, idx, S, pos, simplex, ws)
-            if not np.isnan(val) and (np.isnan(best) or val < best):
-                best = val
-                xb[:] = x
+            if not np.isnan(val):
+                found = True
+                if val < best:
+                    best = val
+                    xb[:] = x
             if best <= target or done:
                 break
         mu *= MU_FACTOR
     back = nr - 2
-    while np.isnan(best) and back >= 0:
+    while not found and back >= 0:
         _expand(Vs[back], w, nd, per, near, shift, x)
-        best = shifted(x, shift, V, idx, S, pos, simplex, ws)
-        xb[:] = x
+        val = shifted(x, shift, V, idx, S, pos, simplex, ws)
+        if not np.isnan(val):
+            found = True
+            if val < best:
+                best = val
+                xb[:] = x
         back -= 1
-    if np.isnan(best):
-        return np.nan
     stats[2] += 1
     x[:] = xb
     return best

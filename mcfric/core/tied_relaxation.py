@@ -224,7 +224,8 @@ def tied_spectra(w, nd, per, nb, shift, coef, V, idx, S, x, simplex, ws):
         for i in range(nd):
             if i != k0:
                 worst = max(worst, abs(BE[a, i]) / size[a])
-    if not worst <= CIRCULANT_TOL or not np.isfinite(LA).all():
+    if (not worst <= CIRCULANT_TOL or not np.isfinite(LA).all()
+            or not np.isfinite(BE).all() or not np.isfinite(GA).all()):
         k0 = np.int64(-1)
     return LA, GA, BE[:, k0].copy(), k0
 
