@@ -466,6 +466,20 @@ def _work(nd, rho, R, nt):
 
 
 @jit
+def _kept(v, w, nd, per, near, shift, V, idx, S, pos, simplex, ws, x, xb, best):
+    """``(verified, best)``: whether the multipliers ``v``, expanded into ``x``, verify
+    on the full forms, and the least verified shift so far (``xb`` its multipliers)."""
+    _expand(v, w, nd, per, near, shift, x)
+    val = shifted(x, shift, V, idx, S, pos, simplex, ws)
+    if np.isnan(val):
+        return False, best
+    if val < best:
+        xb[:] = x
+        return True, val
+    return True, best
+
+
+@jit
 def partly_tied_upper(G, q0, ylin, H, lo, hi, F_lim, beam, goal, V, idx, S, x, cvec, pos,
                       simplex, grow, ws, stats, r):
     """The verified relaxation of ``|y_beam|^2`` from above over the dampers in
@@ -565,25 +579,16 @@ def partly_tied_upper(G, q0, ylin, H, lo, hi, F_lim, beam, goal, V, idx, S, x, c
         nr += 1
         done = mu * nu <= TOL * abs(v[per]) or steps >= MAX_STEPS or nr == len(Vs)
         if sgn * v[per] <= target or done:
-            _expand(v, w, nd, per, near, shift, x)
-            val = shifted(x, shift, V, idx, S, pos, simplex, ws)
-            if not np.isnan(val):
-                found = True
-                if val < best:
-                    best = val
-                    xb[:] = x
+            ok, best = _kept(v, w, nd, per, near, shift, V, idx, S, pos, simplex, ws, x,
+                             xb, best)
+            found = found or ok
             if best <= target or done:
                 break
         mu *= MU_FACTOR
     back = nr - 2
     while not found and back >= 0:
-        _expand(Vs[back], w, nd, per, near, shift, x)
-        val = shifted(x, shift, V, idx, S, pos, simplex, ws)
-        if not np.isnan(val):
-            found = True
-            if val < best:
-                best = val
-                xb[:] = x
+        found, best = _kept(Vs[back], w, nd, per, near, shift, V, idx, S, pos, simplex, ws,
+                            x, xb, best)
         back -= 1
     stats[2] += 1
     x[:] = xb
