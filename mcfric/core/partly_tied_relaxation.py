@@ -57,14 +57,16 @@ def _fourier(V, cols, Uh):
     diagonalises the tied forms in."""
     nd = V.shape[0] - 1
     scale = 1.0 / math.sqrt(nd)
+    # the nd roots of unity, once: every column's transform takes its factors from them
+    roots = np.empty(nd, np.complex128)
+    for i in range(nd):
+        roots[i] = complex(math.cos(2.0 * math.pi * i / nd), -math.sin(2.0 * math.pi * i / nd))
     for c in range(len(cols)):
         col = cols[c]
         for k in range(nd):
             acc = 0j
             for r in range(nd):
-                e = complex(math.cos(2.0 * math.pi * ((r * k) % nd) / nd),
-                            -math.sin(2.0 * math.pi * ((r * k) % nd) / nd))
-                acc += V[r, col] * e
+                acc += V[r, col] * roots[(r * k) % nd]
             Uh[k, c] = acc * scale
         Uh[nd, c] = V[nd, col]
 
