@@ -269,5 +269,5 @@ def workspace(nd, nb, hr, gr):
     return (np.zeros((nd, nd), c16), np.zeros((nd, nd), c16), np.zeros(nd, np.int64),
             np.zeros(nd, c16), np.zeros(nb, c16), np.zeros(nd, c16), np.zeros(nb, c16),
             np.zeros(nb, c16), np.zeros(nd, c16), np.zeros(nd, c16), np.zeros(nb),
-            np.zeros((5, nb)), hr.copy(), gr.copy(), np.zeros(1, np.int64),
+            np.zeros((6, nb)), hr.copy(), gr.copy(), np.zeros(1, np.int64),
             np.zeros(nd, c16), np.zeros(nd, c16))

@@ -46,6 +46,51 @@ def _dominated(alpha_b, beta_b, d0, d1, z, best_val):
         den.real * den.real + den.imag * den.imag)
 
 
+#: The minimum's edges are pruned (:func:`_edge_candidates`) above this many beams: below
+#: it the pairwise crossings cost little, and on chains pruning changes the search's path
+#: through ties (the same edge minima, other local minima found: docs/performance.md).
+PRUNE_BEAMS = 16
+#: Widening of each beam's below-the-best interval, in the edge parameter: far more than
+#: the rounding of a quadratic's roots, so no candidate that could improve is dropped.
+HULL_SLACK = 1e-6
+
+
+@inline_jit
+def _below_hull(c2, c1, c0):
+    """Hull ``(lo, hi)`` within [0, 1] of the ``t`` where ``c2 t^2 + c1 t + c0 < 0``,
+    widened by ``HULL_SLACK``; ``lo > hi`` where there is none."""
+    r1, r2 = quad_roots(c2, c1, c0)
+    if c2 == 0.0:
+        if math.isnan(r1):                      # constant
+            return (0.0, 1.0) if c0 < 0.0 else (1.0, 0.0)
+        lo, hi = (r1, 1.0) if c1 < 0.0 else (0.0, r1)
+    elif math.isnan(r1) or math.isnan(r2):      # no real root: one sign throughout
+        return (0.0, 1.0) if c2 < 0.0 else (1.0, 0.0)
+    else:
+        if r1 > r2:
+            r1, r2 = r2, r1
+        if c2 > 0.0:                            # between the roots
+            lo, hi = r1, r2
+        else:                                   # outside them: the hull of both pieces
+            lo = 0.0 if r1 > 0.0 else r2
+            hi = 1.0 if r2 < 1.0 else r1
+    return max(0.0, lo - HULL_SLACK), min(1.0, hi + HULL_SLACK)
+
+
+@inline_jit
+def _range_on(E, b, c0, c1, c2, lo, hi):
+    """Smallest and largest ``|y_b|^2`` for ``t`` in [lo, hi] (rows 0-4 of ``E`` as
+    :func:`_edge_candidates` leaves them)."""
+    fmin = math.inf
+    fmax = 0.0
+    for t in (lo, hi, E[3, b], E[4, b]):
+        if t >= lo and t <= hi:
+            v = (E[0, b] + t * (E[1, b] + t * E[2, b])) / (c0 + t * (c1 + t * c2))
+            fmin = min(fmin, v)
+            fmax = max(fmax, v)
+    return fmin, fmax
+
+
 @inline_jit
 def _edge_candidates(alpha, beta, d0, d1, z0, z1, want_max, b0, b1, best_val, best_z, pair,
                      E, first):
@@ -53,7 +98,7 @@ def _edge_candidates(alpha, beta, d0, d1, z0, z1, want_max, b0, b1, best_val, be
 
     Updates and returns (best_val, best_z, b): ``b`` the beam that ruled the edge out
     (else ``first``), tried ``first`` on the next edge. ``pair``: the minimum (also
-    pairwise crossings). ``E``: scratch, shape (>= 5, nb).
+    pairwise crossings). ``E``: scratch, shape (>= 6, nb).
     """
     dz = z1 - z0
     den0 = d0 + d1 * z0
@@ -68,6 +113,12 @@ def _edge_candidates(alpha, beta, d0, d1, z0, z1, want_max, b0, b1, best_val, be
     # left comes below it: each pair's crossings are candidates
     lim = best_val * best_val * (1.0 + 1e-6)
     n = b1 - b0
+    # for the minimum, the part of the edge where every beam is below ``lim`` (its hull
+    # [lo, hi]): a candidate outside it has some |y_b| above the best value, so it
+    # cannot improve; when the hull is empty the O(nb^2) pairwise crossings are skipped
+    prune = pair and n > PRUNE_BEAMS
+    lo = 0.0
+    hi = 1.0
     for i in range(n):
         b = b0 + (first - b0 + i) % n
         A = alpha[b] + beta[b] * z0
@@ -89,7 +140,25 @@ def _edge_candidates(alpha, beta, d0, d1, z0, z1, want_max, b0, b1, best_val, be
             if emin >= lim:
                 # M >= |y_b| >= best on the whole edge: nothing here can lower it
                 return best_val, best_z, b
+            if prune:
+                blo, bhi = _below_hull(a2 - lim * c2, a1 - lim * c1, a0 - lim * c0)
+                lo = max(lo, blo)
+                hi = min(hi, bhi)
+    top = 0.0
+    if prune:
+        if lo > hi:
+            return best_val, best_z, first
+        # the minimum of M inside [lo, hi] is a stationary point of the beam on top there
+        # or a crossing of two beams on top: a beam whose largest value in [lo, hi] is
+        # below another's smallest is never on top, and makes no candidates (row 5)
+        for b in range(b0, b1):
+            fmin, fmax = _range_on(E, b, c0, c1, c2, lo, hi)
+            E[5, b] = fmax
+            top = max(top, fmin)
+        top *= 1.0 - 1e-6
     for b in range(b0, b1):
+        if prune and E[5, b] < top:
+            continue
         a0 = E[0, b]
         a1 = E[1, b]
         a2 = E[2, b]
@@ -103,6 +172,8 @@ def _edge_candidates(alpha, beta, d0, d1, z0, z1, want_max, b0, b1, best_val, be
                         best_val = v
                         best_z = z0 + t * dz
                     continue
+                if prune and (t < lo or t > hi):
+                    continue            # some beam is above the best value there
                 z = z0 + t * dz
                 if _dominated(alpha[b], beta[b], d0, d1, z, best_val):
                     continue            # skips most full evaluations
@@ -112,9 +183,11 @@ def _edge_candidates(alpha, beta, d0, d1, z0, z1, want_max, b0, b1, best_val, be
                     best_z = z
         if pair:
             for c in range(b + 1, b1):
+                if prune and E[5, c] < top:
+                    continue
                 s1, s2 = quad_roots(E[2, c] - a2, E[1, c] - a1, E[0, c] - a0)
                 for t in (s1, s2):
-                    if t > 0.0 and t < 1.0:
+                    if t > lo and t < hi:
                         z = z0 + t * dz
                         if _dominated(alpha[b], beta[b], d0, d1, z, best_val):
                             continue
