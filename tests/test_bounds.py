@@ -238,12 +238,12 @@ def test_exact_coordinate_minimum_equals_a_dense_search_of_the_rectangle():
 def test_pruned_edges_of_many_beams_find_the_edge_minimum_of_a_dense_sampling():
     """Above ``PRUNE_BEAMS`` beams the minimum's edges make candidates only where every
     beam is below the best value, and only of beams that can be the largest there: the
-    perimeter minimum is still found, at most a dense sampling of the edges (200,001
+    perimeter minimum is still found, at most a dense sampling of the edges (50,001
     points each), with near-tied beams (a tuned ring's) among the cases."""
     from mcfric.core.rectangle import PRUNE_BEAMS, best_on_rectangle
 
     rng = np.random.default_rng(7)
-    t = np.linspace(0.0, 1.0, 200_001)
+    t = np.linspace(0.0, 1.0, 50_001)
     for trial in range(40):
         nb = int(rng.integers(PRUNE_BEAMS + 1, 4 * PRUNE_BEAMS))
         spread = [1.0, 0.05, 1e-3][trial % 3]      # random, near-tied, almost equal
@@ -262,6 +262,7 @@ def test_pruned_edges_of_many_beams_find_the_edge_minimum_of_a_dense_sampling():
         v, z = best_on_rectangle(alpha, beta, d0, d1, kr, ki, False, 0j, 0, nb, False, E)
         assert v <= ref * (1 + 1e-12), (trial, v, ref)
         assert np.max(np.abs(alpha + beta * z)) / abs(d0 + d1 * z) == pytest.approx(v, rel=1e-12)
+
 
 def test_banded_elimination_of_the_smoothed_maximum_equals_dense_lu():
     """The smoothed maximum and its gradient by the O(nd) eliminations (chain, and the

@@ -12,7 +12,9 @@ box, so the denominator has no zero there. The extreme of ``M`` over the rectang
 * for the minimum, ``M`` may dip inside: edges also take the pairwise crossings
   ``|y_b| = |y_c|``, and in ``w = 1 / (d0 + d1 z)`` every ``|y_b|`` is a weighted
   distance, so the interior minimum is the weighted 1-centre (:mod:`.one_centre`), kept
-  if it maps back inside the rectangle.
+  if it maps back inside the rectangle. Above ``PRUNE_BEAMS`` beams an edge makes
+  candidates only inside the hull where every beam is below the best value, and only
+  of beams that can be on top there (the same minimum, without all O(nb^2) pairs).
 
 The docs' bounds page explains where this sits in the search.
 """
@@ -78,6 +80,12 @@ def _below_hull(c2, c1, c0):
 
 
 @inline_jit
+def _ratio(a0, a1, a2, c0, c1, c2, t):
+    """``|y_b|^2`` at ``t`` on an edge: ``(a2 t^2 + a1 t + a0) / (c2 t^2 + c1 t + c0)``."""
+    return (a0 + t * (a1 + t * a2)) / (c0 + t * (c1 + t * c2))
+
+
+@inline_jit
 def _range_on(E, b, c0, c1, c2, lo, hi):
     """Smallest and largest ``|y_b|^2`` for ``t`` in [lo, hi] (rows 0-4 of ``E`` as
     :func:`_edge_candidates` leaves them)."""
@@ -85,7 +93,7 @@ def _range_on(E, b, c0, c1, c2, lo, hi):
     fmax = 0.0
     for t in (lo, hi, E[3, b], E[4, b]):
         if t >= lo and t <= hi:
-            v = (E[0, b] + t * (E[1, b] + t * E[2, b])) / (c0 + t * (c1 + t * c2))
+            v = _ratio(E[0, b], E[1, b], E[2, b], c0, c1, c2, t)
             fmin = min(fmin, v)
             fmax = max(fmax, v)
     return fmin, fmax
@@ -136,7 +144,7 @@ def _edge_candidates(alpha, beta, d0, d1, z0, z1, want_max, b0, b1, best_val, be
             emin = min(a0 / c0, (a0 + a1 + a2) / (c0 + c1 + c2))
             for t in (r1, r2):
                 if t > 0.0 and t < 1.0:
-                    emin = min(emin, (a0 + t * (a1 + t * a2)) / (c0 + t * (c1 + t * c2)))
+                    emin = min(emin, _ratio(a0, a1, a2, c0, c1, c2, t))
             if emin >= lim:
                 # M >= |y_b| >= best on the whole edge: nothing here can lower it
                 return best_val, best_z, b
@@ -163,17 +171,15 @@ def _edge_candidates(alpha, beta, d0, d1, z0, z1, want_max, b0, b1, best_val, be
         a1 = E[1, b]
         a2 = E[2, b]
         for t in (E[3, b], E[4, b]):
-            if t > 0.0 and t < 1.0:
+            if t > lo and t < hi:       # (lo, hi) = (0, 1) unless pruned
                 if want_max:
                     # the edge maximum of M is the largest of each beam's own maximum:
                     # beam b's candidates need only |y_b|
-                    v = math.sqrt((a0 + t * (a1 + t * a2)) / (c0 + t * (c1 + t * c2)))
+                    v = math.sqrt(_ratio(a0, a1, a2, c0, c1, c2, t))
                     if v > best_val:
                         best_val = v
                         best_z = z0 + t * dz
                     continue
-                if prune and (t < lo or t > hi):
-                    continue            # some beam is above the best value there
                 z = z0 + t * dz
                 if _dominated(alpha[b], beta[b], d0, d1, z, best_val):
                     continue            # skips most full evaluations
