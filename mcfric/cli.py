@@ -142,7 +142,8 @@ def _parser():
                    help="bounds file (default: mcfric-results/bounds-<name>.h5)")
     _model_flags(b)
     b.add_argument("--k-max", type=float, metavar="N_PER_M",
-                   help="largest Re K and Im K of a damper, N/m (default: from kc)")
+                   help="largest Re K of a damper, N/m, and Im K unless k_max_im is "
+                        "set (default: from kc)")
     b.add_argument("--F-lim", type=_number_or_none, metavar="N",
                    help='friction force limit, N, or "none" (default: 4/pi mu0_max N0_max)')
     b.add_argument("--threads", type=int, metavar="T", help="numba threads (0 = all)")

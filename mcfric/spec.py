@@ -76,7 +76,8 @@ class BoundsSpec:
         Whether the bounds are also certified (branch and bound).
     budget : int or None
         Enclosures per frequency and bound of the certification; None: 4000 for one
-        damper, 400 for more.
+        damper, 400 for more, 50 from six dampers where a relaxation follows
+        (:func:`mcfric.bounds.certified.default_budget`).
     split : int or None
         Relaxations of parts of the box per frequency where the relaxation of the whole
         box leaves the upper bound loose, the lower bound at most 800 of them (0: none);
