@@ -3,7 +3,8 @@
 A configuration is resolved in three layers, later ones winning:
 
 1. the defaults of a preset (``model.preset``: ``two-beam``, ``eight-beam``, ``disk-24``
-   or ``disk-72``; the rig itself comes from :mod:`mcfric.presets`), plus the paper's ensemble;
+   or ``disk-72``; the rig itself comes from :mod:`mcfric.presets`), plus the paper's
+   ensemble;
 2. the TOML file, key by key (a ``[sampling.<param>]`` distribution table and the
    ``[[model.beam]]`` list are replaced whole, not merged);
 3. command-line overrides (``--samples``, ``--F0``, ...).
