@@ -27,22 +27,20 @@ def _child(samples, n_freq, out):
     """Run the small ``mcfric run`` and write the compile events to ``out``."""
     from numba.core import event
 
-    stack, events = [], []
+    # events in start order; ``parent`` is the index of the compile that asked for this one
+    stack, starts, events = [], [], []
 
     class _Listener(event.Listener):
         def on_start(self, ev):
-            stack.append((ev.data["dispatcher"].py_func.__qualname__, time.perf_counter()))
+            events.append(dict(kernel=ev.data["dispatcher"].py_func.__qualname__,
+                               parent=stack[-1] if stack else None, depth=len(stack)))
+            stack.append(len(events) - 1)
+            starts.append(time.perf_counter())
 
         def on_end(self, ev):
-            name, t0 = stack.pop()
-            parent = stack[-1][0] if stack else None
-            events.append(dict(kernel=name, parent=parent, depth=len(stack),
-                               seconds=time.perf_counter() - t0))
+            events[stack.pop()]["seconds"] = time.perf_counter() - starts.pop()
 
     event.register("numba:compile", _Listener())
-    import matplotlib
-
-    matplotlib.use("Agg")
     from mcfric import cli
 
     t = time.perf_counter()
@@ -54,17 +52,13 @@ def _child(samples, n_freq, out):
 
 
 def _chain(events, top):
-    """The costliest path of compiles under the top-level kernel ``top``."""
-    path, name, depth = [], top, 0
-    while name is not None:
-        mine = [e for e in events if e["kernel"] == name and e["depth"] == depth]
-        if not mine:
-            break
-        path.append(max(mine, key=lambda e: e["seconds"]))
-        kids = [e for e in events if e["parent"] == name and e["depth"] == depth + 1]
-        name = max(kids, key=lambda e: e["seconds"])["kernel"] if kids else None
-        depth += 1
-    return path
+    """The costliest path of compiles down from the event at index ``top``."""
+    path = [top]
+    while True:
+        kids = [i for i, e in enumerate(events) if e["parent"] == path[-1]]
+        if not kids:
+            return [events[i] for i in path]
+        path.append(max(kids, key=lambda i: events[i]["seconds"]))
 
 
 def main(argv=None):
@@ -89,7 +83,10 @@ def main(argv=None):
     cold, warm = runs
     if cold["rc"] or warm["rc"]:
         sys.exit(f"bench/compile.py: mcfric run exited with {cold['rc']} / {warm['rc']}")
-    top = sorted((e for e in cold["events"] if e["depth"] == 0), key=lambda e: -e["seconds"])
+    ev = cold["events"]
+    roots = sorted((i for i, e in enumerate(ev) if e["parent"] is None),
+                   key=lambda i: -ev[i]["seconds"])
+    top = [ev[i] for i in roots]
     total = sum(e["seconds"] for e in top)
     print(f"mcfric run two-beam, {args.samples} samples x {args.n_freq} frequencies")
     print(f"empty cache {cold['wall']:.1f} s, loaded cache {warm['wall']:.1f} s: "
@@ -98,7 +95,7 @@ def main(argv=None):
     print("kernels compiled from Python (callees included):")
     for e in top:
         print(f"  {e['seconds']:7.1f} s  {100 * e['seconds'] / total:5.1f} %  {e['kernel']}")
-    chain = _chain(cold["events"], top[0]["kernel"])
+    chain = _chain(ev, roots[0])
     print(f"the costliest chain, under {top[0]['kernel']} (each level's compile, callees "
           "included):")
     for e in chain:
