@@ -407,6 +407,11 @@ def test_the_lower_bound_is_not_tight_where_no_upper_bound_is_proved():
     C.K_upper = np.zeros((n, 8), complex)
     text = C.summary(np.array([10.0, 20.0, 30.0]))
     assert "no branch and bound above 7 dampers" in text and "budget" not in text
+    assert "relaxation" not in text
+    # ... and a tuned ring whose relaxation ran says so
+    C.relaxed = True
+    text = C.summary(np.array([10.0, 20.0, 30.0]))
+    assert "(a relaxation only, no branch and bound above 7 dampers)" in text
 
 
 def test_force_bounds_are_rounded_outwards():

@@ -513,6 +513,34 @@ def test_tuned_rings_above_24_blades_get_tied_relaxations():
         assert C.lower[k] <= M.min() and M.max() <= C.upper[k], fk
 
 
+def test_tuned_rings_above_96_blades_get_tied_relaxations():
+    """A 100-blade tuned ring (engine order 8) at 14 and 90 Hz: the tied relaxations
+    certify it too (they stopped at 96 blades once, above which the certificate was Eq.
+    10 and 0): the lower bound above 0, the upper one below Eq. 10, both enclosing 1000
+    random admissible points per frequency (physical-space solves). The search's optima
+    are left out (uniform candidates): the bounds' validity does not rest on them."""
+    from mcfric.bounds.certified import certify
+    from mcfric.core.receptance import contact_space
+
+    from .test_certified import F_LIM, K_MAX, random_admissible
+
+    model = mcfric.disk(100, 8, 1.1)
+    f = np.array([14.0, 90.0])
+    a, b = model.dampers
+    G, q0, ylin, H = [np.ascontiguousarray(x) for x in
+                      contact_space(model.receptances(2 * np.pi * f)[0], model.force, a, b)]
+    K0 = np.zeros(q0.shape, complex)
+    C = certify(G, q0, ylin, H, K_MAX, K_MAX, F_LIM, K0, K0, np.ones(len(f)), turned=True)
+    assert C.relaxed and C.first_order[0] == 2 * len(f)
+    eq10 = (np.abs(ylin) + F_LIM * np.abs(H).sum(axis=2)).max(axis=1)
+    assert np.all(C.upper < eq10) and np.all(C.upper >= C.upper_witness)
+    assert np.all(C.lower > 0) and np.all(C.lower <= C.lower_witness)
+    for k, fk in enumerate(f):
+        M = random_admissible(model, fk, 1000, 110 + k)
+        assert len(M) > 100
+        assert C.lower[k] <= M.min() and M.max() <= C.upper[k], fk
+
+
 def test_the_tied_relaxation_reaches_the_lower_bound_of_72_blades_near_resonance():
     """``disk-72``'s rings (72 blades, engine order 8) at 10 and 14 Hz: the tied
     relaxation proves a lower bound above 0 (with 40 Newton steps per barrier weight it
