@@ -55,6 +55,21 @@ def test_embedded_default_is_eight_beam_at_1_1_newton():
     assert cfg.model().excitation.pattern == "mode" and cfg.model().n_beams == 8
 
 
+def test_a_preset_with_another_beam_count_is_renamed():
+    """``disk-72`` with 120 blades is not ``disk-72``: unless a name is given it is called
+    ``disk-120`` (other presets: the count in brackets); the preset's own count and a given
+    name are kept."""
+    def name(model, **kw):
+        return config.load({"model": model}, kw or None).model().name
+
+    assert name({"preset": "disk-72", "n_beams": 120}) == "disk-120"
+    assert name({"preset": "eight-beam", "n_beams": 12}) == "eight-beam (12 beams)"
+    assert name({"preset": "disk-72", "n_beams": 72}) == "disk-72"
+    assert name({"preset": "disk-24", "n_beams": 30, "name": "rig B"}) == "rig B"
+    assert name({"preset": "disk-24", "n_beams": 30},
+                **{"model.name": ("rig C", "--name")}) == "rig C"
+
+
 def test_overrides_apply_and_name_their_flag():
     cfg = config.load("two-beam", {"excitation.F0": (0.72, "--F0"),
                                    "frequency.n": (50, "--n-freq"),

@@ -97,7 +97,23 @@ def load(source=None, overrides=None):
             continue
         set_key(raw, key, value)
         labels[key] = label
+    _rename(raw, user, labels, base_name)
     return validate(raw, labels)
+
+
+def _rename(raw, user, labels, base_name):
+    """A preset's name with another beam count is not that preset: unless a name is given,
+    ``disk-72`` with ``n_beams = 120`` is called ``disk-120``, ``eight-beam`` with 12 beams
+    ``eight-beam (12 beams)`` (headers, plots, ``mcfric info`` and the results file)."""
+    m = raw.get("model")
+    given = isinstance(user.get("model"), dict) and "name" in user["model"]
+    if not isinstance(m, dict) or given or "model.name" in labels:
+        return
+    n = m.get("n_beams")
+    if (not isinstance(n, int) or isinstance(n, bool)
+            or n == defaults(base_name)["model"]["n_beams"]):
+        return
+    m["name"] = f"disk-{n}" if base_name.startswith("disk-") else f"{base_name} ({n} beams)"
 
 
 MODAL_FILE_KEYS = ("file", "nodes", "direction", "modes", "max_imag")
