@@ -56,8 +56,8 @@ MAX_DAMPERS = 7
 #: Above it, on tuned rings of any size, the relaxations with the multipliers tied across
 #: dampers run instead (the lower bound's all, the upper bound's but near the beam:
 #: Fourier barriers, cheap; the checks of every beam's turned multipliers and the climbs
-#: and descents to the witnesses cost more, about as much as the searched bounds on 96 to
-#: 144 blades: the docs' performance page).
+#: and descents to the witnesses cost more, about as the searches do: the docs'
+#: performance page).
 MAX_TURNED = 24
 #: The ascent to the upper witness over the admissible set, per frequency: random points
 #: of the box tried (besides no damper and the search's box optimum) ...
