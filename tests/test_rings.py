@@ -513,12 +513,14 @@ def test_tuned_rings_above_24_blades_get_tied_relaxations():
         assert C.lower[k] <= M.min() and M.max() <= C.upper[k], fk
 
 
-def test_tuned_rings_above_96_blades_get_tied_relaxations():
+def test_tuned_rings_above_96_blades_get_tied_relaxations(monkeypatch):
     """A 100-blade tuned ring (engine order 8) at 14 and 90 Hz: the tied relaxations
     certify it too (they stopped at 96 blades once, above which the certificate was Eq.
     10 and 0): the lower bound above 0, the upper one below Eq. 10, both enclosing 1000
     random admissible points per frequency (physical-space solves). The search's optima
-    are left out (uniform candidates): the bounds' validity does not rest on them."""
+    are left out (uniform candidates): the bounds' validity does not rest on them. Above
+    ``MAX_TIED`` the certificate is Eq. 10 and 0."""
+    from mcfric.bounds import certified
     from mcfric.bounds.certified import certify
     from mcfric.core.receptance import contact_space
 
@@ -539,6 +541,10 @@ def test_tuned_rings_above_96_blades_get_tied_relaxations():
         M = random_admissible(model, fk, 1000, 110 + k)
         assert len(M) > 100
         assert C.lower[k] <= M.min() and M.max() <= C.upper[k], fk
+    monkeypatch.setattr(certified, "MAX_TIED", 99)
+    C = certify(G, q0, ylin, H, K_MAX, K_MAX, F_LIM, K0, K0, np.ones(len(f)), turned=True)
+    assert not C.relaxed and np.all(C.lower == 0)
+    assert np.allclose(C.upper, eq10, rtol=1e-6)
 
 
 def test_the_tied_relaxation_reaches_the_lower_bound_of_72_blades_near_resonance():

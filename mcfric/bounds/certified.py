@@ -53,12 +53,14 @@ MAX_DAMPERS = 7
 #: ... but on a tuned ring under a travelling wave of up to this many dampers the
 #: relaxation of the whole box tightens them (one relaxation per frequency and bound; its
 #: time grows about with the cube of the dampers: the docs' performance page).
-#: Above it, on tuned rings of any size, the relaxations with the multipliers tied across
-#: dampers run instead (the lower bound's all, the upper bound's but near the beam:
-#: Fourier barriers, cheap; the checks of every beam's turned multipliers and the climbs
-#: and descents to the witnesses cost more, about as the searches do: the docs'
-#: performance page).
 MAX_TURNED = 24
+#: ... and of up to this many the relaxations with the multipliers tied across dampers
+#: (the lower bound's all, the upper bound's but near the beam: Fourier barriers, cheap;
+#: the checks of every beam's turned multipliers, O(nd^3) each, and the climbs and
+#: descents to the witnesses cost more, about as the searches do; where the tied lower
+#: relaxation fails the full one runs, whose dense workspace grows with nd^2 and its
+#: steps with nd^3). The largest ring measured (the docs' performance page).
+MAX_TIED = 144
 #: The ascent to the upper witness over the admissible set, per frequency: random points
 #: of the box tried (besides no damper and the search's box optimum) ...
 WITNESS_POOL = 200
@@ -142,8 +144,8 @@ class Certificate:
     budget : int
     relaxed : bool
         Whether the semidefinite relaxation ran: after the branch and bound (two to seven
-        dampers), or alone (tuned rings of 8 to ``MAX_TURNED`` blades; above, with the
-        multipliers tied across dampers).
+        dampers), or alone (tuned rings of 8 to ``MAX_TURNED`` blades; up to
+        ``MAX_TIED`` with the multipliers tied across dampers).
     second_order : ndarray of int, shape (2,)
         Second-order moment relaxations (:mod:`.moments`) of the upper bound solved, and
         of those failed (solver or verification; the first-order bound kept there).
@@ -682,7 +684,8 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
     budget : int, optional
         Enclosures per frequency and bound; default :func:`default_budget` (0 above
         ``MAX_DAMPERS`` dampers: the certificate is then Eq. 10 and 0, with the
-        witnesses, or, with ``turned``, their relaxation of the whole box).
+        witnesses, or, with ``turned`` and a force limit, the relaxations of the whole
+        box, up to ``MAX_TIED`` dampers).
     rtol : float, optional
         Relative tolerance of the branch and bound and the relaxations (their goal above
         the upper witness, below the lower); default :func:`default_rtol`.
@@ -702,9 +705,9 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
         metric (:func:`mcfric.bounds.rotation_invariant`): above ``MAX_DAMPERS`` and up
         to ``MAX_TURNED`` dampers, with a force limit, the relaxation of the whole box
         then tightens Eq. 10 and 0 (one relaxation per frequency and bound: the other
-        beams take its multipliers turned, verified on their own forms); above
-        ``MAX_TURNED`` the relaxations with the multipliers tied across dampers (the
-        upper bound's but near the beam) tighten them.
+        beams take its multipliers turned, verified on their own forms); up to
+        ``MAX_TIED`` dampers the relaxations with the multipliers tied across dampers
+        (the upper bound's but near the beam) tighten them.
 
     Returns
     -------
@@ -718,7 +721,7 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
     whole = RELAX and np.isfinite(F_lim) and turn and MAX_DAMPERS < nd <= MAX_TURNED
     # larger tuned rings: tied multipliers (the full relaxation takes seconds per
     # frequency there)
-    tied = RELAX and np.isfinite(F_lim) and turn and MAX_TURNED < nd
+    tied = RELAX and np.isfinite(F_lim) and turn and MAX_TURNED < nd <= MAX_TIED
     from .moments import is_chain
     moments = resolve_moments(moments, is_chain(G), nd, F_lim)
     second_order = np.zeros(2, np.int64)
