@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from . import hbm
-from .config import NOT_IDENTITY, first_difference
+from .config import first_difference, identity
 from .indicator import file_report as indicator_report
 from .metric import METRIC_UNITS
 from .peaks import file_report as peak_report
@@ -326,8 +326,7 @@ def _stored_config(attrs, path):
 def _same_run(spec, attrs, path):
     """None if ``attrs`` describe the same run as ``spec``, else the first differing key."""
     stored = _stored_config(attrs, path)
-    stored = {k: v for k, v in stored.items() if k not in NOT_IDENTITY}
-    return first_difference(spec.identity, json.loads(json.dumps(stored)))
+    return first_difference(spec.identity, json.loads(json.dumps(identity(stored))))
 
 
 def _count_not_converged(path):

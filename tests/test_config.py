@@ -56,18 +56,24 @@ def test_embedded_default_is_eight_beam_at_1_1_newton():
 
 
 def test_a_preset_with_another_beam_count_is_renamed():
-    """``disk-72`` with 120 blades is not ``disk-72``: unless a name is given it is called
-    ``disk-120`` (other presets: the count in brackets); the preset's own count and a given
-    name are kept."""
+    """``disk-72`` with 120 blades is not ``disk-72``: unless a name is given, the count
+    follows the preset's name; the preset's own count and a given name are kept; the
+    name is a label, not part of the run's identity (``--resume``)."""
     def name(model, **kw):
         return config.load({"model": model}, kw or None).model().name
 
-    assert name({"preset": "disk-72", "n_beams": 120}) == "disk-120"
+    assert name({"preset": "disk-72", "n_beams": 120}) == "disk-72 (120 beams)"
+    assert name({"preset": "disk-24", "n_beams": np.int64(72)}) == "disk-24 (72 beams)"
     assert name({"preset": "eight-beam", "n_beams": 12}) == "eight-beam (12 beams)"
     assert name({"preset": "disk-72", "n_beams": 72}) == "disk-72"
     assert name({"preset": "disk-24", "n_beams": 30, "name": "rig B"}) == "rig B"
     assert name({"preset": "disk-24", "n_beams": 30},
                 **{"model.name": ("rig C", "--name")}) == "rig C"
+    a = config.load({"model": {"preset": "disk-24", "n_beams": 30}})
+    b = config.load({"model": {"preset": "disk-24", "n_beams": 30, "name": "disk-30"}})
+    assert a.json() != b.json() and a.json(identity=True) == b.json(identity=True)
+    assert config.first_difference(a.identity(), a.replace("model.n_beams", 31).identity()) \
+        == "model.n_beams"
 
 
 def test_overrides_apply_and_name_their_flag():

@@ -17,7 +17,8 @@ configuration (``mcfric config PRESET`` prints it); :attr:`Config.spec` is its p
 run specification.
 
 ``[run]`` says how to compute (threads, chunk size, checkpoints), never what: it is
-excluded from :meth:`Config.identity`, the part that must match for ``--resume``.
+excluded from :meth:`Config.identity`, the part that must match for ``--resume``
+(as is ``[model] name``, a label).
 ``[bounds]`` configures the response bounds that ``run`` computes before the ensemble
 (and ``mcfric bounds`` alone); it does not change the ensemble and is excluded too.
 Every key is described in the docs' configuration reference (``docs/configuration.md``).
@@ -32,9 +33,9 @@ from ..validators import InputError as ConfigError
 from .configuration import Config, first_difference
 from .loading import load, read_toml
 from .rendering import render, template
-from .schema import DEFAULT_PRESET, NOT_IDENTITY, SPEC, defaults
+from .schema import DEFAULT_PRESET, NOT_IDENTITY, SPEC, defaults, identity
 from .validation import bounds_limits, validate
 
 __all__ = ["ConfigError", "Config", "first_difference", "load", "read_toml", "render",
-           "template", "DEFAULT_PRESET", "NOT_IDENTITY", "SPEC", "defaults", "bounds_limits",
-           "validate"]
+           "template", "DEFAULT_PRESET", "NOT_IDENTITY", "SPEC", "defaults", "identity",
+           "bounds_limits", "validate"]

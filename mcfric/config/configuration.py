@@ -22,7 +22,7 @@ from ..peaks import PeakSettings
 from ..spec import BoundsSpec, ExecutionSpec, MetricSpec, RunSpec, SolverSpec
 from ..validators import InputError
 from . import loading, rendering, validation  # used at call time (they import Config)
-from .schema import AUTO_COMPLEX_MAX_BEAMS, NOT_IDENTITY
+from .schema import AUTO_COMPLEX_MAX_BEAMS, identity
 
 
 @dataclass(frozen=True)
@@ -125,8 +125,9 @@ class Config:
         return self.data["sampling"]["seed"]
 
     def identity(self):
-        """The part of the configuration that determines the results (no [run], [bounds])."""
-        return {k: v for k, v in self.data.items() if k not in NOT_IDENTITY}
+        """The part of the configuration that determines the results (no [run], [bounds],
+        nor the model's name)."""
+        return identity(self.data)
 
     def json(self, identity=False):
         """Canonical JSON (sorted keys; floats round-trip exactly)."""

@@ -103,17 +103,17 @@ def load(source=None, overrides=None):
 
 def _rename(raw, user, labels, base_name):
     """A preset's name with another beam count is not that preset: unless a name is given,
-    ``disk-72`` with ``n_beams = 120`` is called ``disk-120``, ``eight-beam`` with 12 beams
-    ``eight-beam (12 beams)`` (headers, plots, ``mcfric info`` and the results file)."""
+    ``disk-72`` with ``n_beams = 120`` is called ``disk-72 (120 beams)`` (headers, plots,
+    ``mcfric info`` and the results file; not ``disk-120``, which would hide the engine
+    order that comes with the preset)."""
     m = raw.get("model")
     given = isinstance(user.get("model"), dict) and "name" in user["model"]
     if not isinstance(m, dict) or given or "model.name" in labels:
         return
     n = m.get("n_beams")
-    if (not isinstance(n, int) or isinstance(n, bool)
-            or n == defaults(base_name)["model"]["n_beams"]):
+    if not is_int(n) or n == defaults(base_name)["model"]["n_beams"]:
         return
-    m["name"] = f"disk-{n}" if base_name.startswith("disk-") else f"{base_name} ({n} beams)"
+    m["name"] = f"{base_name} ({n} beams)"
 
 
 MODAL_FILE_KEYS = ("file", "nodes", "direction", "modes", "max_imag")

@@ -36,13 +36,24 @@ from ..validators import (
 
 DEFAULT_PRESET = "eight-beam"
 SPACINGS = ("linear", "log")
-#: Sections that do not change the results (ignored when comparing runs for --resume).
+#: Sections that do not change the results (ignored when comparing runs for --resume),
+#: nor does the model's ``name``, a label (:func:`identity`).
 NOT_IDENTITY = ("run", "bounds")
 MAX_SAMPLES = 10 ** 10
 #: ``output.response = "auto"`` stores the complex response up to this many beams and the
 #: float32 amplitude above (docs: results file, "Storage of large rings").
 AUTO_COMPLEX_MAX_BEAMS = 32
 MAX_FREQ = 10 ** 7
+
+
+def identity(data):
+    """The part of a configuration (nested dict) that determines the results: all but the
+    ``NOT_IDENTITY`` sections and the model's ``name`` (so a file keeps resuming when only
+    its label differs, e.g. a default name that a later version words otherwise)."""
+    out = {k: v for k, v in data.items() if k not in NOT_IDENTITY}
+    if isinstance(out.get("model"), dict):
+        out["model"] = {k: v for k, v in out["model"].items() if k != "name"}
+    return out
 
 
 def defaults(preset=DEFAULT_PRESET):
