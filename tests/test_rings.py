@@ -10,6 +10,7 @@ import pytest
 
 import mcfric
 from mcfric.core import sweep as _sweep
+from mcfric.core.receptance import contact_space
 from mcfric.model import TABLE_1, Excitation, Model
 
 from . import naive
@@ -28,6 +29,13 @@ def _ring(n, mistuned, engine_order=1, F0=0.8):
         beams = (TABLE_1,) * n
     return Model(beams, Excitation("travelling", F0, engine_order=engine_order),
                  topology="circular")
+
+
+def contact_arrays(model, f):
+    """``G, q0, ylin, H`` of ``model`` at the frequencies ``f`` (Hz), C-contiguous as the
+    kernels take them."""
+    return [np.ascontiguousarray(x) for x in
+            contact_space(model.receptances(2 * np.pi * f)[0], model.force, *model.dampers)]
 
 
 def _solve_dense(monkeypatch, model, *args, **kw):
@@ -285,7 +293,6 @@ def test_the_ring_elimination_of_the_bounds_searches_equals_numpy(n):
         cyclic_solve_transposed,
         is_cyclic,
     )
-    from mcfric.core.receptance import contact_space
 
     rng = np.random.default_rng(n)
     for topology in ("circular", "linear"):
@@ -324,13 +331,11 @@ def test_the_ring_coordinate_search_takes_the_bordered_elimination():
     from mcfric.bounds.search import sparsity
     from mcfric.core.coordinate_search import coordinate_search, workspace
     from mcfric.core.projected_gradient import projected_gradient
-    from mcfric.core.receptance import contact_space
 
     model = Model.identical(TABLE_1, 24, excitation=Excitation("travelling", 1.1),
                             topology="circular")
     f = np.array([18.0, 45.0])
-    G, q0, ylin, H = (np.ascontiguousarray(x) for x in contact_space(
-        model.receptances(2 * np.pi * f)[0], model.force, *model.dampers))
+    G, q0, ylin, H = contact_arrays(model, f)
     hr, gr = sparsity(G, H)
     w = workspace(24, 24, hr, gr)
     for k in range(len(f)):
@@ -390,15 +395,12 @@ def test_turned_multipliers_prove_the_bound_of_every_blade():
     blade's relaxation solved (no turning) and with the first blade's multipliers turned
     for the others agree to 1e-6, the latter with one relaxation per frequency."""
     from mcfric.core.box_relaxation import relax_frequencies
-    from mcfric.core.receptance import contact_space
 
     from .test_certified import F_LIM, K_MAX
 
     model = mcfric.disk(8, 1, 1.1)
     f = np.array([15.0, 80.0, 120.0])
-    a, b = model.dampers
-    arrays = [np.ascontiguousarray(x) for x in
-              contact_space(model.receptances(2 * np.pi * f)[0], model.force, a, b)]
+    arrays = contact_arrays(model, f)
     got = {}
     for turn in (False, True):
         out = np.empty(3)
@@ -420,7 +422,6 @@ def test_tied_multipliers_give_the_lower_relaxation_of_a_tuned_ring(mistuned):
     block is not circulant: the tied relaxation (whose Fourier barrier assumes it)
     declines with ``nan``, and the full relaxation's bound still lies below every
     random admissible point."""
-    from mcfric.core.receptance import contact_space
     from mcfric.core.relaxation import buffers, relaxed_bound
     from mcfric.core.tied_relaxation import tied_lower
 
@@ -428,9 +429,7 @@ def test_tied_multipliers_give_the_lower_relaxation_of_a_tuned_ring(mistuned):
 
     model = _ring(12, mistuned=True, F0=1.1) if mistuned else mcfric.disk(12, 1, 1.1)
     f = np.array([14.0, 40.0, 75.0, 104.0, 130.0])
-    a, b = model.dampers
-    G, q0, ylin, H = [np.ascontiguousarray(x) for x in
-                      contact_space(model.receptances(2 * np.pi * f)[0], model.force, a, b)]
+    G, q0, ylin, H = contact_arrays(model, f)
     nd, nb = q0.shape[1], ylin.shape[1]
     lo, hi = np.zeros(nd, complex), np.full(nd, K_MAX * (1 + 1j))
     tied_ok = 0
@@ -459,15 +458,12 @@ def test_the_whole_box_lower_bound_of_a_tuned_ring_is_tied():
     verifies nothing either way, is counted as one failed relaxation (the tied attempt
     uncounted) and keeps 0."""
     from mcfric.core.box_relaxation import relax_frequencies
-    from mcfric.core.receptance import contact_space
 
     from .test_certified import F_LIM, K_MAX
 
     model = mcfric.disk(8, 1, 1.1)
     f = np.array([15.0, 80.0, 120.0, 120.0])
-    a, b = model.dampers
-    arrays = [np.ascontiguousarray(x) for x in
-              contact_space(model.receptances(2 * np.pi * f)[0], model.force, a, b)]
+    arrays = contact_arrays(model, f)
     arrays[1][3, 2] = np.nan
     got = {}
     for turn in (False, True):
@@ -522,15 +518,12 @@ def test_tuned_rings_above_96_blades_get_tied_relaxations(monkeypatch):
     ``MAX_TIED`` the certificate is Eq. 10 and 0."""
     from mcfric.bounds import certified
     from mcfric.bounds.certified import certify
-    from mcfric.core.receptance import contact_space
 
     from .test_certified import F_LIM, K_MAX, random_admissible
 
     model = mcfric.disk(100, 8, 1.1)
     f = np.array([14.0, 90.0])
-    a, b = model.dampers
-    G, q0, ylin, H = [np.ascontiguousarray(x) for x in
-                      contact_space(model.receptances(2 * np.pi * f)[0], model.force, a, b)]
+    G, q0, ylin, H = contact_arrays(model, f)
     K0 = np.zeros(q0.shape, complex)
     C = certify(G, q0, ylin, H, K_MAX, K_MAX, F_LIM, K0, K0, np.ones(len(f)), turned=True)
     assert C.relaxed and C.first_order[0] == 2 * len(f)
@@ -552,7 +545,6 @@ def test_the_tied_relaxation_reaches_the_lower_bound_of_72_blades_near_resonance
     relaxation proves a lower bound above 0 (with 40 Newton steps per barrier weight it
     proved only 0 there, its iterates left uncentred) and below 1000 random admissible
     points (physical-space solves)."""
-    from mcfric.core.receptance import contact_space
     from mcfric.core.relaxation import buffers
     from mcfric.core.tied_relaxation import tied_lower
 
@@ -560,9 +552,7 @@ def test_the_tied_relaxation_reaches_the_lower_bound_of_72_blades_near_resonance
 
     model = mcfric.disk(72, 8, 1.1)
     f = np.array([10.0, 14.0])
-    a, b = model.dampers
-    G, q0, ylin, H = [np.ascontiguousarray(x) for x in
-                      contact_space(model.receptances(2 * np.pi * f)[0], model.force, a, b)]
+    G, q0, ylin, H = contact_arrays(model, f)
     nd = q0.shape[1]
     lo, hi = np.zeros(nd, complex), np.full(nd, K_MAX * (1 + 1j))
     for k, fk in enumerate(f):
@@ -579,7 +569,6 @@ def test_the_fourier_spectrum_of_a_tied_tuned_ring():
     are that block's eigenvalues (``numpy.linalg.eigvalsh`` of the dense ``Z``), the
     constant's column lies in one Fourier mode, and ``log det Z`` from them is the dense
     one; a mistuned ring's block is not circulant."""
-    from mcfric.core.receptance import contact_space
     from mcfric.core.relaxation import _assemble, buffers, forms, per_damper, weights
     from mcfric.core.tied_relaxation import CIRCULANT_TOL, _departure, _expand, _spectrum
 
@@ -588,9 +577,7 @@ def test_the_fourier_spectrum_of_a_tied_tuned_ring():
     rng = np.random.default_rng(3)
     for mistuned in (False, True):
         model = _ring(12, mistuned=True, F0=1.1) if mistuned else mcfric.disk(12, 1, 1.1)
-        a, b = model.dampers
-        G, q0, ylin, H = [np.ascontiguousarray(x[0]) for x in contact_space(
-            model.receptances(2 * np.pi * np.array([40.0]))[0], model.force, a, b)]
+        G, q0, ylin, H = (x[0] for x in contact_arrays(model, np.array([40.0])))
         nd = len(q0)
         lo, hi = np.zeros(nd, complex), np.full(nd, K_MAX * (1 + 1j))
         V, idx, S, x, cvec, pos, simplex, grow, ws = buffers(nd, nd, True, True)
@@ -632,7 +619,6 @@ def test_the_partly_tied_barrier_is_the_dense_one():
     spectrum and the low-rank part are those of the dense ``Z`` (numpy's ``slogdet`` and
     ``tr(Z^-1 B_a)``, ``tr(Z^-1 B_a Z^-1 B_b)`` of the full forms)."""
     from mcfric.core import partly_tied_relaxation as pt
-    from mcfric.core.receptance import contact_space
     from mcfric.core.relaxation import _assemble, buffers, shifted
 
     from .test_certified import F_LIM, K_MAX
@@ -640,9 +626,7 @@ def test_the_partly_tied_barrier_is_the_dense_one():
     rng = np.random.default_rng(5)
     model = mcfric.disk(16, 2, 1.1)
     f = np.array([15.0, 40.0])
-    a, b = model.dampers
-    arrays = [np.ascontiguousarray(x) for x in
-              contact_space(model.receptances(2 * np.pi * f)[0], model.force, a, b)]
+    arrays = contact_arrays(model, f)
     nd = 16
     lo, hi = np.zeros(nd, complex), np.full(nd, K_MAX * (1 + 1j))
     for k in range(len(f)):
@@ -710,7 +694,6 @@ def test_partly_tied_multipliers_bound_a_tuned_ring_from_above():
     nothing: the first beam keeps Eq. 10, and the others, no higher, are not tried."""
     from mcfric.core.box_relaxation import relax_frequencies
     from mcfric.core.branch_bound import force_bounds
-    from mcfric.core.receptance import contact_space
 
     from .test_certified import F_LIM, K_MAX, random_admissible
 
@@ -719,9 +702,7 @@ def test_partly_tied_multipliers_bound_a_tuned_ring_from_above():
     got = {}
     for name, model in (("tuned", mcfric.disk(16, 2, 1.1)),
                         ("mistuned", _ring(16, mistuned=True, engine_order=2, F0=1.1))):
-        a, b = model.dampers
-        arrays = [np.ascontiguousarray(x) for x in
-                  contact_space(model.receptances(2 * np.pi * f)[0], model.force, a, b)]
+        arrays = contact_arrays(model, f)
         for near in ((0, 2, 6) if name == "tuned" else (6,)):
             out = np.empty(n_f)
             stats = np.zeros(4, np.int64)
@@ -756,15 +737,12 @@ def test_the_partly_tied_relaxation_declines_what_it_cannot_tie():
     ``near = 0``."""
     from mcfric.core.box_relaxation import relax_frequencies
     from mcfric.core.partly_tied_relaxation import partly_tied_upper
-    from mcfric.core.receptance import contact_space
     from mcfric.core.relaxation import buffers
 
     from .test_certified import F_LIM, K_MAX
 
     model = mcfric.disk(16, 2, 1.1)
-    a, b = model.dampers
-    G, q0, ylin, H = [np.ascontiguousarray(x[0]) for x in contact_space(
-        model.receptances(2 * np.pi * np.array([40.0]))[0], model.force, a, b)]
+    G, q0, ylin, H = (x[0] for x in contact_arrays(model, np.array([40.0])))
     lo, hi = np.zeros(16, complex), np.full(16, K_MAX * (1 + 1j))
 
     def upper(H, r):
@@ -779,9 +757,7 @@ def test_the_partly_tied_relaxation_declines_what_it_cannot_tie():
     assert np.isnan(upper(H, 8))
     model = mcfric.disk(8, 1, 1.1)
     f = np.array([15.0, 80.0])
-    a, b = model.dampers
-    arrays = [np.ascontiguousarray(x) for x in
-              contact_space(model.receptances(2 * np.pi * f)[0], model.force, a, b)]
+    arrays = contact_arrays(model, f)
     got = []
     for near in (0, 6):
         out = np.empty(2)

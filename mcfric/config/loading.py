@@ -90,18 +90,20 @@ def load(source=None, overrides=None):
     if not isinstance(base_name, str) or base_name not in PRESETS:
         raise InputError("model.preset", f"expected one of {choices(PRESETS)}, "
                          f"got {show(base_name)}")
-    raw = _merge(defaults(base_name), user)
+    base = defaults(base_name)
+    n_preset = base["model"]["n_beams"]
+    raw = _merge(base, user)
     labels = {}
     for key, (value, label) in (overrides or {}).items():
         if value is None:
             continue
         set_key(raw, key, value)
         labels[key] = label
-    _rename(raw, user, labels, base_name)
+    _rename(raw, user, labels, base_name, n_preset)
     return validate(raw, labels)
 
 
-def _rename(raw, user, labels, base_name):
+def _rename(raw, user, labels, base_name, n_preset):
     """A preset's name with another beam count is not that preset: unless a name is given,
     ``disk-72`` with ``n_beams = 120`` is called ``disk-72 (120 beams)`` (headers, plots,
     ``mcfric info`` and the results file; not ``disk-120``, which would hide the engine
@@ -111,7 +113,7 @@ def _rename(raw, user, labels, base_name):
     if not isinstance(m, dict) or given or "model.name" in labels:
         return
     n = m.get("n_beams")
-    if not is_int(n) or n == defaults(base_name)["model"]["n_beams"]:
+    if not is_int(n) or n == n_preset:
         return
     m["name"] = f"{base_name} ({n} beams)"
 
