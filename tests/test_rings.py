@@ -5,6 +5,8 @@ time), the physical-space fsolve of naive.py, the closed-form stuck (linear) rin
 travelling-wave symmetry of a tuned ring.
 """
 
+import math
+
 import numpy as np
 import pytest
 
@@ -767,3 +769,72 @@ def test_the_partly_tied_relaxation_declines_what_it_cannot_tie():
                           np.int64(near))
         got.append(out)
     assert np.array_equal(got[0], got[1])
+
+
+def _failing(real, n_fail, failed):
+    """``real`` but for its first ``n_fail`` calls, which return ``failed(*args)``; and
+    the list its calls are counted in."""
+    calls = []
+
+    def wrapped(*args):
+        calls.append(None)
+        return failed(*args) if len(calls) <= n_fail else real(*args)
+    return wrapped, calls
+
+
+def test_the_tied_relaxations_walk_back_when_their_last_round_does_not_verify(monkeypatch):
+    """Where the last round's multipliers do not verify on the full forms, the tied lower
+    relaxation (12-blade ring) and the partly tied upper one (16 blades, ``r = 2``) check
+    the rounds before, latest first: the kernels run as Python (``py_func``) with their
+    check failing the first one or two times. Each walks back exactly that far and
+    returns a bound that still encloses 1000 random admissible points (physical-space
+    solves), close to the unpatched one; with every check failing the lower one proves
+    nothing (``nan``, uncounted) and the upper one keeps its verified start."""
+    from mcfric.core import partly_tied_relaxation as pt
+    from mcfric.core import tied_relaxation as tr
+    from mcfric.core.relaxation import buffers, forms
+
+    from .test_certified import F_LIM, K_MAX, random_admissible
+
+    f = np.array([40.0, 104.0])
+    for nd in (12, 16):
+        model = mcfric.disk(nd, nd // 12, 1.1)
+        G, q0, ylin, H = contact_arrays(model, f)
+        lo, hi = np.zeros(nd, complex), np.full(nd, K_MAX * (1 + 1j))
+        for k, fk in enumerate(f):
+            M = random_admissible(model, fk, 1000, 120 + k)
+            assert len(M) > 100
+            if nd == 12:
+                args = (G[k], q0[k], ylin[k], H[k], lo, hi, F_LIM, np.inf)
+                plain = tr.tied_lower(*args, *buffers(nd, nd, True, True),
+                                      np.zeros(5, np.int64))
+                for n_fail in (1, 2, 1000):
+                    check, calls = _failing(tr.shifted, n_fail, lambda *a: np.nan)
+                    monkeypatch.setattr(tr, "shifted", check)
+                    stats = np.zeros(5, np.int64)
+                    got = tr.tied_lower.py_func(*args, *buffers(nd, nd, True, True), stats)
+                    monkeypatch.undo()
+                    if n_fail < 1000:
+                        assert len(calls) == n_fail + 1 and stats[2] == 1, (fk, n_fail)
+                        assert 0.99 * plain < got <= M.min(), (fk, n_fail)
+                    else:
+                        assert np.isnan(got) and stats[2] == 0 and len(calls) == stats[1]
+            else:
+                args = (G[k], q0[k], ylin[k], H[k], lo, hi, F_LIM, np.int64(5), 0.0)
+                _, ys = forms(*args[:8], *buffers(nd, nd, True, False)[:8])
+                plain = math.sqrt(ys * pt.partly_tied_upper(
+                    *args, *buffers(nd, nd, True, False), np.zeros(5, np.int64),
+                    np.int64(2)))
+                for n_fail in (1, 2, 1000):
+                    check, calls = _failing(pt._kept, n_fail, lambda *a: (False, a[-1]))
+                    monkeypatch.setattr(pt, "_kept", check)
+                    stats = np.zeros(5, np.int64)
+                    got = math.sqrt(ys * pt.partly_tied_upper.py_func(
+                        *args, *buffers(nd, nd, True, False), stats, np.int64(2)))
+                    monkeypatch.undo()
+                    assert stats[2] == 1 and M.max() <= got, (fk, n_fail)
+                    if n_fail < 1000:
+                        assert len(calls) == n_fail + 1, (fk, n_fail)
+                        assert plain <= got < 1.02 * plain, (fk, n_fail)
+                    else:
+                        assert got > 2 * plain and len(calls) == stats[1]
