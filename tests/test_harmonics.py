@@ -179,6 +179,15 @@ def test_indicator_bounds_the_higher_harmonics_of_each_point(eight_beam):
             assert r.harmonic_indicator[i, k] >= exact * (1 - 1e-9), (i, k)
             checked += exact > 1e-3
     assert checked > 10          # the test sees points with real harmonics
+    # a NaN response at finite slip ratios is flagged, not dropped by the maximum
+    params = (mu0, np.full(mu0.shape, 0.5), kc)
+    np.testing.assert_array_equal(hbm.harmonic_indicator(model, r, om, None, params),
+                                  r.harmonic_indicator)
+    assert r.status[1, 7] == 0
+    r.response[1, 7, 3] = np.nan
+    again = hbm.harmonic_indicator(model, r, om, None, params)
+    assert np.isnan(again[1, 7])
+    assert np.isnan(again).sum() == np.isnan(r.harmonic_indicator).sum() + 1
 
 
 def test_multi_harmonic_run_is_identical_for_any_threads_and_chunks(tmp_path, capsys):

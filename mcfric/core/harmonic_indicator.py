@@ -75,10 +75,12 @@ def harmonic_indicator(h3, h5, a, b, mu0, N0, kc, s, y, out):
             high = 0.0
             for bb in range(n_beams):
                 v = y[i, k, bb]
-                big = max(big, v.real * v.real + v.imag * v.imag)
+                a2 = v.real * v.real + v.imag * v.imag
+                bad = bad or math.isnan(a2)     # max() would drop a NaN
+                big = max(big, a2)
                 high = max(high, h3[r, k, bb] * f3[bb] + h5[r, k, bb] * f5[bb])
             big = math.sqrt(big)
-            if bad or math.isnan(big):
+            if bad:
                 out[i, k] = math.nan
             else:
                 out[i, k] = high / big if big > 0.0 else 0.0
