@@ -58,7 +58,8 @@ def test_embedded_default_is_eight_beam_at_1_1_newton():
 def test_a_preset_with_another_beam_count_is_renamed():
     """``disk-72`` with 120 blades is not ``disk-72``: unless a name is given, the count
     follows the preset's name; the preset's own count and a given name are kept; the
-    name is a label, not part of the run's identity (``--resume``)."""
+    name is a label, not part of the run's identity (``--resume``). ``Config.replace``
+    renames the same way."""
     def name(model, **kw):
         return config.load({"model": model}, kw or None).model().name
 
@@ -74,6 +75,12 @@ def test_a_preset_with_another_beam_count_is_renamed():
     assert a.json() != b.json() and a.json(identity=True) == b.json(identity=True)
     assert config.first_difference(a.identity(), a.replace("model.n_beams", 31).identity()) \
         == "model.n_beams"
+    # Config.replace renames as load does, but never a given name
+    assert a.replace("model.n_beams", 31).model().name == "disk-24 (31 beams)"
+    assert a.replace("model.n_beams", 24).model().name == "disk-24"
+    assert config.load("disk-72").replace("model.n_beams", 96).model().name \
+        == "disk-72 (96 beams)"
+    assert b.replace("model.n_beams", 31).model().name == "disk-30"
 
 
 def test_overrides_apply_and_name_their_flag():

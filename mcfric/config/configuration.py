@@ -22,7 +22,7 @@ from ..peaks import PeakSettings
 from ..spec import BoundsSpec, ExecutionSpec, MetricSpec, RunSpec, SolverSpec
 from ..validators import InputError
 from . import loading, rendering, validation  # used at call time (they import Config)
-from .schema import AUTO_COMPLEX_MAX_BEAMS, identity
+from .schema import AUTO_COMPLEX_MAX_BEAMS, defaults, identity
 
 
 @dataclass(frozen=True)
@@ -138,9 +138,16 @@ class Config:
         return rendering.render(self.data, comments)
 
     def replace(self, dotted, value):
-        """A validated copy with one key changed (e.g. ``"sampling.samples"``)."""
+        """A validated copy with one key changed (e.g. ``"sampling.samples"``); a new
+        ``"model.n_beams"`` renames a preset that carries its automatic name (as
+        :func:`~mcfric.config.load` names it)."""
         raw = copy.deepcopy(self.data)
         loading.set_key(raw, dotted, value)
+        m = self.data["model"]
+        n_preset = defaults(m["preset"])["model"]["n_beams"]
+        if (dotted == "model.n_beams"
+                and m["name"] == loading.automatic_name(m["preset"], m["n_beams"], n_preset)):
+            raw["model"]["name"] = loading.automatic_name(m["preset"], value, n_preset)
         return validation.validate(raw)
 
 

@@ -104,18 +104,21 @@ def load(source=None, overrides=None):
 
 
 def _rename(raw, user, labels, base_name, n_preset):
-    """A preset's name with another beam count is not that preset: unless a name is given,
-    ``disk-72`` with ``n_beams = 120`` is called ``disk-72 (120 beams)`` (headers, plots,
-    ``mcfric info`` and the results file; not ``disk-120``, which would hide the engine
-    order that comes with the preset)."""
+    """Give ``raw`` the preset's :func:`automatic_name` unless a name is given."""
     m = raw.get("model")
     given = isinstance(user.get("model"), dict) and "name" in user["model"]
     if not isinstance(m, dict) or given or "model.name" in labels:
         return
-    n = m.get("n_beams")
-    if not is_int(n) or n == n_preset:
-        return
-    m["name"] = f"{base_name} ({n} beams)"
+    if is_int(m.get("n_beams")):
+        m["name"] = automatic_name(base_name, m["n_beams"], n_preset)
+
+
+def automatic_name(preset, n_beams, n_preset):
+    """The name of ``preset`` with ``n_beams`` beams (``n_preset`` its own count): a
+    preset's name with another beam count is not that preset, so ``disk-72`` with 120
+    is ``disk-72 (120 beams)`` (headers, plots, ``mcfric info`` and the results file; not
+    ``disk-120``, which would hide the engine order that comes with the preset)."""
+    return preset if n_beams == n_preset else f"{preset} ({n_beams} beams)"
 
 
 MODAL_FILE_KEYS = ("file", "nodes", "direction", "modes", "max_imag")
