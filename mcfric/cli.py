@@ -207,7 +207,8 @@ def _verify_parser(sub):
     v.add_argument("--start", choices=("single", "rest"), default="single",
                    help="initial state: the single-harmonic solution (default) or rest")
     v.add_argument("--max-periods", type=int, default=20000, metavar="N",
-                   help="periods after which a response counts as not periodic")
+                   help="periods after which a response counts as not periodic "
+                        "(default %(default)s)")
     v.add_argument("-o", "--output", metavar="OUT.csv",
                    help="CSV file (default: mcfric-results/verify-<name>.csv); the PNG goes "
                         "next to it")
@@ -272,6 +273,10 @@ def _overrides(args):
         o["peaks.enabled"] = (False, "--no-peaks")
     if getattr(args, "no_certify", False):
         o["bounds.certify"] = (False, "--no-certify")
+        for flag in ("moments", "first_order"):
+            if getattr(args, flag, False):
+                raise UsageError(f"--{flag.replace('_', '-')}: the order of the "
+                                 "certification; not with --no-certify")
     if getattr(args, "moments", False):
         o["bounds.certify_moments"] = (True, "--moments")
     if getattr(args, "first_order", False):
@@ -313,7 +318,8 @@ def _output_path(args, suffix, prefix="", figure=False):
 
     ``figure``: the command also writes ``FILE.png`` next to it; the two must differ.
     Neither may replace an HDF5 file unless the command writes HDF5 itself (``suffix``
-    ``.h5``, whose own checks decide).
+    ``.h5``, whose own checks decide), nor the command's own input, nor be a directory
+    (found now, not after the work).
     """
     if args.output is not None:
         if not str(args.output).strip():
@@ -327,15 +333,29 @@ def _output_path(args, suffix, prefix="", figure=False):
         out = _default_output(args, suffix, prefix)
         out.parent.mkdir(parents=True, exist_ok=True)
     what = "results file" if suffix == ".h5" else f"{suffix[1:].upper()} output"
+    if suffix == ".h5" and out.name.endswith(".partial"):
+        raise UsageError(f"-o: {out.name} ends in .partial, the name of an interrupted "
+                         f"run's file; give the final name ({out.name[:-8]})")
     if suffix != ".h5":
         _not_replacing_hdf5(out, what)
+    _not_replacing_input(args, out, what)
     if figure:
         png = out.with_suffix(".png")
         if png == out:
             raise UsageError(f"-o: the {what} and its figure would both be {out}; give the "
                              f"{what} another suffix (e.g. {out.with_suffix(suffix).name})")
+        if png.is_dir():
+            raise UsageError(f"-o: the figure {png} is a directory; choose another -o")
         _not_replacing_hdf5(png, "figure")
+        _not_replacing_input(args, png, "figure")
     return out
+
+
+def _not_replacing_input(args, path, what):
+    """No output replaces the configuration (or file) the command reads."""
+    src = getattr(args, "source", None)
+    if src and Path(src).is_file() and path.exists() and path.samefile(src):
+        raise UsageError(f"-o: the {what} would replace the input {src}; choose another -o")
 
 
 def _not_replacing_hdf5(path, what):
@@ -345,6 +365,26 @@ def _not_replacing_hdf5(path, what):
     if path.is_file() and h5py.is_hdf5(path):
         raise UsageError(f"{path} is an HDF5 file (results?); the {what} would replace it: "
                          f"choose another -o")
+
+
+def _checked_file(path):
+    """:func:`~mcfric.results_check.check_file` of ``path``, then the keys of its stored
+    configuration that the readers use (an edited file: one line, exit 2)."""
+    from . import config
+    from .results_check import CONFIG_KEYS, check_file
+    from .store import StoreError
+
+    if Path(path).is_dir():
+        raise UsageError(f"{path}: a directory, not a results file")
+    try:
+        attrs, cfg = check_file(path)
+    except StoreError as e:          # HDF5's own messages may span lines
+        raise UsageError(" ".join(str(e).split())) from None
+    try:
+        config.check_keys(cfg, CONFIG_KEYS)
+    except config.ConfigError as e:
+        raise UsageError(f"{path}: stored configuration: {e}") from None
+    return attrs, cfg
 
 
 def _only_replacing_bounds(out):
@@ -528,16 +568,11 @@ def cmd_bounds(args):
 def cmd_plot(args):
     """``mcfric plot``: the figure of a results or bounds file, measured data on top."""
     from . import plot
-    from .results_check import check_file
-    from .store import StoreError
 
     path = Path(args.file)
-    if not path.is_file():
+    if not path.exists():
         raise UsageError(f"{path}: no such file")
-    try:
-        attrs = check_file(path)[0]
-    except StoreError as e:
-        raise UsageError(str(e)) from None
+    attrs = _checked_file(path)[0]
     if attrs.get("complete") != 1:
         raise UsageError(f"{path}: the run is not complete (continue it with --resume)")
     if args.output is not None and not str(args.output).strip():
@@ -547,6 +582,8 @@ def cmd_plot(args):
         raise UsageError(f"-o: expected a .png, .pdf or .svg file, got {out.name}")
     if not out.parent.is_dir():
         raise UsageError(f"-o: directory {out.parent} does not exist")
+    if out.is_dir():
+        raise UsageError(f"-o: {out} is a directory")
     _not_replacing_hdf5(out, "figure")
     window = None
     if args.f_min is not None or args.f_max is not None:
@@ -642,14 +679,13 @@ def cmd_info(args):
     from .metric import METRIC_UNITS
     from .peaks import file_report as peak_report
     from .peaks import report_text
-    from .results_check import check_file
     from .store import StoreError, describe, iter_records, partial_path
 
     path = Path(args.file)
     if not path.exists() and partial_path(path).exists():
         path = partial_path(path)
+    a, cfg = _checked_file(path)
     try:
-        a, cfg = check_file(path)
         d = describe(path)
         import numpy as np
         lo, hi, bad, nan = np.inf, -np.inf, 0, 0
@@ -792,17 +828,13 @@ def _verify_source(args):
 
     src = args.source
     if src is not None and src.endswith((".h5", ".h5.partial")):
-        from .results_check import check_file
-        from .store import StoreError, read
+        from .store import read
         if args.member is None:
             raise UsageError("--member: a results file needs --member I (0-based)")
         for flag in ("mu0", "kc", "N0", "F0"):
             if getattr(args, flag) is not None:
                 raise UsageError(f"--{flag}: taken from the results file; not with a FILE")
-        try:
-            attrs = check_file(src)[0]      # a damaged or foreign file: one line, exit 2
-        except StoreError as e:
-            raise UsageError(str(e)) from None
+        attrs = _checked_file(src)[0]       # a damaged or foreign file: one line, exit 2
         try:
             spec = config.validate(json.loads(attrs["config_json"])).spec
         except config.ConfigError as e:
@@ -814,8 +846,10 @@ def _verify_source(args):
             raise UsageError(f"{src}: no members (a bounds file); give a results file of a run")
         if not 0 <= args.member < n:
             raise UsageError(f"--member: expected an integer in 0..{n - 1}, got {args.member}")
+        # a member not done holds the fill value (0), not NaN: ``done`` says which are
         params = [read(src, k)[args.member] for k in ("mu0", "kc", "N0")]
-        if not all(np.all(np.isfinite(p)) for p in params):
+        if (read(src, "done")[args.member] != 1
+                or not all(np.all(np.isfinite(p)) for p in params)):
             raise UsageError(f"--member: member {args.member} is not in the file (not done)")
         return spec.model, params, Path(src).stem
     if args.member is not None:
@@ -838,7 +872,7 @@ def cmd_verify(args):
     import numpy as np
 
     from . import plot
-    from .verify import verify
+    from .verify import time_steps, verify
 
     for flag, v, lo in (("--harmonics", args.harmonics, 1), ("--max-periods",
                                                               args.max_periods, 1)):
@@ -848,6 +882,14 @@ def cmd_verify(args):
         raise UsageError(f"--harmonics: expected an odd integer (the odd harmonics 1, 3, ..., "
                          f"H are balanced), got {args.harmonics}")
     model, (mu0, kc, N0), stem = _verify_source(args)
+
+    def usage(e):
+        msg = str(e).splitlines()[0]
+        return UsageError("--f:" + msg[8:] if msg.startswith("freq_hz:") else msg)
+    try:
+        time_steps(model, args.f, kc)           # before any output is made
+    except ValueError as e:
+        raise usage(e) from None
     if stem is not None and not args.output:
         out = DEFAULT_DIR / f"verify-{stem}.csv"
         out.parent.mkdir(parents=True, exist_ok=True)
@@ -857,7 +899,7 @@ def cmd_verify(args):
         vs = verify(model, args.f, mu0, kc, N0, harmonics=args.harmonics, start=args.start,
                     max_periods=args.max_periods, progress=not args.no_progress)
     except ValueError as e:
-        raise UsageError(str(e).splitlines()[0]) from None
+        raise usage(e) from None
     label = (f"mu0 = {np.ravel(mu0)[0]:g}, kc = {np.ravel(kc)[0]:g} N/m, "
              f"N0 = {np.ravel(N0)[0]:g} N" if np.size(mu0) == 1 or np.ptp(mu0) == 0 else
              "member parameters")

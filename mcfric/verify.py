@@ -31,6 +31,9 @@ SETTLE = 5
 MAX_PERIODS = 20000
 #: Largest ``omega dt`` of the fastest mode (RK4 is accurate to ~(omega dt)^4 / 120).
 OMEGA_DT = 0.05
+#: Most time steps per period (given or from the fastest mode): a period of 1e7 steps
+#: stores an 80 MB history per beam, and low frequencies need ever more.
+MAX_STEPS = 10**7
 STARTS = ("single", "rest")
 
 
@@ -82,13 +85,13 @@ class Verification:
     def differences(self):
         """Relative differences per beam: (single-harmonic, multi-harmonic) fundamental
         amplitude against the integration's, and the multi-harmonic 3rd harmonic against
-        the integration's (NaN without a 3rd harmonic)."""
+        the integration's (NaN without a 3rd harmonic, and where the integration's is 0:
+        a beam at rest has no relative difference)."""
         td1 = np.abs(self.harmonics[0])
-        d1 = np.abs(self.single) / td1 - 1.0
-        dm = np.abs(self.multi[0]) / td1 - 1.0
+        d1 = _ratio(np.abs(self.single), td1) - 1.0
+        dm = _ratio(np.abs(self.multi[0]), td1) - 1.0
         if self.multi.shape[0] > 1 and len(self.orders) > 1:
-            td3 = np.abs(self.harmonics[1])
-            d3 = np.abs(self.multi[1]) / td3 - 1.0
+            d3 = _ratio(np.abs(self.multi[1]), np.abs(self.harmonics[1])) - 1.0
         else:
             d3 = np.full_like(d1, np.nan)
         return d1, dm, d3
@@ -106,11 +109,11 @@ class Verification:
         for bb in range(self.history.shape[1]):
             y1 = abs(self.harmonics[0, bb])
             vals = [f"{bb + 1:>11d}", f"{y1:11.4e}"]
-            vals += [f"{abs(self.harmonics[h, bb]) / y1:11.3%}"
+            vals += [_percent(_ratio(abs(self.harmonics[h, bb]), y1), "")
                      for h in range(1, len(self.orders))]
             vals += [f"{self.peak[bb]:11.4e}", f"{abs(self.single[bb]):11.4e}",
-                     f"{d1[bb]:+11.3%}", f"{abs(self.multi[0, bb]):11.4e}",
-                     f"{dm[bb]:+11.3%}", f"{self.multi_peak[bb]:11.4e}"]
+                     _percent(d1[bb], "+"), f"{abs(self.multi[0, bb]):11.4e}",
+                     _percent(dm[bb], "+"), f"{self.multi_peak[bb]:11.4e}"]
             rows.append("  ".join(vals))
         return "\n".join(rows)
 
@@ -125,6 +128,57 @@ def _steps(model, omega, kc):
     w_max = math.sqrt(float(np.max(w)) ** 2 + extra)
     n = math.ceil(2 * math.pi * w_max / (omega * OMEGA_DT))
     return max(1024, -(-n // 64) * 64)
+
+
+def _ratio(num, den):
+    """``num / den``, NaN where ``den`` is 0 (a beam at rest), without a warning."""
+    num, den = np.broadcast_arrays(np.asarray(num, float), np.asarray(den, float))
+    out = np.full(num.shape, np.nan)
+    np.divide(num, den, out=out, where=den > 0)
+    return out
+
+
+def _percent(x, sign):
+    """A table cell: ``x`` in percent, ``-`` where it is NaN (no relative measure)."""
+    return f"{'-':>11}" if np.isnan(x) else f"{float(x):{sign}11.3%}"
+
+
+def time_steps(model, freq_hz, kc, steps=None):
+    """The frequencies (validated) and the time steps per period at each.
+
+    Parameters
+    ----------
+    model : Model
+    freq_hz : float or array_like
+        Frequencies, Hz.
+    kc : float or array_like
+        Contact stiffness of every damper, N/m (the stiffest stuck contact sets the step).
+    steps : int, optional
+        Given steps per period (64 .. ``MAX_STEPS``); default from the fastest mode.
+
+    Returns
+    -------
+    f : ndarray
+        The frequencies, Hz.
+    n : list of int
+        Time steps per period at each.
+
+    Raises
+    ------
+    ValueError
+        A frequency that is not finite and positive, or one so low that a period needs
+        more than ``MAX_STEPS`` steps (one line, naming it).
+    """
+    f = check_frequencies(np.atleast_1d(freq_hz))
+    if steps is not None and (isinstance(steps, bool) or not isinstance(steps, (int, np.integer))
+                              or not 64 <= steps <= MAX_STEPS):
+        raise ValueError(f"steps: expected an integer in 64..{MAX_STEPS}, got {steps!r}")
+    n = [int(steps) if steps is not None else _steps(model, 2 * np.pi * fk, kc) for fk in f]
+    for fk, nk in zip(f, n):
+        if nk > MAX_STEPS:
+            raise ValueError(f"freq_hz: at {fk:g} Hz a period needs {nk} time steps (at most "
+                             f"{MAX_STEPS}); integrate at higher frequencies")
+    return f, n
 
 
 def _single_harmonic_state(model, omega, mu0, kc, N0, s):
@@ -180,7 +234,7 @@ def verify(model, freq_hz, mu0, kc, N0=0.5, *, harmonics=9, start="single", tol=
     """
     if not isinstance(model, Model):
         raise ValueError(f"model: expected a mcfric Model, got {type(model).__name__}")
-    f = check_frequencies(np.atleast_1d(freq_hz))
+    check_frequencies(np.atleast_1d(freq_hz))
     p = check_parameters(model.n_dampers, mu0=mu0, kc=kc, N0=N0)
     if p["mu0"].shape[0] != 1:
         raise ValueError("mu0, kc, N0: verify takes one parameter set (scalars or per damper)")
@@ -193,9 +247,7 @@ def verify(model, freq_hz, mu0, kc, N0=0.5, *, harmonics=9, start="single", tol=
     for name, v, lo in (("settle", settle, 1), ("max_periods", max_periods, 1)):
         if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < lo:
             raise ValueError(f"{name}: expected an integer >= {lo}, got {v!r}")
-    if steps is not None and (isinstance(steps, bool) or not isinstance(steps, (int, np.integer))
-                              or not 64 <= steps <= 10**7):
-        raise ValueError(f"steps: expected an integer in 64..10000000, got {steps!r}")
+    f, n_steps_at = time_steps(model, freq_hz, kc, steps)
     orders = harmonic_orders(max(harmonics, 3))
     shb = solve(model, f, mu0[None], kc[None], N0[None])
     mhb = solve(model, f, mu0[None], kc[None], N0[None], harmonics=harmonics,
@@ -211,7 +263,7 @@ def verify(model, freq_hz, mu0, kc, N0=0.5, *, harmonics=9, start="single", tol=
     for k, fk in enumerate(tqdm(f, unit="frequency", disable=not progress, leave=False,
                                 dynamic_ncols=True, file=sys.stderr)):
         omega = 2 * np.pi * fk
-        n_steps = int(steps) if steps is not None else _steps(model, omega, kc)
+        n_steps = n_steps_at[k]
         if start == "single" and shb.converged[0, k]:
             eta0, vel0, f0 = _single_harmonic_state(model, omega, mu0, kc, N0, shb.s[0, k])
         else:

@@ -111,6 +111,22 @@ def test_time_integration_reaches_the_linear_limits(mu0, two_beam, eight_beam):
             assert np.max(abs(v.harmonics[1])) <= 1e-6 * np.max(abs(y))
 
 
+def test_a_beam_at_rest_has_no_relative_differences(two_beam):
+    """Without contact stiffness the undriven beam of two-beam stays at rest: its
+    harmonics relative to the fundamental and its differences are NaN (``-`` in the
+    table), with no warning, and the driven beam's are numbers."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        v, = verify(two_beam, 50.0, 0.5, 0.0, 0.5, harmonics=3)
+        d1, dm, d3 = v.differences()
+        text = v.table()
+    assert np.all(v.harmonics[:, 1] == 0) and np.isnan([d1[1], dm[1], d3[1]]).all()
+    assert np.isfinite([d1[0], dm[0]]).all() and abs(d1[0]) < 1e-6
+    assert "nan" not in text and text.splitlines()[-1].split()[2] == "-"
+
+
 # drive frequencies across 10-150 Hz, with the 3:1 and 5:1 region 17-40 Hz
 POINTS = [("two-beam", 0.3, 3000.0, [17.0, 35.3, 60.0]),
           ("eight-beam", 0.5, 6000.0, [17.5, 21.0, 37.5, 120.0])]
@@ -238,6 +254,14 @@ def test_verify_takes_a_member_of_a_results_file(tmp_path, capsys):
     assert table.shape == (2,) and out.with_suffix(".png").exists()
     rc = cli.main(["verify", str(res), "--member", "9", "--f", "30", "-o", str(out)])
     assert rc == 2
+    # a member not done holds zeros, not NaN: refused by its done flag
+    import h5py
+    with h5py.File(res, "r+") as h:
+        h["done"][1] = 0
+    capsys.readouterr()
+    out.unlink()
+    rc = cli.main(["verify", str(res), "--member", "1", "--f", "30", "-o", str(out)])
+    assert rc == 2 and "not done" in capsys.readouterr().err and not out.exists()
 
 
 def test_plot_marks_the_points_the_indicator_flags(tmp_path, capsys):

@@ -6,6 +6,7 @@ defect is found.
 """
 
 import errno
+import json
 import os
 import subprocess
 import sys
@@ -206,6 +207,46 @@ def test_no_output_silently_replaces_another(tmp_path, capsys, argv, message):
     assert snapshot(tmp_path) == before
 
 
+TINY = ["--n-freq", "5", "--no-progress"]
+REFUSED_BEFORE_WORK = [
+    # (argv, {dir} = the directory, holding fig.png/ and c.toml; message)
+    (["run", "two-beam", "--samples", "4", *TINY, "-o", "{dir}/fig.h5"], "is a directory"),
+    (["bounds", "two-beam", "--no-certify", "--n-freq", "5", "-o", "{dir}/fig.h5"],
+     "is a directory"),
+    (["hbm", "two-beam", "--n-freq", "5", "-o", "{dir}/fig.csv"], "is a directory"),
+    (["hbm", "{dir}/c.toml", "--n-freq", "5", "-o", "{dir}/c.toml", "--no-figure"],
+     "would replace the input"),
+    (["verify", "{dir}/c.toml", "--f", "30", "-o", "{dir}/c.toml", "--no-figure"],
+     "would replace the input"),
+    (["run", "two-beam", "--samples", "4", *TINY, "-o", "{dir}/r.h5.partial"],
+     "ends in .partial"),
+    (["verify", "two-beam", "--f", "0.001", "--harmonics", "1"], "--f: at 0.001 Hz"),
+    (["verify", "two-beam", "--f", "nan"], "--f:"),
+    (["bounds", "eight-beam", "--no-certify", "--moments", "-o", "{dir}/b.h5"],
+     "--moments: the order of the certification; not with --no-certify"),
+    (["run", "two-beam", *TINY, "--no-certify", "--first-order", "-o", "{dir}/r.h5"],
+     "--first-order: the order"),
+]
+
+
+@pytest.mark.parametrize("argv, message", REFUSED_BEFORE_WORK)
+def test_outputs_that_cannot_be_made_are_refused_before_the_work(tmp_path, capsys,
+                                                                  monkeypatch, argv, message):
+    """A figure path that is a directory, an output that is the command's own input, a
+    results file named like an interrupted one, a frequency too low to integrate: one
+    line, exit 2, before any work, nothing written (not even the default directory)."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "fig.png").mkdir()
+    assert cli.main(["config", "two-beam"]) == 0
+    (tmp_path / "c.toml").write_text(capsys.readouterr().out)
+    before = snapshot(tmp_path)
+    rc = cli.main([a.format(dir=tmp_path) for a in argv])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and message in err and len(err.splitlines()) == 1, err
+    assert snapshot(tmp_path) == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["c.toml", "fig.png"]
+
+
 def test_bounds_replaces_its_own_bounds_file(tmp_path, capsys):
     out = tmp_path / "b.h5"
     argv = ["bounds", "two-beam", "--n-freq", "10", "-o", str(out), "--no-figure"]
@@ -262,6 +303,15 @@ def _damaged(tmp_path, how):
     return res
 
 
+def _stored(section, key, value):
+    """An edit of the stored configuration's ``[section] key``."""
+    def how(h):
+        cfg = json.loads(h.attrs["config_json"])
+        cfg[section][key] = value
+        h.attrs["config_json"] = json.dumps(cfg)
+    return how
+
+
 def _replace(name, fn):
     def how(h):
         data = h[name][...]
@@ -278,6 +328,12 @@ DAMAGED = [
     (_replace("metric", lambda d: d.astype("S8")), "expected float"),
     (lambda h: h.attrs.__delitem__("config_json"), "no configuration record"),
     (lambda h: h.attrs.__setitem__("config_json", "{}"), "lacks"),
+    (_stored("sampling", "mu0", {"dist": "gamma"}), "stored configuration: sampling.mu0.dist"),
+    (_stored("sampling", "kc", {"dist": "uniform", "low": "0"}),
+     "stored configuration: sampling.kc.low"),
+    (_stored("model", "n_beams", "two"), "stored configuration: model.n_beams"),
+    (_stored("frequency", "f_min", None), "stored configuration: frequency.f_min"),
+    (_stored("metric", "quantity", "force"), "stored configuration: metric.quantity"),
     (lambda h: h.attrs.__setitem__("layout_version", 99), "layout_version 99"),
     # the bounds group: everything its reader uses
     (lambda h: h["bounds"].__delitem__("upper_box"), "bounds/upper_box is missing"),

@@ -34,8 +34,8 @@ from .configuration import Config, first_difference
 from .loading import load, read_toml
 from .rendering import render, template
 from .schema import DEFAULT_PRESET, NOT_IDENTITY, SPEC, defaults, identity
-from .validation import bounds_limits, validate
+from .validation import bounds_limits, check_keys, validate
 
 __all__ = ["ConfigError", "Config", "first_difference", "load", "read_toml", "render",
            "template", "DEFAULT_PRESET", "NOT_IDENTITY", "SPEC", "defaults", "identity",
-           "bounds_limits", "validate"]
+           "bounds_limits", "check_keys", "validate"]

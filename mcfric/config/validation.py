@@ -68,6 +68,27 @@ def _check_dist(raw, key):
     return sampling.as_dict(d)
 
 
+def check_keys(raw, keys):
+    """Check only ``keys`` (``{section: (key, ...)}``) of ``raw`` against the schema.
+
+    For a configuration stored in a results file, of which a reader uses a few keys: the
+    record may predate keys added since (so :func:`validate` would refuse it), but a value
+    a reader formats or looks up must be what the schema allows (an edited file: one
+    line, not a traceback). Raises :class:`~mcfric.validators.InputError`.
+    """
+    _table(raw, "configuration")
+    for section, names in keys.items():
+        table = _table(raw.get(section), section)
+        for k in names:
+            if k not in table:
+                _missing(f"{section}.{k}", "a reader of the file uses it")
+            check = SPEC[section][k]
+            if check == "dist":
+                _check_dist(table[k], f"{section}.{k}")
+            else:
+                check[0](table[k], f"{section}.{k}")
+
+
 def validate(raw, labels=None):
     """Validate a complete raw configuration (defaults + file + overrides).
 
