@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import sys
 from pathlib import Path
@@ -591,6 +592,13 @@ def cmd_plot(args):
         f = read(path, "frequency")
         window = (args.f_min if args.f_min is not None else f.min(),
                   args.f_max if args.f_max is not None else f.max())
+        for flag, v in (("--f-min", args.f_min), ("--f-max", args.f_max)):
+            if v is not None and not math.isfinite(v):
+                raise UsageError(f"{flag}: expected a frequency in Hz, got {v}")
+        if not window[0] < window[1]:
+            flag = "--f-min" if args.f_min is not None else "--f-max"
+            raise UsageError(f"{flag}: expected f-min < f-max, got {window[0]:g} and "
+                             f"{window[1]:g} Hz")
     n = int(attrs.get("samples", 0))
     if n and not -1 <= args.member < n:
         raise UsageError(f"--member: expected -1 (none) or a member in 0..{n - 1}, "

@@ -3,6 +3,7 @@ and that errors name the key. (Every bad-config row of docs/configuration.md run
 test_cli.py.)"""
 
 import json
+import re
 import tomllib
 
 import numpy as np
@@ -230,3 +231,18 @@ def test_bad_modal_table_file(tmp_path, table, key):
     with pytest.raises(config.ConfigError) as e:
         config.load(p)
     assert str(e.value).startswith(key) and "\n" not in str(e.value)
+
+
+def test_a_source_that_is_no_configuration_file_is_one_line(tmp_path):
+    """An empty name, a directory, a results (HDF5) file, a missing file: one line that
+    says what it is, not a decoding error."""
+    import h5py
+
+    h5 = tmp_path / "r.h5"
+    h5py.File(h5, "w").close()
+    for source, words in (("", "expected a preset"), (tmp_path, "a directory"),
+                          (h5, "an HDF5 file (results?)"),
+                          (tmp_path / "nope.toml", "no such file")):
+        with pytest.raises(config.ConfigError, match=re.escape(words)) as e:
+            config.load(source)
+        assert len(str(e.value).splitlines()) == 1

@@ -95,7 +95,8 @@ def test_quantity_and_window(results, tmp_path, capsys):
 
 
 @pytest.mark.parametrize("case", ["missing file", "jpg output", "f-min above f-max",
-                                  "window outside the grid", "bad quantity"])
+                                  "window outside the grid", "bad quantity", "infinite f-max",
+                                  "NaN f-min", "a directory"])
 def test_bad_input_is_one_line_exit_2(case, results, tmp_path, capsys):
     out_png = tmp_path / "fig.png"
     argv = {
@@ -106,11 +107,18 @@ def test_bad_input_is_one_line_exit_2(case, results, tmp_path, capsys):
         "window outside the grid": ["plot", results, "-o", out_png, "--f-min", "200",
                                     "--f-max", "300"],
         "bad quantity": ["plot", results, "-o", out_png, "--quantity", "force"],
+        "infinite f-max": ["plot", results, "-o", out_png, "--f-max", "inf"],
+        "NaN f-min": ["plot", results, "-o", out_png, "--f-min", "nan"],
+        "a directory": ["plot", tmp_path, "-o", out_png],
     }[case]
+    words = {"f-min above f-max": "--f-min: expected f-min < f-max",
+             "infinite f-max": "--f-max: expected a frequency",
+             "NaN f-min": "--f-min: expected a frequency",
+             "a directory": "a directory, not a results file"}.get(case, "")
     rc, out, err = call(argv, capsys)
     assert rc == 2
     lines = err.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("mcfric: error: "), err
+    assert len(lines) == 1 and lines[0].startswith("mcfric: error: ") and words in err, err
     assert not out_png.exists() and not (tmp_path / "fig.jpg").exists()
 
 

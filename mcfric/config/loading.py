@@ -47,8 +47,15 @@ def set_key(tree, dotted, value):
 def read_toml(path):
     """Parse a TOML file; problems become a one-line :class:`ConfigError` naming the file."""
     p = Path(path)
+    if not str(path).strip():
+        raise InputError('""', f"expected a preset ({choices(PRESETS)}) or a TOML file")
+    if p.is_dir():
+        raise InputError(str(path), "a directory, not a TOML file")
     try:
-        text = p.read_bytes().decode("utf-8")
+        data = p.read_bytes()
+        if data.startswith(b"\x89HDF"):
+            raise InputError(str(path), "an HDF5 file (results?), not a TOML configuration")
+        text = data.decode("utf-8")
     except FileNotFoundError:
         raise InputError(str(path), "no such file (and not a preset: "
                          f"{choices(PRESETS)})") from None

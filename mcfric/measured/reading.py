@@ -80,7 +80,7 @@ def read_measured(path, *, nodes=None, direction=None, quantity=None, force_n=No
         format = "uff" if suffix in UFF_SUFFIXES else "csv" if suffix == ".csv" else None
         if format is None:
             raise ValueError(f"{path}: unknown file type {suffix!r}: expected .uff/.unv "
-                             f"(UFF 58) or .csv, or pass format=")
+                             f"(UFF 58) or .csv (from Python, or format=)")
     elif format not in ("uff", "csv"):
         raise ValueError(f"{path}: format: expected 'uff' or 'csv', got {format!r}")
     if quantity is not None and quantity not in QUANTITIES:
