@@ -379,8 +379,8 @@ def _checked_file(path):
         raise UsageError(f"{path}: a directory, not a results file")
     try:
         attrs, cfg = check_file(path)
-    except StoreError as e:          # HDF5's own messages may span lines
-        raise UsageError(" ".join(str(e).split())) from None
+    except StoreError as e:
+        raise UsageError(str(e)) from None
     try:
         config.check_keys(cfg, CONFIG_KEYS)
     except config.ConfigError as e:
@@ -971,6 +971,12 @@ def _stop_signals_interrupt():
     return previous
 
 
+def _one_line(e):
+    """An error's text on one line: a key or a library's message may hold line breaks
+    (a quoted TOML key with a line break in it, HDF5's own errors)."""
+    return " ".join(str(e).split())
+
+
 def main(argv=None):
     """Entry point of ``mcfric``; returns the exit code."""
     from .store import StoreError
@@ -989,7 +995,7 @@ def main(argv=None):
         sys.stdout.flush()           # a closed pipe shows here, not at interpreter exit
         return rc
     except UsageError as e:
-        print(f"mcfric: error: {e}", file=sys.stderr)
+        print(f"mcfric: error: {_one_line(e)}", file=sys.stderr)
         return EXIT_USAGE
     except KeyboardInterrupt:
         print("mcfric: interrupted", file=sys.stderr)
@@ -1002,7 +1008,7 @@ def main(argv=None):
             pass
         return EXIT_OK
     except (OSError, StoreError) as e:   # disk full, unreadable file: one line, no traceback
-        print(f"mcfric: error: {e}", file=sys.stderr)
+        print(f"mcfric: error: {_one_line(e)}", file=sys.stderr)
         return EXIT_FAIL
     except MemoryError:
         print("mcfric: error: out of memory (a model or ensemble this large needs more RAM "

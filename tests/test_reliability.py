@@ -271,6 +271,7 @@ def _lognormal_kc(text):
 
 BAD_RUNS = [
     # (edit of the two-beam configuration, extra arguments, words of the message)
+    (lambda t: '"weird\\nkey" = 1\n' + t, [], "weird key: unknown section"),
     (lambda t: _edit(t, "zeta = [0.0017, 0.0071]", "zeta = [0.0, 0.0]"), [],
      "model.table.zeta: the bounds need every mode damped"),
     (lambda t: _edit(t, 'k_max = "auto"', "k_max = 1e308"), [], "bounds.k_max: expected at most"),
