@@ -143,11 +143,11 @@ class Config:
         :func:`~mcfric.config.load` names it)."""
         raw = copy.deepcopy(self.data)
         loading.set_key(raw, dotted, value)
-        m = self.data["model"]
-        n_preset = defaults(m["preset"])["model"]["n_beams"]
-        if (dotted == "model.n_beams"
-                and m["name"] == loading.automatic_name(m["preset"], m["n_beams"], n_preset)):
-            raw["model"]["name"] = loading.automatic_name(m["preset"], value, n_preset)
+        if dotted == "model.n_beams":
+            m = self.data["model"]
+            n_preset = defaults(m["preset"])["model"]["n_beams"]
+            if m["name"] == loading.automatic_name(m["preset"], m["n_beams"], n_preset):
+                raw["model"]["name"] = loading.automatic_name(m["preset"], value, n_preset)
         return validation.validate(raw)
 
 
