@@ -19,7 +19,7 @@ from .core import sweep as _sweep
 from .core.aft import harmonic_orders
 from .core.newton import NOT_CONVERGED
 from .core.receptance import D21
-from .metric import response_metric
+from .metric import check_beams, response_metric
 from .model import CONTACT_LAWS, Model
 from .peaks import Peaks, PeakSettings, refine
 from .threads import threads
@@ -195,6 +195,8 @@ def solve(model, freq_hz, mu0, kc, N0=0.5, *, modal_freq_hz=None, tol=TOL,
         peaks = PeakSettings(count=int(peaks))
     if peaks is not None and not isinstance(peaks, PeakSettings):
         raise ValueError(f"peaks: expected a PeakSettings or a count, got {peaks!r}")
+    if peaks is not None and peaks.beams is not None:
+        check_beams(peaks.beams, model.n_beams, "peaks.beams")
     if peaks is not None and np.any(np.diff(f) <= 0):
         raise ValueError("peaks: refinement needs increasing frequencies")
     harmonics, n_time = check_harmonics(harmonics, n_time)
@@ -359,4 +361,11 @@ def run_kernel(model, rec, omega, mu0, N0, kc, tol, max_iter, y, s, status, iter
         _sweep.sweep_one_damper(*args, *outs)
     else:
         _sweep.sweep_chain(*args, *outs)
+    # a response that is not finite (an undamped resonance with the contacts free) is
+    # no solution, whatever the residual said: not converged, never a number
+    bad = (status >= 0) & ~np.isfinite(y).all(axis=-1)
+    if bad.any():
+        status[bad] = NOT_CONVERGED
+        y[bad] = complex(np.nan, np.nan)
+        s[bad] = np.nan
     return mu0, N0, kc

@@ -38,6 +38,27 @@ def omega_power(freq_hz, to_quantity, from_quantity="displacement"):
     return (2 * np.pi * np.asarray(freq_hz, dtype=float)) ** k
 
 
+def check_beams(beams, n_beams, name="beams"):
+    """``beams`` (0-based beam indices, one or more, each in ``0..n_beams - 1``; any
+    ``>= 0`` where ``n_beams`` is None) as a tuple of int; a ``ValueError`` naming
+    ``name`` otherwise (a float, a bool or a string is not an index: numpy would
+    truncate or parse it)."""
+    top = np.iinfo(np.int64).max if n_beams is None else n_beams
+    if isinstance(beams, (int, np.integer)) and not isinstance(beams, (bool, np.bool_)):
+        beams = (beams,)
+    try:
+        beams = list(beams)
+    except TypeError:
+        raise ValueError(f"{name}: expected 0-based beam indices, got {beams!r}") from None
+    bad = [b for b in beams if isinstance(b, (bool, np.bool_))
+           or not isinstance(b, (int, np.integer)) or not 0 <= b < top]
+    if bad or not beams:
+        within = "" if n_beams is None else f" in 0..{n_beams - 1}"
+        raise ValueError(f"{name}: expected 0-based beam indices{within} (the Python API "
+                         f"counts from 0), got {bad[0] if bad else beams!r}")
+    return tuple(int(b) for b in beams)
+
+
 def response_metric(response, freq_hz, quantity="displacement", beams=None):
     """``max_b |y_b| omega^k`` over the chosen beams (NaN propagates).
 
@@ -59,13 +80,7 @@ def response_metric(response, freq_hz, quantity="displacement", beams=None):
     """
     check_quantity(quantity, "quantity")
     if beams is not None:
-        nb = response.shape[-1]
-        beams = list(beams)
-        bad = [b for b in beams if isinstance(b, (bool, np.bool_))
-               or not isinstance(b, (int, np.integer)) or not 0 <= b < nb]
-        if bad or not beams:
-            raise ValueError(f"beams: expected 0-based beam indices in 0..{nb - 1} (the "
-                             f"Python API counts from 0), got {bad[0] if bad else beams!r}")
+        beams = list(check_beams(beams, response.shape[-1]))
     amp = np.abs(response if beams is None else response[..., beams])
     # the maximum over beams slice by slice: numpy reduces a short last axis slowly, and
     # np.maximum propagates NaN like ndarray.max

@@ -87,6 +87,7 @@ class ModalTable:
     def with_frequency(self, mode, freq_hz):
         """A copy with mode ``mode`` (1-based) moved to ``freq_hz`` (e.g. Fig. 10b's 108 Hz)."""
         f = np.array(self.freq_hz)
+        integer(1, len(f))(mode, "mode")
         f[mode - 1] = freq_hz
         return dataclasses.replace(self, freq_hz=f)
 
@@ -127,6 +128,8 @@ class Excitation:
         choice(*PATTERNS)(self.pattern, "pattern")
         object.__setattr__(self, "F0", number(lo=0, lo_open=True)(self.F0, "F0"))
         integer(0)(self.mode, "mode")
+        integer(1)(self.beam, "beam")
+        integer()(self.engine_order, "engine_order")
 
     def force(self, n_beams):
         """Complex force amplitudes (n_beams,), N."""
@@ -194,6 +197,10 @@ class Model:
         object.__setattr__(self, "beams", beams)
         self.excitation.force(len(beams))  # validates the driven beam index
         ex = self.excitation
+        if ex.pattern == "mode" and not ex.mode < len(beams):
+            # m = n drives no beam, m and 2n - m the same pattern: one name for each
+            raise ValueError(f"mode: expected a chain mode in 0..{len(beams) - 1} "
+                             f"(n_beams - 1), got {ex.mode}")
         if ex.pattern == "travelling" and not 0 <= ex.engine_order < len(beams):
             # E and E + n drive the same wave: one name for each
             raise ValueError(f"engine_order: expected 0..{len(beams) - 1} (n_beams - 1), "
@@ -202,7 +209,7 @@ class Model:
     @classmethod
     def identical(cls, table, n_beams, **kwargs):
         """An array of ``n_beams`` identical beams with modal table ``table``."""
-        return cls(beams=(table,) * int(n_beams), **kwargs)
+        return cls(beams=(table,) * integer(2)(n_beams, "n_beams"), **kwargs)
 
     @property
     def n_beams(self):

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .core import peaks as _kernel
-from .metric import QUANTITIES, check_quantity
+from .metric import QUANTITIES, check_beams, check_quantity
 from .model import CONTACT_LAWS
 from .validators import integer, real
 
@@ -60,6 +60,8 @@ class PeakSettings:
             raise ValueError(f"peaks.rtol: expected a number in (0, 0.1], got {self.rtol!r}")
         integer(1, 10_000)(self.window, "peaks.window")
         check_quantity(self.quantity, "peaks.quantity")
+        if self.beams is not None:     # their range: once the model is known
+            check_beams(self.beams, None, "peaks.beams")
 
 
 @dataclass
@@ -131,7 +133,8 @@ def refine(model, result, omega, modal_freq_hz, settings, mu0, N0, kc, tol, max_
     n = settings.count
     _, zeta, u = model.modal_arrays()
     a, b = model.dampers
-    beams = np.arange(n_beams) if settings.beams is None else np.asarray(settings.beams)
+    beams = np.arange(n_beams) if settings.beams is None else np.asarray(
+        check_beams(settings.beams, n_beams, "peaks.beams"))
     out_w = np.empty((n_s, n))
     out_m = np.empty((n_s, n))
     out_y = np.empty((n_s, n, n_beams), np.complex128)

@@ -325,6 +325,10 @@ def test_bounds_scale_with_the_metric_quantity():
     (dict(k_max=K_MAX, k_max_im=-1.0), "k_max_im"),
     (dict(k_max=K_MAX, F_lim=0.0), "F_lim"),
     (dict(k_max=K_MAX, beams=[9]), "beams"),
+    (dict(k_max=K_MAX, beams=[0.9]), "beams"),          # not truncated to beam 0
+    (dict(k_max=K_MAX, beams="01"), "beams"),
+    (dict(k_max=1e20), "k_max: expected at most"),       # the search overflowed
+    (dict(k_max=K_MAX, k_max_im=1e300), "k_max_im: expected at most"),
     (dict(k_max=K_MAX, quantity="jerk"), "quantity"),
     (dict(k_max=K_MAX, n_starts=0), "n_starts"),
 ])

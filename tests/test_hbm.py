@@ -7,6 +7,7 @@ import pytest
 
 import mcfric
 from mcfric.model import TABLE_1, Excitation, Model
+from mcfric.peaks import PeakSettings
 
 from . import naive
 from .conftest import naive_beams, naive_pairs
@@ -153,13 +154,16 @@ def test_ensemble_convergence_eight_beam(eight_beam):
     assert np.all(np.isnan(r.response[~ok])) and np.all(np.isnan(r.s[~ok]))
 
 
-@pytest.mark.parametrize("n_beams", [2, 8])
-def test_non_converged_points_are_flagged_never_numbers(n_beams):
-    """An undamped mode hit exactly has no finite solution: flagged, NaN, counted."""
+@pytest.mark.parametrize("n_beams, mu0, kc", [(2, 0.3, 8000.0), (8, 0.3, 8000.0),
+                                             (2, 0.0, 0.0), (8, 0.5, 0.0)])
+def test_non_converged_points_are_flagged_never_numbers(n_beams, mu0, kc):
+    """An undamped mode hit exactly has no finite solution: flagged, NaN, counted; also
+    with the contacts free (kc = 0 or mu0 = 0), where the kernel's residual passed at a
+    NaN response (status 0 before)."""
     table = dataclasses.replace(TABLE_1, zeta=[0.0, 0.0071])
     model = Model.identical(table, n_beams, excitation=Excitation("mode", 0.5, mode=1))
     f = np.array([12.0, 16.0, 16.2, 16.4, 30.0])
-    r = mcfric.solve(model, f, mu0=0.3, kc=8000.0, N0=N0)
+    r = mcfric.solve(model, f, mu0=mu0, kc=kc, N0=N0)
     bad = ~r.converged
     assert bad[0].tolist() == [False, False, True, False, False]
     assert np.all(np.isnan(r.response[bad])) and np.all(np.isnan(r.s[bad]))
@@ -205,6 +209,7 @@ BAD = [
     (dict(modal_freq_hz=np.ones((1, 8, 3))), "modal_freq_hz"),
     (dict(modal_freq_hz=np.full((1, 8, 2), np.nan)), "modal_freq_hz"),
     (dict(n_threads=99), "threads"),
+    (dict(peaks=PeakSettings(beams=(8,))), "peaks.beams"),   # read out of bounds before
 ]
 
 
@@ -230,6 +235,13 @@ def test_bad_input_names_the_argument(eight_beam, change, name):
     (lambda: Excitation("single", -1.0), "F0"),
     (lambda: Excitation("wave", 1.0), "pattern"),
     (lambda: Model.identical(TABLE_1, 3, excitation=Excitation("single", 1.0, beam=5)), "beam"),
+    (lambda: Excitation("single", 1.0, beam=1.5), "beam"),
+    (lambda: Excitation("travelling", 1.0, engine_order=1.5), "engine_order"),
+    (lambda: Model.identical(TABLE_1, 2.7), "n_beams"),          # not truncated to 2
+    (lambda: Model.identical(TABLE_1, 8, excitation=Excitation("mode", 1.0, mode=8)),
+     "mode: expected a chain mode in 0..7"),                      # drives no beam
+    (lambda: TABLE_1.with_frequency(0, 99.0), "mode"),            # not mode 2 silently
+    (lambda: TABLE_1.with_frequency(3, 99.0), "mode"),
 ])
 def test_bad_model_names_the_argument(build, name):
     with pytest.raises(ValueError, match=name):

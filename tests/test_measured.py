@@ -408,6 +408,14 @@ def test_fraction_inside_bad_input():
         fraction_inside(m, [10.0, 20.0], np.ones((2, 0)), np.ones((2, 0)))
     with pytest.raises(ValueError, match="beam 2 is not in the measurement"):
         fraction_inside(m, [10.0, 20.0], [1, 1], [2, 2], beams=[2])
+    # a NaN or negative tolerance counted every point inside, or each twice
+    for rtol in (np.nan, -2.0, 0.7):
+        with pytest.raises(ValueError, match="rtol"):
+            fraction_inside(m, [10.0, 20.0], [1, 1], [2, 2], rtol=rtol)
+    with pytest.raises(ValueError, match="lower above upper"):
+        fraction_inside(m, [10.0, 20.0], [2, 1], [1, 2])
+    with pytest.raises(ValueError, match="lower: expected real"):
+        fraction_inside(m, [10.0, 20.0], [1j, 1], [2, 2])
 
 
 def test_measurement_validation():

@@ -38,13 +38,17 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..core.receptance import contact_space
-from ..metric import QUANTITIES, check_quantity
+from ..metric import QUANTITIES, check_beams, check_quantity
 from ..model import Model
 from ..threads import threads
 from ..validators import frequencies as check_frequencies
 from ..validators import real
 from .certified import Certificate, certify, resolve_moments, within
 from .search import box_extreme, starts
+
+#: Largest k_max (and k_max_im) the bounds accept, N/m: far stiffer than any contact
+#: (a stuck damper); beyond it the search's arithmetic overflows.
+K_MAX_LIMIT = 1e12
 
 #: ``limited_by`` codes: which constraint sets the upper bound.
 LIMITED_BY = ("box", "force")
@@ -241,12 +245,15 @@ def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity
     f = check_frequencies(freq_hz)
     kr = real("k_max", k_max, lo=0, lo_open=True)
     ki = kr if k_max_im is None else real("k_max_im", k_max_im, lo=0, lo_open=True)
+    for name, k in (("k_max", kr), ("k_max_im", ki)):
+        if k > K_MAX_LIMIT:
+            raise ValueError(f"{name}: expected at most {K_MAX_LIMIT:g} N/m (a stuck "
+                             f"damper), got {k:g}")
     F_lim = (np.inf if F_lim is None
              else real("F_lim", F_lim, lo=0, lo_open=True, allow_inf=True))
     check_quantity(quantity, "quantity")
-    beams = tuple(range(model.n_beams)) if beams is None else tuple(int(b) for b in beams)
-    if not beams or any(not 0 <= b < model.n_beams for b in beams):
-        raise ValueError(f"beams: expected 0-based beam indices in 0..{model.n_beams - 1}")
+    beams = (tuple(range(model.n_beams)) if beams is None
+             else check_beams(beams, model.n_beams))
     if not (isinstance(n_starts, (int, np.integer)) and n_starts >= 1):
         raise ValueError(f"n_starts: expected an integer >= 1, got {n_starts!r}")
     if budget is not None and not (isinstance(budget, (int, np.integer)) and budget >= 1):

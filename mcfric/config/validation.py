@@ -13,6 +13,7 @@ import json
 import math
 
 from .. import sampling
+from ..bounds.equivalent_linear import K_MAX_LIMIT
 from ..validators import InputError, choices, is_num, show
 from . import configuration  # at call time: configuration imports this module
 from .schema import BEAM, SPEC, TABLE
@@ -254,10 +255,6 @@ def _dist_max(t):
     if d in ("uniform", "truncnormal"):
         return float(t["high"])
     return math.inf
-
-
-#: Largest k_max the bounds accept, N/m.
-K_MAX_LIMIT = 1e12
 
 
 def bounds_limits(c):

@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..validators import real, real_array
 from .measurement import METRIC, Measurement
 
 
@@ -142,9 +143,12 @@ def fraction_inside(measurement, freq_hz, lower, upper, beams=None, *,
     ms = [measurement] if isinstance(measurement, Measurement) else list(measurement)
     if not ms or not all(isinstance(m, Measurement) for m in ms):
         raise ValueError("measurement: expected a Measurement or a list of them")
-    g = np.asarray(freq_hz, dtype=float)
-    lo = np.asarray(lower, dtype=float)
-    up = np.asarray(upper, dtype=float)
+    g = real_array("freq_hz", freq_hz)
+    lo = real_array("lower", lower)
+    up = real_array("upper", upper)
+    real("rtol", rtol, lo=0)
+    if not rtol < 0.5:          # a tolerance, not a second band
+        raise ValueError(f"rtol: expected a number in [0, 0.5), got {rtol!r}")
     if g.ndim != 1 or g.size < 2 or not np.all(np.isfinite(g)) or not np.all(np.diff(g) > 0):
         raise ValueError("freq_hz: expected at least 2 finite, strictly increasing "
                          "frequencies")
@@ -153,6 +157,9 @@ def fraction_inside(measurement, freq_hz, lower, upper, beams=None, *,
                          f"got {lo.shape} and {up.shape}")
     if np.any(lo < 0) or np.any(up < 0):
         raise ValueError("lower, upper: bounds must be >= 0 (NaN allowed)")
+    if np.any(lo > up):
+        k = np.argwhere(lo > up)[0]
+        raise ValueError(f"lower, upper: lower above upper at index {tuple(int(i) for i in k)}")
     wanted = None if beams is None else tuple(int(b) for b in beams)
     counts = {k: {} for k in ("inside", "below", "above", "outside_range", "missing")}
     order = []
