@@ -218,6 +218,9 @@ def _cross_checks(c):
                        and E not in ex["engine_orders"] else "excitation.engine_orders")
                 raise InputError(key, f"expected engine orders in 0..{nb - 1} (n_beams - 1; "
                                  f"E and E + n_beams are the same wave), got {E}")
+    if ex["pattern"] == "mode" and not ex["mode"] < nb:
+        raise InputError("excitation.mode", f"expected a chain mode in 0..{nb - 1} (n_beams "
+                         f"- 1; m = n_beams drives no beam), got {ex['mode']}")
     if not 1 <= ex["beam"] <= nb:
         raise InputError("excitation.beam", f"expected an integer in 1..{nb} (n_beams), "
                          f"got {ex['beam']}")
