@@ -329,8 +329,14 @@ def finite_array(name, value, ndim, positive=False, nonnegative=False):
     return arr
 
 
+#: Highest frequency accepted, Hz (as the configuration's ``f_max``): far above any blade
+#: mode; beyond it the receptances overflow to zero responses that look converged.
+MAX_FREQ_HZ = 1e6
+
+
 def frequencies(freq_hz, name="freq_hz"):
-    """Frequencies as a contiguous 1-d float array, Hz: non-empty, finite, > 0."""
+    """Frequencies as a contiguous 1-d float array, Hz: non-empty, finite, in
+    ``(0, MAX_FREQ_HZ]``."""
     f = np.ascontiguousarray(real_array(name, freq_hz))
     if f.ndim == 0:
         f = f[None]
@@ -340,6 +346,9 @@ def frequencies(freq_hz, name="freq_hz"):
         raise InputError(name, "frequencies must be finite (no NaN or inf)")
     if not np.all(f > 0):
         raise InputError(name, "frequencies must be > 0 Hz")
+    if not np.all(f <= MAX_FREQ_HZ):
+        raise InputError(name, f"frequencies must be at most {MAX_FREQ_HZ:g} Hz, got "
+                         f"{f.max():g}")
     return f
 
 

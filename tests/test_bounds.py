@@ -331,7 +331,15 @@ def test_bounds_scale_with_the_metric_quantity():
     (dict(k_max=K_MAX, k_max_im=1e300), "k_max_im: expected at most"),
     (dict(k_max=K_MAX, quantity="jerk"), "quantity"),
     (dict(k_max=K_MAX, n_starts=0), "n_starts"),
+    (dict(k_max=K_MAX, max_sweeps=0), "max_sweeps"),
+    (dict(k_max=K_MAX, seed=1.5), "seed"),
+    (dict(k_max=K_MAX, certified="no"), "certified"),    # a truthy string ran it
+    (dict(k_max=K_MAX, model=dataclasses.replace(mcfric.two_beam(), contact_law="cubic")),
+     "Coulomb"),
+    (dict(k_max=K_MAX, freq_hz=[1e160]), "at most"),     # receptances overflowed to 0
 ])
 def test_bad_input_names_the_argument(kwargs, name):
+    args = dict(model=mcfric.two_beam(), freq_hz=[20.0, 30.0])
+    args.update(kwargs)
     with pytest.raises(ValueError, match=name):
-        compute_bounds(mcfric.two_beam(), [20.0, 30.0], **kwargs)
+        compute_bounds(args.pop("model"), args.pop("freq_hz"), **args)

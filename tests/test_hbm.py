@@ -210,6 +210,7 @@ BAD = [
     (dict(modal_freq_hz=np.full((1, 8, 2), np.nan)), "modal_freq_hz"),
     (dict(n_threads=99), "threads"),
     (dict(peaks=PeakSettings(beams=(8,))), "peaks.beams"),   # read out of bounds before
+    (dict(freq_hz=[20.0, 1e160]), "at most 1e\\+06 Hz"),     # zeros marked converged
 ]
 
 

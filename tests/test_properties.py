@@ -142,6 +142,7 @@ def valid_config(draw):
         f'topology = "{topology}"',
         "[excitation]",
         f'pattern = "{draw(st.sampled_from(["single", "mode"]))}"',
+        f"mode = {draw(st.integers(0, n_beams - 1))}",    # m >= n_beams is refused
         f"F0 = {draw(st.floats(0.01, 5.0))!r}",
         "[frequency]",
         f"f_min = {f_min!r}",

@@ -254,12 +254,20 @@ def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity
     check_quantity(quantity, "quantity")
     beams = (tuple(range(model.n_beams)) if beams is None
              else check_beams(beams, model.n_beams))
-    if not (isinstance(n_starts, (int, np.integer)) and n_starts >= 1):
-        raise ValueError(f"n_starts: expected an integer >= 1, got {n_starts!r}")
     if budget is not None and not (isinstance(budget, (int, np.integer)) and budget >= 1):
         raise ValueError(f"budget: expected an integer >= 1, got {budget!r}")
     if split is not None and not (isinstance(split, (int, np.integer)) and split >= 0):
         raise ValueError(f"split: expected an integer >= 0, got {split!r}")
+    for name, v, lo in (("n_starts", n_starts, 1), ("max_sweeps", max_sweeps, 1),
+                        ("seed", seed, 0)):
+        if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, np.integer)) or v < lo:
+            raise ValueError(f"{name}: expected an integer >= {lo}, got {v!r}")
+    if not isinstance(certified, (bool, np.bool_)):     # "no" would be true
+        raise ValueError(f"certified: expected True or False, got {certified!r}")
+    if model.contact_law != "coulomb":
+        # the box of describing functions and the force limit are Coulomb friction's
+        raise ValueError(f"model: the bounds are for Coulomb friction contacts, got "
+                         f"contact_law = {model.contact_law!r}")
     if certified:
         moments = resolve_moments(moments, model.topology == "linear", model.n_dampers,
                                   F_lim)
