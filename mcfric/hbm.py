@@ -24,6 +24,7 @@ from .model import CONTACT_LAWS, Model
 from .peaks import Peaks, PeakSettings, refine
 from .threads import threads
 from .validators import frequencies as check_frequencies
+from .validators import is_num, real_array
 from .validators import per_damper as check_parameters
 
 #: Default accepted relative residual ``|s kc A - mu0 N0| <= tol mu0 N0``; Newton aims
@@ -178,13 +179,17 @@ def solve(model, freq_hz, mu0, kc, N0=0.5, *, modal_freq_hz=None, tol=TOL,
     nd = model.n_dampers
     p = check_parameters(nd, mu0=mu0, kc=kc, N0=N0)
     n_s = p["mu0"].shape[0]
-    if not (np.isfinite(tol) and 0 < tol < 1):
+    if not (is_num(tol) and np.isfinite(tol) and 0 < tol < 1):
         raise ValueError(f"tol: expected a number in (0, 1), got {tol!r}")
+    for name, flag in (("indicator", indicator), ("aft", aft),
+                       ("store_harmonics", store_harmonics)):
+        if not isinstance(flag, (bool, np.bool_)):     # "no" would be true
+            raise ValueError(f"{name}: expected True or False, got {flag!r}")
     if not (isinstance(max_iter, (int, np.integer)) and 1 <= max_iter <= 10000):
         raise ValueError(f"max_iter: expected an integer in 1..10000, got {max_iter!r}")
     omega = 2 * np.pi * f
     if modal_freq_hz is not None:
-        mf = np.array(modal_freq_hz, dtype=float)
+        mf = np.array(real_array("modal_freq_hz", modal_freq_hz), dtype=float)
         expect = (n_s, model.n_beams, max(t.n_modes for t in model.beams))
         if mf.shape != expect:
             raise ValueError(f"modal_freq_hz: expected shape {expect}, got {mf.shape}")

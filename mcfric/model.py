@@ -60,7 +60,10 @@ class ModalTable:
         if not np.any(u != 0):
             raise ValueError("shapes: all zero: the beam could not move (a modal table with "
                              "no deflection anywhere)")
-        pos = tuple(int(p) for p in self.positions)
+        if isinstance(self.positions, str) or not hasattr(self.positions, "__len__"):
+            raise ValueError(f"positions: expected a sequence of integer labels, got "
+                             f"{self.positions!r}")
+        pos = tuple(integer()(p, "positions") for p in self.positions)    # 1.5 is no label
         if len(pos) != u.shape[1]:
             raise ValueError(f"positions: expected {u.shape[1]} labels (one per shape column), "
                              f"got {len(pos)}")
@@ -191,6 +194,8 @@ class Model:
         choice(*CONTACT_LAWS)(self.contact_law, "contact_law")
         if not isinstance(self.excitation, Excitation):
             raise ValueError("excitation: expected an Excitation")
+        for name in ("contact", "output", "drive"):
+            integer()(getattr(self, name), name)          # 1.9 would be position 1
         for t in beams:
             for label in (self.contact, self.output, self.drive):
                 t.column(label)

@@ -9,6 +9,7 @@ import contextlib
 from concurrent.futures import ThreadPoolExecutor
 
 import numba
+import numpy as np
 
 
 @contextlib.contextmanager
@@ -17,6 +18,8 @@ def threads(n):
     if n is None:
         yield
         return
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)):   # 1.5 is not 1
+        raise ValueError(f"threads: expected an integer, got {n!r}")
     n = int(n)
     if not 1 <= n <= numba.config.NUMBA_NUM_THREADS:
         raise ValueError(f"threads: expected 1..{numba.config.NUMBA_NUM_THREADS}, got {n}")

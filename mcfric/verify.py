@@ -22,6 +22,7 @@ from .core.time_integration import integrate
 from .hbm import check_harmonics, solve
 from .model import Model
 from .validators import frequencies as check_frequencies
+from .validators import is_num
 from .validators import per_damper as check_parameters
 
 #: Defaults: relative change of the harmonics per period that counts as settled, the
@@ -242,7 +243,7 @@ def verify(model, freq_hz, mu0, kc, N0=0.5, *, harmonics=9, start="single", tol=
     harmonics, _ = check_harmonics(harmonics)
     if start not in STARTS:
         raise ValueError(f"start: expected one of {STARTS}, got {start!r}")
-    if not (math.isfinite(tol) and 0 < tol < 1):
+    if not (is_num(tol) and math.isfinite(tol) and 0 < tol < 1):
         raise ValueError(f"tol: expected a number in (0, 1), got {tol!r}")
     for name, v, lo in (("settle", settle, 1), ("max_periods", max_periods, 1)):
         if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < lo:

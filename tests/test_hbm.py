@@ -211,6 +211,10 @@ BAD = [
     (dict(n_threads=99), "threads"),
     (dict(peaks=PeakSettings(beams=(8,))), "peaks.beams"),   # read out of bounds before
     (dict(freq_hz=[20.0, 1e160]), "at most 1e\\+06 Hz"),     # zeros marked converged
+    (dict(tol=None), "tol"),                                 # numpy's TypeError before
+    (dict(n_threads=1.5), "threads"),                        # truncated to 1 before
+    (dict(indicator="no"), "indicator"),                     # truthy: computed before
+    (dict(modal_freq_hz=np.full((1, 8, 2), 20.0 + 1j)), "modal_freq_hz"),  # imag dropped
 ]
 
 
@@ -243,6 +247,10 @@ def test_bad_input_names_the_argument(eight_beam, change, name):
      "mode: expected a chain mode in 0..7"),                      # drives no beam
     (lambda: TABLE_1.with_frequency(0, 99.0), "mode"),            # not mode 2 silently
     (lambda: TABLE_1.with_frequency(3, 99.0), "mode"),
+    (lambda: mcfric.ModalTable([16.2], [0.01], [[1, 2, 3]], positions=(1.5, 2, 3)),
+     "positions"),                                                # truncated to 1 before
+    (lambda: mcfric.ModalTable([16.2], [0.01], [[1, 2, 3]], positions="123"), "positions"),
+    (lambda: Model.identical(TABLE_1, 2, contact=1.9), "contact"),   # used position 1
 ])
 def test_bad_model_names_the_argument(build, name):
     with pytest.raises(ValueError, match=name):
