@@ -427,6 +427,19 @@ def test_measurement_validation():
         Measurement([10.0], [[1.0]], beams=(1,), kind="chirp")
     with pytest.raises(ValueError, match="> 0 Hz"):
         Measurement([0.0], [[1.0]], beams=(1,))
+    # truncated or parsed before: 1.7 was beam 1, "1" beam 1
+    for beams in ((1.7,), "1", (True,)):
+        with pytest.raises(ValueError, match="beams: expected integer"):
+            Measurement([10.0], [[1.0]], beams=beams)
+    for p in (500.0, np.nan):
+        with pytest.raises(ValueError, match="percentile"):
+            Measurement([10.0], [[1.0]], beams=(1,), percentile=p)
+    m = Measurement([10.0], [[1.0]], beams=(1,), force_n=0.2)
+    for F0 in ("1", True, None):            # float() took the first two
+        with pytest.raises(ValueError, match="F0"):
+            normalise(m, F0)
+    with pytest.raises(ValueError, match="increasing"):
+        interpolate_log([2.0, 1.0], np.ones(2), np.array([1.5]))
 
 
 @pytest.mark.filterwarnings("ignore::ResourceWarning",

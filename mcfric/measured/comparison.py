@@ -88,6 +88,9 @@ def interpolate_log(freq_hz, values, at_hz):
     ndarray, shape (n, ...)
         Exactly the grid value at a grid frequency; 0 on an interval with a zero end.
     """
+    freq_hz = np.asarray(freq_hz, dtype=float)
+    if freq_hz.ndim != 1 or freq_hz.size < 2 or not np.all(np.diff(freq_hz) > 0):
+        raise ValueError("freq_hz: expected at least 2 strictly increasing frequencies")
     i = np.clip(np.searchsorted(freq_hz, at_hz, side="right") - 1, 0, len(freq_hz) - 2)
     f0, f1 = freq_hz[i], freq_hz[i + 1]
     t = ((at_hz - f0) / (f1 - f0)).reshape((-1,) + (1,) * (values.ndim - 1))

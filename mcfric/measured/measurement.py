@@ -8,6 +8,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..metric import QUANTITIES
+from ..validators import is_int, is_num
 
 KINDS = ("stepped", "sweep")
 #: Label of the response metric ``M = max_b |y_b|`` where a beam number is expected.
@@ -72,7 +73,11 @@ class Measurement:
             raise ValueError(f"{who}response: values must be finite (NaN = not measured)")
         if not np.iscomplexobj(r) and np.any(r < 0):
             raise ValueError(f"{who}response: amplitudes must be >= 0")
-        beams = tuple(int(b) for b in np.atleast_1d(self.beams))
+        raw = np.atleast_1d(np.asarray(self.beams, dtype=object)).tolist()
+        if not all(is_int(b) for b in raw):       # 1.7 or "1" is no beam number
+            raise ValueError(f"{who}beams: expected integer beam numbers, got "
+                             f"{self.beams!r}")
+        beams = tuple(int(b) for b in raw)
         if len(beams) != r.shape[1]:
             raise ValueError(f"{who}beams: expected {r.shape[1]} beam numbers (one per "
                              f"column), got {len(beams)}")
@@ -81,6 +86,10 @@ class Measurement:
                              f"got {beams}")
         if self.kind not in KINDS:
             raise ValueError(f"{who}kind: expected one of {KINDS}, got {self.kind!r}")
+        if self.percentile is not None and not (is_num(self.percentile)
+                                                and 0 <= self.percentile <= 100):
+            raise ValueError(f"{who}percentile: expected a number in 0..100, got "
+                             f"{self.percentile!r}")
         if self.quantity not in QUANTITIES:
             raise ValueError(f"{who}quantity: expected one of {QUANTITIES}, got "
                              f"{self.quantity!r}")

@@ -7,9 +7,9 @@ preload ``c N0``, ``c = F0 / F_meas``.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, replace
 
+from ..validators import real
 from .measurement import Measurement
 
 
@@ -74,9 +74,7 @@ def normalise(measurement, F0, *, N0_meas=None):
     if not isinstance(measurement, Measurement):
         raise ValueError(f"measurement: expected a Measurement, got "
                          f"{type(measurement).__name__}")
-    F0 = float(F0)
-    if not (math.isfinite(F0) and F0 > 0):
-        raise ValueError(f"F0: expected a force > 0 N, got {F0!r}")
+    F0 = real("F0", F0, lo=0, lo_open=True)           # "1" and True are no force
     if measurement.force_n is None:
         who = f"{measurement.source}: " if measurement.source else ""
         raise ValueError(f"{who}force level unknown: normalising needs the measurement's "
@@ -84,9 +82,7 @@ def normalise(measurement, F0, *, N0_meas=None):
     c = F0 / measurement.force_n
     N0_eq = None
     if N0_meas is not None:
-        N0_meas = float(N0_meas)
-        if not (math.isfinite(N0_meas) and N0_meas >= 0):
-            raise ValueError(f"N0_meas: expected a preload >= 0 N, got {N0_meas!r}")
+        N0_meas = real("N0_meas", N0_meas, lo=0)
         N0_eq = c * N0_meas
     out = replace(measurement.scaled(c), force_n=F0)
     return out, Normalisation(measurement.force_n, F0, c, N0_meas, N0_eq)
