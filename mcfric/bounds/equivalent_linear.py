@@ -195,9 +195,10 @@ def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity
     freq_hz : array_like, shape (n_f,)
         Frequencies, Hz.
     k_max : float
-        Largest stiffness ``Re K`` of a damper, N/m (the paper: 15 kN/m).
+        Largest stiffness ``Re K`` of a damper, N/m (the paper: 15 kN/m; at most
+        ``K_MAX_LIMIT`` = 1e12 N/m).
     k_max_im : float, optional
-        Largest dissipation ``Im K``, N/m; default ``k_max``.
+        Largest dissipation ``Im K``, N/m; default ``k_max`` (at most 1e12 N/m).
     F_lim : float, optional
         Friction force limit of the first harmonic, N: ``force_limit(mu_max, N0_max)``.
         Default ``inf`` (no force constraint: the upper bound is the box maximum).
