@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .validators import choice
+from .validators import choice, is_int
 
 #: The quantities a metric can be in; the index is the power k of omega.
 QUANTITIES = ("displacement", "velocity", "acceleration")
@@ -44,14 +44,13 @@ def check_beams(beams, n_beams, name="beams"):
     ``name`` otherwise (a float, a bool or a string is not an index: numpy would
     truncate or parse it)."""
     top = np.iinfo(np.int64).max if n_beams is None else n_beams
-    if isinstance(beams, (int, np.integer)) and not isinstance(beams, (bool, np.bool_)):
+    if is_int(beams):
         beams = (beams,)
     try:
         beams = list(beams)
     except TypeError:
         raise ValueError(f"{name}: expected 0-based beam indices, got {beams!r}") from None
-    bad = [b for b in beams if isinstance(b, (bool, np.bool_))
-           or not isinstance(b, (int, np.integer)) or not 0 <= b < top]
+    bad = [b for b in beams if not is_int(b) or not 0 <= b < top]
     if bad or not beams:
         within = "" if n_beams is None else f" in 0..{n_beams - 1}"
         raise ValueError(f"{name}: expected 0-based beam indices{within} (the Python API "

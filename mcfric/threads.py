@@ -9,7 +9,8 @@ import contextlib
 from concurrent.futures import ThreadPoolExecutor
 
 import numba
-import numpy as np
+
+from .validators import is_int
 
 
 @contextlib.contextmanager
@@ -18,7 +19,7 @@ def threads(n):
     if n is None:
         yield
         return
-    if isinstance(n, bool) or not isinstance(n, (int, np.integer)):   # 1.5 is not 1
+    if not is_int(n):                   # 1.5 is not 1
         raise ValueError(f"threads: expected an integer, got {n!r}")
     n = int(n)
     if not 1 <= n <= numba.config.NUMBA_NUM_THREADS:

@@ -42,7 +42,7 @@ from ..metric import QUANTITIES, check_beams, check_quantity
 from ..model import Model
 from ..threads import threads
 from ..validators import frequencies as check_frequencies
-from ..validators import real
+from ..validators import integer, real
 from .certified import Certificate, certify, resolve_moments, within
 from .search import box_extreme, starts
 
@@ -261,8 +261,7 @@ def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity
         raise ValueError(f"split: expected an integer >= 0, got {split!r}")
     for name, v, lo in (("n_starts", n_starts, 1), ("max_sweeps", max_sweeps, 1),
                         ("seed", seed, 0)):
-        if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, np.integer)) or v < lo:
-            raise ValueError(f"{name}: expected an integer >= {lo}, got {v!r}")
+        integer(lo)(v, name)
     if not isinstance(certified, (bool, np.bool_)):     # "no" would be true
         raise ValueError(f"certified: expected True or False, got {certified!r}")
     if model.contact_law != "coulomb":

@@ -14,6 +14,7 @@ from ..model import PATTERNS, TOPOLOGIES
 from ..presets import PRESETS
 from ..presets import preset as make_preset
 from ..validators import (
+    MAX_FREQ_HZ,
     InputError,
     auto_or_boolean,
     auto_or_integer,
@@ -134,8 +135,9 @@ SPEC = {
                                           '(FILE-eoE.h5); [] runs engine_order alone'),
     },
     "frequency": {
-        "f_min": (number(lo=0, lo_open=True, hi=1e6), "lowest frequency, Hz"),
-        "f_max": (number(lo=0, lo_open=True, hi=1e6), "highest frequency, Hz (> f_min)"),
+        "f_min": (number(lo=0, lo_open=True, hi=MAX_FREQ_HZ), "lowest frequency, Hz"),
+        "f_max": (number(lo=0, lo_open=True, hi=MAX_FREQ_HZ),
+                  "highest frequency, Hz (> f_min)"),
         "n": (integer(2, MAX_FREQ), "number of frequencies (each sample sweeps them upward)"),
         "spacing": (choice(*SPACINGS), '"linear" or "log" spacing'),
     },
