@@ -24,7 +24,7 @@ from .model import CONTACT_LAWS, Model
 from .peaks import Peaks, PeakSettings, refine
 from .threads import threads
 from .validators import frequencies as check_frequencies
-from .validators import is_num, real_array
+from .validators import integer, is_bool, is_num, real_array
 from .validators import per_damper as check_parameters
 
 #: Default accepted relative residual ``|s kc A - mu0 N0| <= tol mu0 N0``; Newton aims
@@ -183,10 +183,9 @@ def solve(model, freq_hz, mu0, kc, N0=0.5, *, modal_freq_hz=None, tol=TOL,
         raise ValueError(f"tol: expected a number in (0, 1), got {tol!r}")
     for name, flag in (("indicator", indicator), ("aft", aft),
                        ("store_harmonics", store_harmonics)):
-        if not isinstance(flag, (bool, np.bool_)):     # "no" would be true
+        if not is_bool(flag):     # "no" would be true
             raise ValueError(f"{name}: expected True or False, got {flag!r}")
-    if not (isinstance(max_iter, (int, np.integer)) and 1 <= max_iter <= 10000):
-        raise ValueError(f"max_iter: expected an integer in 1..10000, got {max_iter!r}")
+    max_iter = integer(1, 10000)(max_iter, "max_iter")
     omega = 2 * np.pi * f
     if modal_freq_hz is not None:
         mf = np.array(real_array("modal_freq_hz", modal_freq_hz), dtype=float)

@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import special
 
-from .validators import InputError, real
+from .validators import InputError, integer, real
 
 #: Half the spacing of ``Generator.random``: maps its [0, 1) grid onto (0, 1).
 _HALF_ULP = 2.0 ** -54
@@ -258,11 +258,8 @@ class Sampler:
     mistuning_per: str = "beam"
 
     def __post_init__(self):
-        if isinstance(self.seed, bool) or not isinstance(self.seed, (int, np.integer)) \
-                or self.seed < 0:
-            raise ValueError(f"seed: expected an integer >= 0, got {self.seed!r}")
-        if not (isinstance(self.n_dampers, (int, np.integer)) and self.n_dampers >= 1):
-            raise ValueError(f"n_dampers: expected an integer >= 1, got {self.n_dampers!r}")
+        integer(0)(self.seed, "seed")
+        integer(1)(self.n_dampers, "n_dampers")
         for name in ("mu0", "kc", "N0"):
             d = getattr(self, name)
             if getattr(d, "dist", None) not in DISTRIBUTIONS:

@@ -65,13 +65,13 @@ def choices(options):
 
 def is_int(v):
     """True for an integer that is not a boolean."""
-    return isinstance(v, (int, np.integer)) and not isinstance(v, (bool, np.bool_))
+    return isinstance(v, (int, np.integer)) and not is_bool(v)
 
 
 def is_num(v):
     """True for a real number that is not a boolean."""
     return (isinstance(v, (int, float, np.integer, np.floating))
-            and not isinstance(v, (bool, np.bool_)))
+            and not is_bool(v))
 
 
 # ------------------------------------------------------------------ value checks
@@ -188,12 +188,17 @@ def scheduler_address():
     return check
 
 
+def is_bool(v):
+    """True for ``True``/``False``, numpy's included (a word such as ``"no"`` is not)."""
+    return isinstance(v, (bool, np.bool_))
+
+
 def boolean():
-    """``true`` or ``false``."""
+    """``true`` or ``false`` (numpy's booleans too); returns a Python bool."""
     def check(v, key):
-        if not isinstance(v, bool):
+        if not is_bool(v):
             raise InputError(key, f"expected true or false, got {show(v)}")
-        return v
+        return bool(v)
     return check
 
 
@@ -263,8 +268,10 @@ def auto_or_number(lo=0, words=("auto",)):
 def auto_or_boolean():
     """``"auto"``, ``true`` or ``false``."""
     def check(v, key):
-        if v == "auto" or isinstance(v, bool):
+        if v == "auto":
             return v
+        if is_bool(v):
+            return bool(v)
         raise InputError(key, f'expected "auto", true or false, got {show(v)}')
     return check
 

@@ -22,7 +22,7 @@ from .core.time_integration import integrate
 from .hbm import check_harmonics, solve
 from .model import Model
 from .validators import frequencies as check_frequencies
-from .validators import is_num
+from .validators import integer, is_num
 from .validators import per_damper as check_parameters
 
 #: Defaults: relative change of the harmonics per period that counts as settled, the
@@ -246,8 +246,7 @@ def verify(model, freq_hz, mu0, kc, N0=0.5, *, harmonics=9, start="single", tol=
     if not (is_num(tol) and math.isfinite(tol) and 0 < tol < 1):
         raise ValueError(f"tol: expected a number in (0, 1), got {tol!r}")
     for name, v, lo in (("settle", settle, 1), ("max_periods", max_periods, 1)):
-        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < lo:
-            raise ValueError(f"{name}: expected an integer >= {lo}, got {v!r}")
+        integer(lo)(v, name)
     f, n_steps_at = time_steps(model, freq_hz, kc, steps)
     orders = harmonic_orders(max(harmonics, 3))
     shb = solve(model, f, mu0[None], kc[None], N0[None])

@@ -135,6 +135,16 @@ def test_identity_ignores_run_and_bounds():
     assert config.first_difference(a.identity(), c.identity()) == "sampling.seed"
 
 
+def test_numpy_booleans_are_booleans_and_words_are_not():
+    cfg = config.load("two-beam").replace("bounds.certify", np.False_)
+    assert cfg.data["bounds"]["certify"] is False       # a Python bool, JSON-safe
+    assert '"certify": false' in cfg.json()
+    assert config.load("eight-beam").replace("bounds.certify_moments",
+                                           np.True_).data["bounds"]["certify_moments"] is True
+    with pytest.raises(ValueError, match="^bounds.certify: expected true or false"):
+        config.load("two-beam").replace("bounds.certify", "no")
+
+
 def test_config_json_round_trips_floats_exactly():
     cfg = config.load("eight-beam", {"excitation.F0": (0.1 + 0.2, "--F0")})
     back = json.loads(cfg.json())

@@ -214,6 +214,7 @@ BAD = [
     (dict(tol=None), "tol"),                                 # numpy's TypeError before
     (dict(n_threads=1.5), "threads"),                        # truncated to 1 before
     (dict(indicator="no"), "indicator"),                     # truthy: computed before
+    (dict(max_iter=True), "max_iter"),                       # one iteration before
     (dict(modal_freq_hz=np.full((1, 8, 2), 20.0 + 1j)), "modal_freq_hz"),  # imag dropped
 ]
 

@@ -145,6 +145,7 @@ def test_mistuning_zero_means_nominal():
     (lambda: sampling.distribution("uniform", low=0.0), "high: missing"),
     (lambda: sampling.distribution("fixed", value=1.0, low=0.0), "low: not a parameter"),
     (lambda: Sampler(seed=-1, n_dampers=1), "seed: expected an integer >= 0"),
+    (lambda: Sampler(seed=0, n_dampers=True), "n_dampers: expected an integer >= 1"),
     (lambda: Sampler(seed=0, n_dampers=1, modal_freq_hz=[[16.2]] * 2, mistuning=0.2),
      "mistuning: expected 0..0.1"),
     (lambda: Sampler(seed=0, n_dampers=1, mistuning=0.01), "modal_freq_hz: needed"),

@@ -25,6 +25,7 @@ from ..core.joint_descent import lowest
 from ..core.partly_tied_relaxation import NEAR
 from ..core.relaxation_branch import branch_frequencies, mirror_sign
 from ..threads import in_threads
+from ..validators import is_bool
 from .search import _chunks
 
 #: Enclosures per frequency and bound at most (the branch and bound's budget) ...
@@ -313,7 +314,7 @@ def resolve_moments(moments, chain, n_dampers, F_lim):
         if moments != "auto":
             raise ValueError(f'moments: expected "auto", True or False, got {moments!r}')
         moments = moments_apply(chain, n_dampers, F_lim)
-    elif not isinstance(moments, (bool, np.bool_)):
+    elif not is_bool(moments):
         raise ValueError(f'moments: expected "auto", True or False, got {moments!r}')
     if moments:
         check_moments(chain, n_dampers, F_lim)

@@ -42,7 +42,7 @@ from ..metric import QUANTITIES, check_beams, check_quantity
 from ..model import Model
 from ..threads import threads
 from ..validators import frequencies as check_frequencies
-from ..validators import integer, real
+from ..validators import integer, is_bool, real
 from .certified import Certificate, certify, resolve_moments, within
 from .search import box_extreme, starts
 
@@ -255,14 +255,13 @@ def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity
     check_quantity(quantity, "quantity")
     beams = (tuple(range(model.n_beams)) if beams is None
              else check_beams(beams, model.n_beams))
-    if budget is not None and not (isinstance(budget, (int, np.integer)) and budget >= 1):
-        raise ValueError(f"budget: expected an integer >= 1, got {budget!r}")
-    if split is not None and not (isinstance(split, (int, np.integer)) and split >= 0):
-        raise ValueError(f"split: expected an integer >= 0, got {split!r}")
     for name, v, lo in (("n_starts", n_starts, 1), ("max_sweeps", max_sweeps, 1),
                         ("seed", seed, 0)):
         integer(lo)(v, name)
-    if not isinstance(certified, (bool, np.bool_)):     # "no" would be true
+    for name, v, lo in (("budget", budget, 1), ("split", split, 0)):
+        if v is not None:       # None: the certificate's default
+            integer(lo)(v, name)
+    if not is_bool(certified):     # "no" would be true
         raise ValueError(f"certified: expected True or False, got {certified!r}")
     if model.contact_law != "coulomb":
         # the box of describing functions and the force limit are Coulomb friction's
