@@ -98,6 +98,14 @@ def test_writing_records_never_touches_metadata(tmp_path):
     assert not np.any(diff & keep), "bytes outside the raw data chunks changed"
 
 
+@pytest.mark.parametrize("path", [None, 3, ["r.h5"]])
+def test_a_path_that_is_no_path_is_a_store_error(path):
+    # h5py raised a TypeError that named no input
+    for read in (store.open_results, store.read_attrs, store.describe):
+        with pytest.raises(StoreError, match="^path: expected a results file's path"):
+            read(path)
+
+
 def test_partial_file_is_not_complete_and_reopens(tmp_path):
     path = tmp_path / "r.h5"
     s = make(path)

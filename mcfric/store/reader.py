@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+
 import h5py
 import numpy as np
 
@@ -9,6 +11,8 @@ from .files import DONE, StoreError
 
 
 def _open_read(path):
+    if not isinstance(path, (str, bytes, os.PathLike)):     # h5py's TypeError names no input
+        raise StoreError(f"path: expected a results file's path, got {type(path).__name__}")
     try:
         # locking=False: readable while a run writes it (its metadata does not change)
         return h5py.File(path, "r", locking=False)
