@@ -185,6 +185,7 @@ def _parser():
 
 def _verify_parser(sub):
     v = sub.add_parser("verify", help="time-domain check of harmonic-balance points",
+                       usage="mcfric verify [SOURCE] --f HZ [HZ ...] [options]",
                        description="Integrate the modal equations with exact Jenkins contacts "
                        "to a periodic state at each frequency; print and save, per beam, the "
                        "harmonics, the full-period peak, and the single- and multi-harmonic "
@@ -192,7 +193,7 @@ def _verify_parser(sub):
                        "--member I taking that member's parameters.")
     v.add_argument("source", nargs="?", help=_source_help() + ", or a results file "
                    "(default: eight-beam)")
-    v.add_argument("--f", type=float, nargs="+", required=True, metavar="HZ",
+    v.add_argument("--f", type=_hz, nargs="+", required=True, metavar="HZ",
                    help="drive frequencies, Hz")
     v.add_argument("--member", type=int, metavar="I",
                    help="member of a results file (0-based) whose parameters to take")
@@ -215,6 +216,20 @@ def _verify_parser(sub):
                         "next to it")
     v.add_argument("--no-figure", action="store_true", help="do not draw the figure")
     v.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def _hz(text):
+    """One value of ``verify --f``; a word there is most likely SOURCE given after it."""
+    from .presets import PRESETS
+
+    try:
+        return float(text)
+    except ValueError:
+        source = (text in PRESETS or text.endswith((".toml", ".h5", ".partial"))
+                  or os.path.exists(text))
+        hint = f" (SOURCE goes before --f: mcfric verify {text} --f HZ ...)" if source else ""
+        raise argparse.ArgumentTypeError(f"expected a frequency in Hz, got {text!r}"
+                                         + hint) from None
 
 
 def _harmonic_flags(p):

@@ -155,6 +155,9 @@ def test_multi_harmonic_agrees_with_time_integration(name, mu0, kc, freqs):
     (["hbm", "eight-beam", "--harmonics", "99", "--n-freq", "2000000"], "GiB"),
     (["verify", "two-beam", "--harmonics", "2", "--f", "20"], "odd"),
     (["verify", "two-beam", "--f", "-3"], "freq"),
+    # argparse's order put SOURCE after --f in the usage line; --f took it as a number
+    (["verify", "--f", "20", "two-beam"], "SOURCE goes before --f: mcfric verify two-beam"),
+    (["verify", "two-beam", "--f", "20x"], "--f: expected a frequency in Hz, got '20x' ("),
 ])
 def test_bad_harmonics_input_one_line_exit_2_nothing_written(argv, message, tmp_path,
                                                             monkeypatch, capsys):
