@@ -210,6 +210,14 @@ class Model:
             # E and E + n drive the same wave: one name for each
             raise ValueError(f"engine_order: expected 0..{len(beams) - 1} (n_beams - 1), "
                              f"got {ex.engine_order}")
+        driven = np.abs(self.excitation.force(len(beams))) > 0
+        if not any(np.any(t.column(self.drive)) for t, d in zip(beams, driven) if d):
+            # a legal model whose every response is zero: most likely a wrong label
+            raise ValueError(f"drive: every mode shape of the driven beams is zero at the "
+                             f"drive position {self.drive}: nothing would be excited")
+        if not any(np.any(t.column(self.output)) for t in beams):
+            raise ValueError(f"output: every mode shape is zero at the output position "
+                             f"{self.output}: every response would read zero")
 
     @classmethod
     def identical(cls, table, n_beams, **kwargs):

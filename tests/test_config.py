@@ -174,6 +174,10 @@ def test_config_json_round_trips_floats_exactly():
     ({"bounds": {"certify_budget": "many"}}, "bounds.certify_budget"),
     ({"bounds": {"certify_budget": 0}}, "bounds.certify_budget"),
     ({"model": "eight-beam"}, "model"),
+    ({"model": {"table": {"shapes": [[2.55, 0.99, 0.0], [-1.84, 2.18, 0.0]]}}},
+     "model.table.shapes"),                 # zero at the drive: every response zero
+    ({"model": {"table": {"shapes": [[2.55, 0.0, 0.48], [-1.84, 0.0, 1.42]]}}},
+     "model.table.shapes"),                 # zero at the output
 ])
 def test_errors_name_the_key(raw, key):
     with pytest.raises(ConfigError) as e:

@@ -12,6 +12,10 @@ from mcfric.peaks import PeakSettings
 from . import naive
 from .conftest import naive_beams, naive_pairs
 
+#: Table 1 with its drive column (position 3) zeroed
+ZERO_AT_3 = mcfric.ModalTable(TABLE_1.freq_hz, TABLE_1.zeta,
+                              np.array(TABLE_1.shapes) * [1.0, 1.0, 0.0])
+
 N_POINTS = 500          # per F0: 2 x 500 = 1000 random points per array size
 N_POINTS_QUICK = 200    # per F0 in the default suite (the 1000 are a slow validation run)
 F_BAND = (10.0, 150.0)
@@ -252,8 +256,15 @@ def test_bad_input_names_the_argument(eight_beam, change, name):
      "positions"),                                                # truncated to 1 before
     (lambda: mcfric.ModalTable([16.2], [0.01], [[1, 2, 3]], positions="123"), "positions"),
     (lambda: Model.identical(TABLE_1, 2, contact=1.9), "contact"),   # used position 1
+    # legal once, but every response zero: a wrong label or column, most likely
+    (lambda: Model.identical(ZERO_AT_3, 3), "drive: every mode shape of the driven beams"),
+    (lambda: Model.identical(ZERO_AT_3, 3, output=3, drive=2), "output: every mode shape"),
+    (lambda: Model(beams=(TABLE_1, ZERO_AT_3, TABLE_1),
+                   excitation=Excitation("single", 1.0, beam=2)), "drive: every"),
 ])
 def test_bad_model_names_the_argument(build, name):
+    # ZERO_AT_3 alone, or not driven, is a legal part of a model
+    Model(beams=(TABLE_1, ZERO_AT_3, TABLE_1), excitation=Excitation("single", 1.0, beam=1))
     with pytest.raises(ValueError, match=name):
         build()
 

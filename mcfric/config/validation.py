@@ -165,6 +165,9 @@ def _validate(raw):
             raise                 # already names its key
         raise InputError("model", str(e)) from None
     except ValueError as e:   # a rule of the Model itself that the checks above missed
+        key, _, message = str(e).partition(": ")
+        if key in ("drive", "output"):      # shapes all zero there
+            raise InputError("model.table.shapes", message) from None
         raise InputError("model", str(e)) from None
     return cfg
 
