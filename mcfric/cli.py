@@ -532,9 +532,10 @@ def _run_one(args, cfg, out, resume_as=None):
         check = _check_members(out)
         if check is not None:
             outside, total, outside_cert = check
-            print(f"bounds check: {outside} of {total:,} converged member points outside "
-                  f"[lower, upper]" + ("" if outside == 0 else
-                                       " (the bounds search missed them: please report)"))
+            print(f"searched bounds check: {outside} of {total:,} converged member points "
+                  f"outside [lower, upper]" + ("" if outside == 0 else
+                                               " (the bounds search missed them: please "
+                                               "report)"))
             if outside_cert is not None:
                 print(f"certified bounds check: {outside_cert} outside [lower_certified, "
                       f"upper_certified]" + ("" if outside_cert == 0 else
@@ -625,8 +626,12 @@ def cmd_plot(args):
                                     measured=measured, indicator=not args.no_indicator)
     except ValueError as e:
         raise UsageError(str(e)) from None
+    gaps = drawn["n_not_converged"]
+    grid = drawn["n_peaks_unrefined"]
     print(f"figure: {out} ({drawn['n_drawn']} of {drawn['n_members']} members drawn"
-          f"{', bounds' if drawn['has_bounds'] else ', no bounds in the file'})")
+          f"{', bounds' if drawn['has_bounds'] else ', no bounds in the file'}"
+          + (f"; {gaps:,} points not converged, left as gaps" if gaps else "")
+          + (f"; {grid} member peaks not refined, drawn as circles" if grid else "") + ")")
     if measured and drawn["has_bounds"]:
         _print_inside(path, measured, args.quantity)
     return EXIT_OK
@@ -670,7 +675,9 @@ def _read_measured(args, attrs):
 
 def _print_inside(path, measured, quantity):
     """Fraction of measured points inside the bounds: the upper bound per beam, both
-    bounds for the measured metric (the lower bound of M bounds the largest beam only)."""
+    bounds for the measured metric (the lower bound of M bounds the largest beam only).
+    The certified bounds where the file has them (the band the figure draws), else the
+    searched ones; the first line says which."""
     from . import measured as ms
     from .bounds import read_bounds
     from .metric import omega_power
@@ -678,7 +685,12 @@ def _print_inside(path, measured, quantity):
     B = read_bounds(path)
     q = quantity or B.quantity
     scale = omega_power(B.freq_hz, q, B.quantity)
-    lo, up = B.lower * scale, B.upper * scale
+    C = B.certificate
+    lo, up = (C.lower, C.upper) if C is not None else (B.lower, B.upper)
+    lo, up = lo * scale, up * scale
+    print("measured data against the " + ("certified bounds (lower_certified, "
+                                          "upper_certified)" if C is not None else
+                                          "searched bounds (the file has no certified ones)"))
     per_beam = ms.fraction_inside(measured, B.freq_hz, lo, up, quantity=q, check_lower=False)
     metric = [m.to_quantity(q).metric() for m in measured]
     overall = ms.fraction_inside(metric, B.freq_hz, lo, up, quantity=q)

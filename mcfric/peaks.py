@@ -99,10 +99,19 @@ class Peaks:
     metric_down: np.ndarray
 
     def largest(self):
-        """Each member's largest peak of the metric over both branches, shape (n_s,)."""
+        """Each member's largest peak of the metric over both branches, shape (n_s,).
+
+        Only a lower estimate where :meth:`resolved` is False: a peak left at its grid
+        value may lie far above it (a narrow resonance between grid points).
+        """
         both = np.concatenate([self.metric, self.metric_down], axis=1)
         with np.errstate(invalid="ignore"):
             return np.nanmax(np.where(np.isnan(both), -np.inf, both), axis=1)
+
+    def resolved(self):
+        """True for a member none of whose peaks is a grid value (status 2), shape (n_s,):
+        its :meth:`largest` is then its largest peak, refined."""
+        return unresolved(self.status, self.metric) == 0
 
 
 def refine(model, result, omega, modal_freq_hz, settings, mu0, N0, kc, tol, max_iter):
@@ -183,6 +192,12 @@ def statistics(largest):
             "p95": float(np.percentile(v, 95)), "max": float(v.max())}
 
 
+def unresolved(status, metric):
+    """Per member, how many of its peaks are grid values, not refined (status 2 with a
+    value), shape (n_s,). Any one of them may be the member's true largest peak."""
+    return np.count_nonzero((status == GRID) & np.isfinite(metric), axis=1)
+
+
 def file_report(path):
     """Peak statistics of a results file (None if it has no refined peaks).
 
@@ -192,8 +207,9 @@ def file_report(path):
         ``statistics`` of the members' largest peaks (:func:`statistics`), ``grid_ratio``
         (median over members of the grid's maximum over the refined peak), ``folds``
         (members with a fold), ``unchecked`` (members whose fold check failed),
-        ``members``, and the bound's refined peak ``bound_peak``, ``bound_peak_hz`` when
-        the file has bounds.
+        ``members``, ``unresolved`` (members with a peak not refined: their largest is a
+        lower estimate, and they are left out of ``grid_ratio``), and the bound's peak
+        ``bound_peak``, ``bound_peak_hz``, ``bound_peak_refined`` when the file has bounds.
     """
     from .store import dataset_names, iter_records, read_group
 
@@ -201,57 +217,57 @@ def file_report(path):
         return None
     from .store import read
 
-    largest, ratio, folds, unchecked, grid_only = [], [], 0, 0, 0
+    largest, ratio, folds, unchecked, n_unresolved = [], [], 0, 0, 0
     # blocks of ~1 MB of metric: memory stays flat in the number of members (8 bytes per
     # member are kept for the percentiles)
     block = max(1, (1 << 17) // max(1, len(read(path, "frequency"))))
     names = ["metric", "peak_metric", "peak_metric_down", "fold", "peak_status"]
     for _, arr in iter_records(path, names, block=block):
         both = np.concatenate([arr["peak_metric"], arr["peak_metric_down"]], axis=1)
-        both = np.where(np.isnan(both), -np.inf, both)
-        # each member's largest, and whether it is an unrefined grid value (the upward
-        # peaks come first: a tie on the downward side counts as the upward peak's)
-        top = np.argmax(both, axis=1)
-        big = np.take_along_axis(both, top[:, None], 1)[:, 0]
-        n_up = arr["peak_metric"].shape[1]
-        st = np.take_along_axis(arr["peak_status"], np.minimum(top, n_up - 1)[:, None], 1)
-        grid_only += int(np.count_nonzero((top < n_up) & (st[:, 0] == GRID)
-                                        & np.isfinite(big)))
+        big = np.max(np.where(np.isnan(both), -np.inf, both), axis=1)
+        big = np.where(np.isfinite(big), big, np.nan)
+        # any peak left at its grid value may be the member's true largest (a narrow
+        # resonance between grid points): that member's largest is a lower estimate
+        open_ = (unresolved(arr["peak_status"], arr["peak_metric"]) > 0) & np.isfinite(big)
+        n_unresolved += int(np.count_nonzero(open_))
         with np.errstate(invalid="ignore"):
             grid = np.nanmax(np.where(np.isnan(arr["metric"]), -np.inf, arr["metric"]), axis=1)
-        big = np.where(np.isfinite(big), big, np.nan)
         largest.append(big)
-        ratio.append(grid / big)
+        ratio.append(np.where(open_, np.nan, grid / big))
         folds += int(np.count_nonzero((arr["fold"] == FOLD_FOUND).any(axis=1)))
         unchecked += int(np.count_nonzero((arr["fold"] == FOLD_UNCHECKED).any(axis=1)))
     largest = np.concatenate(largest) if largest else np.empty(0)
     ratio = np.concatenate(ratio) if ratio else np.empty(0)
     out = {"statistics": statistics(largest), "members": int(largest.size),
            "grid_ratio": float(np.nanmedian(ratio)) if np.isfinite(ratio).any() else np.nan,
-           "folds": folds, "unchecked": unchecked, "grid_only": grid_only}
+           "folds": folds, "unchecked": unchecked, "unresolved": n_unresolved}
     g = read_group(path, "bounds")
     if g is not None and "peak_upper" in g[1]:
         out["bound_peak"] = float(g[1]["peak_upper"])
         out["bound_peak_hz"] = float(g[1]["peak_upper_frequency"])
+        out["bound_peak_refined"] = bool(g[1].get("peak_upper_refined", 0))
     return out
 
 
 def report_text(report, unit):
     """The lines ``mcfric info`` and the run summary print about the peaks."""
     st = report["statistics"]
+    k = report.get("unresolved", 0)
     lines = [f"peaks:       each member's largest, refined: median {st['median']:.4g}, "
              f"95th percentile {st['p95']:.4g}, max {st['max']:.4g} {unit} "
              f"({st['members']} members; the grid's maximum is {report['grid_ratio']:.3g} "
-             f"of the refined peak, median)"
-             + (f"; {report['grid_only']} of these largest peaks are grid values, not "
-                f"refined (a solver failed near them)" if report.get("grid_only") else ""),
+             f"of the refined peak, median"
+             + (f" of the {st['members'] - k} fully refined)" if k else ")")
+             + (f"; {k} of these are lower estimates: a peak of the member was not "
+                f"refined (a solver failed near it) and may lie higher" if k else ""),
              f"folds:       {report['folds']} of {report['members']} members have more than "
              f"one steady state near a peak"
              + (f" ({report['unchecked']} could not be checked)" if report["unchecked"]
                 else "")]
     if "bound_peak" in report:
-        lines.append(f"bound peak:  upper bound {report['bound_peak']:.4g} {unit} at "
-                     f"{report['bound_peak_hz']:.5g} Hz (refined); largest member / bound "
+        how = "refined" if report.get("bound_peak_refined", True) else "not refined"
+        lines.append(f"bound peak:  searched upper bound {report['bound_peak']:.4g} {unit} "
+                     f"at {report['bound_peak_hz']:.5g} Hz ({how}); largest member / bound "
                      f"{st['max'] / report['bound_peak']:.4g}")
     return lines
 

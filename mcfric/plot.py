@@ -13,6 +13,7 @@ import numpy as np
 
 from .hbm import INDICATOR_THRESHOLD
 from .metric import METRIC_UNITS, omega_power
+from .peaks import GRID as PEAK_GRID
 from .store import dataset_names, iter_records, read, read_attrs, read_group
 
 
@@ -66,8 +67,11 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
     Returns
     -------
     dict
-        ``n_members``, ``n_drawn``, ``has_bounds`` and ``n_flagged`` (flagged points over
-        the whole ensemble, 0 if not marked): what was drawn.
+        ``n_members``, ``n_drawn``, ``has_bounds``, ``n_flagged`` (flagged points over
+        the whole ensemble, 0 if not marked), ``n_not_converged`` (points of the whole
+        ensemble in the window that did not converge: gaps in the lines) and
+        ``n_peaks_unrefined`` (drawn member peaks left at their grid values): what was
+        drawn.
     """
     from matplotlib.collections import LineCollection
 
@@ -95,14 +99,22 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
     flagged_at = np.zeros(len(f))          # flagged members per frequency
     counted_at = np.zeros(len(f))          # converged members per frequency
     member_flags = None
+    n_failed = 0
+    step = 1
     if "sample" in names:
         step = max(1, n // max_lines)
-        segs, highlight = [], None
-        fields = ["metric", "sample"] + (["harmonic_indicator", "converged"] if mark else [])
+        segs, dots, highlight = [], [], None
+        fields = ["metric", "sample", "converged"] + (["harmonic_indicator"] if mark else [])
         for _, arr in iter_records(path, fields):
             m = arr["metric"][:, win] * scale[win]
+            n_failed += int(np.count_nonzero(~arr["converged"][:, win]))
             for idx in np.flatnonzero(arr["sample"] % step == 0):
-                segs.append(np.column_stack([fw, np.where(m[idx] > 0, m[idx], np.nan)]))
+                y = np.where(m[idx] > 0, m[idx], np.nan)
+                segs.append(np.column_stack([fw, y]))
+                # a point between two gaps draws no line: a dot instead
+                alone = np.isfinite(y) & ~np.isfinite(np.r_[np.nan, y[:-1]]) \
+                    & ~np.isfinite(np.r_[y[1:], np.nan])
+                dots.append(np.column_stack([fw[alone], y[alone]]))
             if mark:
                 hit = arr["converged"] & (arr["harmonic_indicator"] > INDICATOR_THRESHOLD)
                 flagged_at += hit.sum(axis=0)
@@ -114,9 +126,15 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
                     member_flags = hit[row, win]
         drawn = len(segs)
         if segs:
+            gaps = (f"; {n_failed:,} points not converged: gaps" if n_failed else "")
             lc = LineCollection(segs, colors="0.45", linewidths=0.5, alpha=0.25,
-                                rasterized=True, label=f"ensemble ({n} members, {drawn} drawn)")
+                                rasterized=True,
+                                label=f"ensemble ({n} members, {drawn} drawn{gaps})")
             ax.add_collection(lc)
+            dots = np.concatenate(dots)
+            if len(dots):
+                ax.plot(dots[:, 0], dots[:, 1], ".", color="0.45", ms=1.5, alpha=0.5,
+                        rasterized=True)
         if highlight is not None:
             ax.plot(fw, np.where(highlight > 0, highlight, np.nan), color="k", lw=1.1,
                     label=f"member {member}")
@@ -125,19 +143,28 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
                         color="tab:orange", ms=3.5, mew=0.8,
                         label=f"member {member}: higher harmonics > "
                               f"{INDICATOR_THRESHOLD:g} (indicator)")
+    n_unrefined = 0
     if "peak_metric" in dataset_names(path):
         # the members' refined peaks (the grid underestimates lightly damped peaks)
-        px, py = [], []
-        for _, arr in iter_records(path, ["peak_metric", "peak_frequency", "sample"]):
+        px, py, ps = [], [], []
+        for _, arr in iter_records(path, ["peak_metric", "peak_frequency", "peak_status",
+                                          "sample"]):
             keep = arr["sample"] % step == 0
             px.append(arr["peak_frequency"][keep].ravel())
             py.append(arr["peak_metric"][keep].ravel())
-        px, py = np.concatenate(px), np.concatenate(py)
+            ps.append(arr["peak_status"][keep].ravel())
+        px, py, ps = np.concatenate(px), np.concatenate(py), np.concatenate(ps)
         py = py * omega_power(px, quantity, stored)
         ok = np.isfinite(py) & (px >= lo_f) & (px <= hi_f) & (py > 0)
-        if ok.any():
-            ax.plot(px[ok], py[ok], ".", color="0.15", ms=2.5, alpha=0.6,
+        grid = ok & (ps == PEAK_GRID)
+        n_unrefined = int(np.count_nonzero(grid))
+        if (ok & ~grid).any():
+            ax.plot(px[ok & ~grid], py[ok & ~grid], ".", color="0.15", ms=2.5, alpha=0.6,
                     label="refined member peaks")
+        if grid.any():
+            # a solver failed near them: the true peak may lie higher
+            ax.plot(px[grid], py[grid], "o", mfc="none", color="tab:purple", ms=3.5,
+                    mew=0.8, label="member peaks not refined (grid values, may lie higher)")
     B = read_bounds(path)
     band = None
     if B is not None:
@@ -221,7 +248,8 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
     ax.legend(handles, labels, loc="best", fontsize=8)
     fig.savefig(out, dpi=150)
     return {"n_members": n if drawn else 0, "n_drawn": drawn, "has_bounds": B is not None,
-            "n_flagged": int(flagged_at.sum())}
+            "n_flagged": int(flagged_at.sum()), "n_not_converged": n_failed,
+            "n_peaks_unrefined": n_unrefined}
 
 
 def _config(attrs):

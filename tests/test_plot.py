@@ -15,6 +15,7 @@ from mcfric import cli
 TAB_BLUE = (31 / 255, 119 / 255, 180 / 255)     # upper bound
 TAB_RED = (214 / 255, 39 / 255, 40 / 255)       # lower bound
 TAB_GREEN = (44 / 255, 160 / 255, 44 / 255)     # measured data
+TAB_PURPLE = (148 / 255, 103 / 255, 189 / 255)  # member peaks left at grid values
 
 
 @pytest.fixture(scope="module")
@@ -162,6 +163,56 @@ def test_measured_outside_is_counted(results, tmp_path, capsys):
     fr = _fractions(out)
     assert len(fr) == 2 and fr[1][2] == n_f
     assert all(p < 100.0 for p, _, _ in fr), out
+
+
+def test_measured_points_are_judged_against_the_certified_band(results, tmp_path, capsys):
+    """Where the searched (paper's) upper bound lies above the certified one, a point
+    between them is outside the band the figure draws: it counts as outside."""
+    from mcfric.bounds import read_bounds
+
+    B = read_bounds(results)
+    C = B.certificate
+    k = np.flatnonzero(C.upper < 0.995 * B.upper)
+    assert k.size >= 2
+    v = np.sqrt(C.upper[k] * B.upper[k])                 # above certified, below searched
+    data = tmp_path / "between.csv"
+    with open(data, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["frequency_hz", "beam1", "beam2", "kind"])
+        for fi, vi in zip(B.freq_hz[k], v):
+            w.writerow([repr(float(fi)), repr(float(vi)), repr(float(vi)), "stepped"])
+    rc, out, err = call(["plot", results, "-o", tmp_path / "m.png", "--measured", data],
+                        capsys)
+    assert rc == 0, err
+    assert "against the certified bounds" in out
+    assert _fractions(out)[1] == (0.0, 0, k.size), out      # was 100 % (the searched bounds)
+
+
+def test_failed_points_and_unrefined_peaks_are_shown_as_such(tmp_path, capsys):
+    """One Newton iteration per attempt: some points fail and some peaks stay grid
+    values. The figure says how many points are gaps and draws the unrefined peaks apart
+    (purple circles), and `mcfric plot` prints both counts."""
+    from mcfric import config, ensemble, plot
+
+    cfg = config.load("eight-beam", {"sampling.samples": (30, "--samples"),
+                                     "frequency.n": (20, "--n-freq"),
+                                     "solver.tol": (1e-16, "tol"),
+                                     "solver.max_iter": (1, "max_iter"),
+                                     "bounds.enabled": (False, "bounds")})
+    path = ensemble.run(cfg, tmp_path / "t.h5", progress=False, groups=None).path
+    with h5py.File(path, "r") as h5:
+        failed = int(np.count_nonzero(~h5["converged"][()]))
+        grid = int(np.count_nonzero((h5["peak_status"][()] == 2)
+                                    & np.isfinite(h5["peak_metric"][()])))
+    assert failed > 0 and grid > 0
+    drawn = plot.results_figure(path, tmp_path / "t.png", indicator=False)
+    assert drawn["n_not_converged"] == failed
+    assert drawn["n_peaks_unrefined"] <= grid and drawn["n_peaks_unrefined"] > 0
+    assert near(rgb(tmp_path / "t.png"), TAB_PURPLE) > 20, "unrefined peaks not drawn"
+    rc, out, err = call(["plot", path, "-o", tmp_path / "u.png"], capsys)
+    assert rc == 0, err
+    assert f"{failed:,} points not converged, left as gaps" in out
+    assert "member peaks not refined, drawn as circles" in out
 
 
 def test_member_out_of_range_is_refused(results, tmp_path, capsys):

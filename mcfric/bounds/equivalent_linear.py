@@ -66,14 +66,17 @@ MAX_SWEEPS_FRACTION_MAX = 0.5
 
 @dataclass
 class Bounds:
-    """Bounds on the metric over frequency.
+    """Bounds on the metric over frequency: the paper's, found by a search, and (in
+    ``certificate``) the certified ones.
 
     Attributes
     ----------
     freq_hz : ndarray, shape (n_f,)
     upper, lower : ndarray, shape (n_f,)
-        Bounds on ``M`` in the metric's unit (m, m/s or m/s^2). NaN where the search
-        failed (a singular linear system: counted in :meth:`summary`).
+        The searched bounds on ``M`` in the metric's unit (m, m/s or m/s^2): extremes a
+        search found, not certified (the certified ones are ``certificate.upper`` and
+        ``certificate.lower``). NaN where the search failed (a singular linear system:
+        counted in :meth:`summary`).
     upper_box : ndarray, shape (n_f,)
         Largest box value found over the beams. Where a beam reached its force bound the
         search stopped there, so it is then only known to be at least that.
@@ -116,8 +119,9 @@ class Bounds:
     def summary(self):
         """What sets the upper bound where, the failures, and the certificate's gaps."""
         force = np.count_nonzero(self.limited_by == 1)
-        text = (f"bounds at {len(self.freq_hz)} frequencies: upper set by the force limit at "
-                f"{force}, by the box at {len(self.freq_hz) - force}; failed: {self.n_failed}")
+        text = (f"searched bounds at {len(self.freq_hz)} frequencies: upper set by the force "
+                f"limit at {force}, by the box at {len(self.freq_hz) - force}; failed: "
+                f"{self.n_failed}")
         if self.certificate is not None:
             text += "\n" + self.certificate.summary(self.freq_hz)
         return text

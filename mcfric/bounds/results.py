@@ -18,10 +18,13 @@ def to_group(B):
     unit = METRIC_UNITS[B.quantity]
     variables = {
         "upper": (("frequency",), B.upper, {
-            "units": unit, "long_name": "upper bound of the metric M for every friction law "
-                                        "in the admissible region; NaN where the search failed"}),
+            "units": unit, "long_name": "searched upper bound of M (the paper's: the largest "
+                                        "box value found or the force bound, the smaller), "
+                                        "not certified (upper_certified is); NaN where the "
+                                        "search failed"}),
         "lower": (("frequency",), B.lower, {
-            "units": unit, "long_name": "lower bound of M (minimum over the box)"}),
+            "units": unit, "long_name": "searched lower bound of M (the smallest box value "
+                                        "found), not certified (lower_certified is)"}),
         "limited_by": (("frequency",), B.limited_by, {
             "long_name": "constraint that sets the upper bound", "flag_values": [0, 1],
             "flag_meanings": "box force"}),
