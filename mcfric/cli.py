@@ -798,7 +798,7 @@ def cmd_hbm(args):
     import numpy as np
 
     from . import hbm, plot
-    from .metric import METRIC_UNITS
+    from .metric import METRIC_UNITS, omega_power
     from .validators import InputError, number
 
     spec = _load(args).spec
@@ -844,11 +844,14 @@ def cmd_hbm(args):
     print(f"csv: {out}")
     if not args.no_figure:
         png = out.with_suffix(".png")
-        plot.hbm_figure(f, amp, metric, conv, png,
+        # the beams in the metric's quantity: one axis, one unit (the CSV keeps metres)
+        plot.hbm_figure(f, amp * omega_power(f, q)[:, None], metric, conv, png,
                         title=f"{model.name}: mu0 = {args.mu0:g}, kc = {args.kc:g} N/m, "
                               f"N0 = {args.N0:g} N, F0 = {model.excitation.F0:g} N"
                               + (f" ({bad} non-converged points not drawn)" if bad else ""),
-                        metric_label=f"M ({q}) [{unit}]")
+                        metric_label=f"M [{unit}]",
+                        ylabel=f"{q} amplitude at the output [{unit}]"
+                               + (" (fundamental)" if H > 1 else ""))
         print(f"figure: {png}")
     return EXIT_OK
 

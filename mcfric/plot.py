@@ -261,18 +261,20 @@ def _config(attrs):
 
 
 def hbm_figure(freq_hz, amplitude, metric, converged, png_path, title="",
-               metric_label="M [m]"):
+               metric_label="M [m]", ylabel="displacement amplitude at the output [m]"):
     """Log amplitude vs frequency of one parameter set: each beam a line, the metric bold.
 
     Parameters
     ----------
     freq_hz : ndarray, shape (n_f,)
     amplitude : ndarray, shape (n_f, n_beams)
-        ``|y|`` per beam, m.
+        ``|y|`` per beam, in the unit of ``ylabel`` (the metric's: one axis, one unit).
     metric : ndarray, shape (n_f,)
     converged : ndarray of bool, shape (n_f,)
         Non-converged points are not drawn.
     png_path : str or Path
+    metric_label, ylabel : str
+        Legend entry of the metric and the axis label, with the unit.
     """
     ok = np.asarray(converged, bool)
     amp = np.where(ok[:, None], amplitude, np.nan)
@@ -282,10 +284,11 @@ def hbm_figure(freq_hz, amplitude, metric, converged, png_path, title="",
     for b in range(amp.shape[1]):
         ax.plot(freq_hz, np.where(amp[:, b] > 0, amp[:, b], np.nan), lw=0.9,
                 label=f"beam {b + 1}")
-    ax.plot(freq_hz, np.where(met > 0, met, np.nan), color="k", lw=2.4, label=metric_label)
+    ax.plot(freq_hz, np.where(met > 0, met, np.nan), color="k", lw=2.4,
+            label=metric_label.replace("^2", "$^2$"))
     ax.set_yscale("log")
     ax.set_xlabel("frequency [Hz]")
-    ax.set_ylabel("amplitude at the output position")
+    ax.set_ylabel(ylabel.replace("^2", "$^2$"))
     ax.set_title(title, fontsize=9)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7, ncol=2 if amp.shape[1] > 4 else 1)

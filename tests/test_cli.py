@@ -248,6 +248,26 @@ def test_hbm_csv_and_png(tmp_path, monkeypatch, capsys):
     assert (tmp_path / "h.png").stat().st_size > 10000
 
 
+def test_hbm_figure_draws_beams_and_metric_in_one_unit(tmp_path, monkeypatch, capsys):
+    """With metric.quantity = acceleration the beams were drawn in m beside M in m/s^2
+    on one unlabelled axis: the metric is the largest of the beams drawn."""
+    from mcfric import plot
+
+    seen = {}
+    monkeypatch.setattr(plot, "hbm_figure", lambda *a, **k: seen.update(args=a, kw=k))
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "c.toml").write_text('model.preset = "two-beam"\n'
+                                     'metric.quantity = "acceleration"\n')
+    rc, _, err = call(["hbm", "c.toml", "--n-freq", "40"], capsys)
+    assert rc == 0, err
+    f, amp, metric, conv = seen["args"][:4]
+    assert conv.all()
+    np.testing.assert_allclose(metric, amp.max(axis=1), rtol=1e-12)
+    _, t = read_csv(tmp_path / "mcfric-results" / "hbm-c.csv")
+    np.testing.assert_allclose(amp, t[:, 1:3] * (2 * np.pi * f[:, None]) ** 2, rtol=1e-9)
+    assert seen["kw"]["ylabel"] == "acceleration amplitude at the output [m/s^2]"
+
+
 def test_hbm_counts_non_converged_points(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
     # a tolerance below rounding: some points cannot converge
