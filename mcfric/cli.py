@@ -905,6 +905,35 @@ def _verify_source(args):
     return spec.model, params, None
 
 
+def _stored_points(path, member, freqs):
+    """What a results file holds for ``member`` at each verified frequency: verify solves
+    its harmonic balance afresh (default solver settings, each frequency from a cold
+    start), so the lines say what that is compared with, or that there is nothing."""
+    import numpy as np
+
+    from .metric import METRIC_UNITS
+    from .store import read, read_attrs
+
+    f = read(path, "frequency")
+    conv = read(path, "converged")[member]
+    metric = read(path, "metric")[member]
+    unit = METRIC_UNITS.get(json.loads(read_attrs(path)["config_json"])["metric"]["quantity"],
+                            "")
+    lines = [f"file: member {member}'s harmonic balance here is solved afresh (default solver "
+             f"settings, a cold start at each frequency: near a fold it may reach another "
+             f"branch than the run's upward sweep)"]
+    for fk in freqs:
+        k = int(np.argmin(np.abs(f - fk)))
+        if not abs(f[k] - fk) <= 1e-9 * fk:
+            lines.append(f"file: {fk:g} Hz is not a grid frequency of the run (nearest "
+                         f"{f[k]:.6g} Hz)")
+        elif not conv[k]:
+            lines.append(f"file: at {fk:g} Hz the run did not converge (no value stored)")
+        else:
+            lines.append(f"file: at {fk:g} Hz the run stored M = {metric[k]:.6g} {unit}")
+    return lines
+
+
 def cmd_verify(args):
     """``mcfric verify``: time integration against harmonic balance at a few points."""
     import numpy as np
@@ -943,6 +972,9 @@ def cmd_verify(args):
              "member parameters")
     print(f"mcfric verify: {model.name}, {label}, F0 = {model.excitation.F0:g} N; "
           f"time integration against harmonic balance (H = 1 and H = {args.harmonics})")
+    if stem is not None:
+        for line in _stored_points(args.source, args.member, args.f):
+            print(line)
     rows = []
     for v in vs:
         print(v.table())

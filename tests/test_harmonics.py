@@ -257,8 +257,22 @@ def test_verify_takes_a_member_of_a_results_file(tmp_path, capsys):
     assert table.shape == (2,) and out.with_suffix(".png").exists()
     rc = cli.main(["verify", str(res), "--member", "9", "--f", "30", "-o", str(out)])
     assert rc == 2
-    # a member not done holds zeros, not NaN: refused by its done flag
+    # what the file holds at each frequency is said: a value, no value, not on the grid
     import h5py
+    with h5py.File(res, "r+") as h:
+        f = h["frequency"][()]
+        m = h["metric"][2, 3]
+        h["converged"][2, 5] = False
+    capsys.readouterr()
+    assert cli.main(["verify", str(res), "--member", "2", "--f", repr(float(f[3])),
+                     repr(float(f[5])),
+                     "30", "-o", str(out), "--no-figure", "--harmonics", "1"]) == 0
+    text = capsys.readouterr().out
+    assert f"at {f[3]:g} Hz the run stored M = {m:.6g} m" in text
+    assert f"at {f[5]:g} Hz the run did not converge (no value stored)" in text
+    assert "30 Hz is not a grid frequency of the run" in text
+    assert "solved afresh" in text
+    # a member not done holds zeros, not NaN: refused by its done flag
     with h5py.File(res, "r+") as h:
         h["done"][1] = 0
     capsys.readouterr()
