@@ -1,5 +1,8 @@
 """Cluster benchmark: a run on a Dask ``LocalCluster`` against the same run in one process.
 
+Run: ``python bench/distributed.py [--samples N] [--n-freq F] [--workers W] [--repeat R]
+[--memory A,B] [--dir DIR] [--quick]`` (needs ``mcfric[dask]``).
+
 Measured in one run (``python bench/distributed.py``):
 
 1. start-up: a ``local:N`` cluster started from nothing, up to every worker having loaded
@@ -97,18 +100,23 @@ def client_memory(address, samples, n_freq, workdir):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--samples", type=int, default=20000)
-    ap.add_argument("--n-freq", type=int, default=1000)
+    ap.add_argument("--samples", type=int, help="ensemble size (default 20000; quick 1000)")
+    ap.add_argument("--n-freq", type=int, help="frequencies (default 1000; quick 200)")
     ap.add_argument("--workers", type=int, default=2)
-    ap.add_argument("--repeat", type=int, default=3)
-    ap.add_argument("--memory", default="10000,100000",
+    ap.add_argument("--repeat", type=int, help="alternated repeats (default 3; quick 1)")
+    ap.add_argument("--memory",
                     help="ensemble sizes (100 frequencies) of the client-memory runs "
-                         "(comma-separated, '' = skip)")
+                         "(comma-separated, '' = skip; default 10000,100000; quick "
+                         "1000,4000)")
     ap.add_argument("--dir", help="scratch directory (default: a temporary one)")
-    ap.add_argument("--quick", action="store_true", help="small sizes, a smoke test")
+    ap.add_argument("--quick", action="store_true",
+                    help="small sizes, a smoke test (flags given still apply)")
     a = ap.parse_args()
-    if a.quick:
-        a.samples, a.n_freq, a.repeat, a.memory = 1000, 200, 1, "1000,4000"
+    # --quick fills in only what was not given
+    for name, full, quick in (("samples", 20000, 1000), ("n_freq", 1000, 200),
+                              ("repeat", 3, 1), ("memory", "10000,100000", "1000,4000")):
+        if getattr(a, name) is None:
+            setattr(a, name, quick if a.quick else full)
     workdir = Path(a.dir or tempfile.mkdtemp(prefix="mcfric-bench-"))
     workdir.mkdir(parents=True, exist_ok=True)
     try:

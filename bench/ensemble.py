@@ -1,5 +1,8 @@
 """Ensemble benchmark: end-to-end vs kernel-only time, storage options, peak memory.
 
+Run: ``python bench/ensemble.py [--samples N] [--n-freq F] [--memory A,B] [--repeat R]
+[--dir DIR] [--quick]``.
+
 Measured in one run (``python bench/ensemble.py``):
 
 1. kernel-only: :func:`mcfric.hbm.solve` over the run's chunks of pre-drawn parameters
@@ -174,16 +177,21 @@ def peak_memory(samples, n_freq, workdir):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--samples", type=int, default=2000)
-    ap.add_argument("--n-freq", type=int, default=1000)
-    ap.add_argument("--memory", default="10000,100000",
-                    help="ensemble sizes for the peak-memory runs (comma-separated, '' = skip)")
-    ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--samples", type=int, help="ensemble size (default 2000; quick 200)")
+    ap.add_argument("--n-freq", type=int, help="frequencies (default 1000; quick 200)")
+    ap.add_argument("--memory",
+                    help="ensemble sizes for the peak-memory runs (comma-separated, '' = "
+                         "skip; default 10000,100000; quick 1000,4000)")
+    ap.add_argument("--repeat", type=int, help="alternated repeats (default 5; quick 1)")
     ap.add_argument("--dir", help="scratch directory (default: a temporary one)")
-    ap.add_argument("--quick", action="store_true", help="small sizes, a smoke test")
+    ap.add_argument("--quick", action="store_true",
+                    help="small sizes, a smoke test (flags given still apply)")
     a = ap.parse_args()
-    if a.quick:
-        a.samples, a.n_freq, a.memory, a.repeat = 200, 200, "1000,4000", 1
+    # --quick fills in only what was not given
+    for name, full, quick in (("samples", 2000, 200), ("n_freq", 1000, 200),
+                              ("memory", "10000,100000", "1000,4000"), ("repeat", 5, 1)):
+        if getattr(a, name) is None:
+            setattr(a, name, quick if a.quick else full)
     workdir = Path(a.dir or tempfile.mkdtemp(prefix="mcfric-bench-"))
     workdir.mkdir(parents=True, exist_ok=True)
     try:

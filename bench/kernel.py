@@ -6,11 +6,13 @@ Everything is measured in this one run, so the ratios hold even though absolute 
 drift on a shared machine:
 
 * solves per second of ``mcfric.solve`` for the two- and eight-beam presets (paper's
-  distributions, 10-150 Hz, 1000 frequencies), best of ``--repeat`` (default 5) after
-  compilation and one untimed full-size call;
+  distributions, 10-150 Hz, 1000 frequencies), after compilation and one untimed
+  full-size call;
 * the same solves done the paper's way, ``scipy.optimize.fsolve`` per point on
   ``s - s_out(s) = 0`` (warm-started along frequency, contact-space reduction so the
-  baseline is not handicapped), timed on a subset, fastest of three passes;
+  baseline is not handicapped), timed on a subset;
+* the two alternated ``--repeat`` times (default 5): the speed-up is the median of each
+  pair's ratio, the rates the medians (a shared machine's speed drifts within minutes);
 * compile time of the first call in a fresh process with an empty numba cache, and the
   first call of a second process that finds the cache warm.
 
@@ -44,19 +46,20 @@ def draw(model, n, seed):
     return rng.uniform(0, 1, (n, nd)), rng.uniform(0, KC_MAX, (n, nd))
 
 
-def kernel_rate(model, n_samples, threads, repeat=5):
+def kernel_rate(model, n_samples, threads):
+    """A callable timing one full ``mcfric.solve``: returns (solves/s, result)."""
     mu0, kc = draw(model, n_samples, 1)
     mcfric.solve(model, F[:8], mu0[:4], kc[:4], N0, n_threads=threads)  # compile / load
     # one untimed full-size call: the first large allocations of a fresh process land on
     # memory the (virtual) machine has not backed yet, which measured 13e6 -> 25e6 solves/s
     # over the first calls for two beams; the timed calls then see a process in steady state
     mcfric.solve(model, F, mu0, kc, N0, n_threads=threads)
-    best = np.inf
-    for _ in range(repeat):
+
+    def once():
         t = time.perf_counter()
         r = mcfric.solve(model, F, mu0, kc, N0, n_threads=threads)
-        best = min(best, time.perf_counter() - t)
-    return r.status.size / best, r
+        return r.status.size / (time.perf_counter() - t), r
+    return once
 
 
 def fsolve_rate(model, n_samples, n_freq):
@@ -106,9 +109,9 @@ def main(argv=None):
     p.add_argument("--samples", type=int, default=2000, help="ensemble size (default 2000)")
     p.add_argument("--threads", type=int, default=None, help="numba threads (default all)")
     p.add_argument("--repeat", type=int, default=5,
-                   help="timed calls per preset, the fastest counts (default 5; a two-beam call "
-                        "takes ~0.1 s, so one slice of other load on this shared machine "
-                        "can halve a single measurement)")
+                   help="alternated kernel / fsolve pairs per preset, medians count (default "
+                        "5; a two-beam call takes ~0.1 s, so one slice of other load on "
+                        "this shared machine can halve a single measurement)")
     p.add_argument("--skip-compile", action="store_true", help="do not time compilation")
     args = p.parse_args(argv)
     import numba
@@ -118,17 +121,25 @@ def main(argv=None):
           f"{args.samples} samples x {len(F)} frequencies, 10-150 Hz")
     for preset, (n_fs, f_fs) in (("two-beam", (20, 50)), ("eight-beam", (5, 40))):
         model = mcfric.preset(preset)
-        rate, r = kernel_rate(model, args.samples, threads, args.repeat)
-        # the fastest of three passes, as for the kernel: a two-beam pass takes ~0.2 s, and
-        # single passes measured 670-5200 solves/s in runs the same hour
-        base, bad = max(fsolve_rate(model, n_fs, f_fs) for _ in range(3))
+        kernel_once = kernel_rate(model, args.samples, threads)
+        pairs = []
+        for _ in range(args.repeat):
+            # alternated, so that each pair sees the same machine speed (single fsolve
+            # passes measured 670-5200 solves/s in runs the same hour)
+            k_rate, r = kernel_once()
+            b_rate, bad = fsolve_rate(model, n_fs, f_fs)
+            pairs.append((k_rate, b_rate))
+        rate = float(np.median([k for k, _ in pairs]))
+        base = float(np.median([b for _, b in pairs]))
+        speedup = float(np.median([k / b for k, b in pairs]))
         results[preset] = {"kernel_solves_per_s": rate, "fsolve_solves_per_s": base,
-                           "speedup": rate / base, "not_converged": r.n_not_converged,
+                           "speedup": speedup, "speedup_pairs": [k / b for k, b in pairs],
+                           "not_converged": r.n_not_converged,
                            "mean_iterations": float(r.iterations.mean()),
                            "fsolve_flagged": int(bad), "fsolve_points": n_fs * f_fs}
         print(f"{preset:>10}: kernel {rate / 1e6:7.2f} M solves/s | fsolve loop "
               f"{base:8.0f} solves/s ({bad} of {n_fs * f_fs} flagged ier != 1) | "
-              f"speed-up {rate / base:8.0f}x | not converged {r.n_not_converged} | "
+              f"speed-up {speedup:8.0f}x (median of pairs) | not converged {r.n_not_converged} | "
               f"mean iterations {r.iterations.mean():.2f}")
     if not args.skip_compile:
         for preset in ("two-beam", "eight-beam"):

@@ -1,6 +1,6 @@
 """Cost and effect of resolving every member's peaks, on the default ensemble.
 
-Run: ``python bench/peaks.py [--members N] [--repeat R] [--threads T]``.
+Run: ``python bench/peaks.py [--members N] [--repeat R] [--threads T] [--figures DIR]``.
 
 Measured in this one run, on the default ensemble (eight beams, F0 = 1.1 N, the paper's
 distributions, 1000 frequencies over 10-150 Hz): the plain sweep (``mcfric.solve``) and

@@ -2,7 +2,7 @@
 
 Run: ``python bench/rings.py [--blades 8 16 32 64 128] [--repeat R] [--threads T]
 [--dense-max N] [--bounds 8 24 32] [--bounds-frequencies N] [--search-only] [--storage]
-[--memory 10000 100000]``.
+[--memory 10000 100000] [--skip-rates]``.
 
 For each blade count, in one run and alternating the variants (absolute times drift on a
 shared machine by tens of percent within minutes; ratios measured side by side do not):
@@ -22,7 +22,8 @@ damper-solves/s relative to the smallest ring (1 = linear cost).
 
 ``--bounds``: for tuned rings (engine order 1) of these sizes, the time of the searched
 bounds and of the certified ones (1000 frequencies, the paper's limits) against that of
-the 2000-member ensemble's solves (2000 x 1000), alternated, medians of three.
+the 2000-member ensemble's solves (2000 x 1000), alternated, medians of three rounds
+(``--repeat``), each ratio the median of the rounds' own ratios.
 ``--bounds-frequencies N``: N frequencies instead of 1000 (bounds and ensemble alike).
 ``--search-only``: the searched bounds alone (large rings, whose certificate is mostly
 Eq. 10: the search is what costs there).
@@ -34,7 +35,8 @@ three (200 samples x 1000 frequencies, so about 2 % of a 2000-member run).
 ``--memory`` (Linux): peak resident memory of whole 128-blade runs (amplitudes stored, 20
 frequencies, bounds off) at these sample counts, each in a fresh process.
 
-Results are printed and saved to ``bench/out/rings.json``.
+Results are printed and saved to ``bench/out/rings.json`` (the parts run replace theirs;
+the others stay).
 """
 
 import argparse
@@ -108,16 +110,19 @@ def bounds_vs_ensemble(sizes, repeat, threads, n_f, search_only):
             t = time.perf_counter()
             mcfric.solve(model, f, mu0, kc, N0, n_threads=threads)
             te.append(time.perf_counter() - t)
+        # ratios: the median of each round's own ratio (a round sees one machine speed)
         b, e = statistics.median(tb), statistics.median(te)
-        row = dict(blades=n, frequencies=n_f, bounds_s=b, ensemble_s=e, ratio=b / e)
+        rb = statistics.median(x / y for x, y in zip(tb, te))
+        row = dict(blades=n, frequencies=n_f, bounds_s=b, ensemble_s=e, ratio=rb)
         line = f"bounds, {n:>3} blades: searched {b:7.1f} s"
         if not search_only:
             c = statistics.median(tc)
-            row.update(certified_s=c, certified_ratio=c / e)
+            rc = statistics.median(x / y for x, y in zip(tc, te))
+            row.update(certified_s=c, certified_ratio=rc)
             line += f", certified {c:7.1f} s"
-        line += f"; 2000 x {n_f} ensemble solves {e:7.1f} s; searched / ensemble {b / e:.2f}"
+        line += f"; 2000 x {n_f} ensemble solves {e:7.1f} s; searched / ensemble {rb:.2f}"
         if not search_only:
-            line += f", certified / ensemble {c / e:.2f}"
+            line += f", certified / ensemble {rc:.2f}"
         rows.append(row)
         print(line)
     return rows
@@ -183,7 +188,8 @@ def memory(sizes, workdir):
 def main():
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--blades", type=int, nargs="+", default=[8, 16, 32, 64, 128])
-    p.add_argument("--repeat", type=int, default=5, help="rounds (default 5)")
+    p.add_argument("--repeat", type=int, default=None,
+                   help="rounds (default 5 for the rates, 3 for --bounds and --storage)")
     p.add_argument("--threads", type=int, default=None, help="numba threads (default all)")
     p.add_argument("--dense-max", type=int, default=32,
                    help="largest ring also timed on the dense kernel (default 32)")
@@ -200,20 +206,25 @@ def main():
     p.add_argument("--skip-rates", action="store_true", help="skip the solves/s table")
     args = p.parse_args()
     results = {}
+    slow = args.repeat or 3             # minutes per round at the larger rings
     if args.bounds:
-        results["bounds"] = bounds_vs_ensemble(args.bounds, 3, args.threads,
+        results["bounds"] = bounds_vs_ensemble(args.bounds, slow, args.threads,
                                                args.bounds_frequencies, args.search_only)
     with tempfile.TemporaryDirectory(prefix="mcfric-rings-") as tmp:
         if args.storage:
-            results["storage"] = storage(3, args.threads, pathlib.Path(tmp))
+            results["storage"] = storage(slow, args.threads, pathlib.Path(tmp))
         if args.memory:
             results["memory"] = memory(args.memory, pathlib.Path(tmp))
     if not args.skip_rates:
+        args.repeat = args.repeat or 5
         results["rates"] = rates(args)
     out = pathlib.Path(__file__).parent / "out"
     out.mkdir(exist_ok=True)
-    (out / "rings.json").write_text(json.dumps(results, indent=2))
-    print(f"saved {out / 'rings.json'}")
+    path = out / "rings.json"
+    # the parts of this run replace theirs; the others (an earlier --bounds run) stay
+    kept = json.loads(path.read_text()) if path.exists() else {}
+    path.write_text(json.dumps({**kept, **results}, indent=2))
+    print(f"saved {path}")
 
 
 def rates(args):
