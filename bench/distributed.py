@@ -87,7 +87,8 @@ def client_memory(address, samples, n_freq, workdir):
     path = workdir / f"mem-{samples}.h5"
     r = subprocess.run([sys.executable, "-c", MEM_SCRIPT, "run", "eight-beam", "-o",
                         str(path), "--samples", str(samples), "--n-freq", str(n_freq),
-                        "--scheduler", address, "--no-progress", "--no-figure", "--force"],
+                        "--scheduler", address, "--no-bounds", "--no-progress", "--no-figure",
+                        "--force"],
                        capture_output=True, text=True)
     line = [x for x in r.stdout.splitlines() if x.startswith("VMHWM")]
     if r.returncode != 0 or not line:

@@ -6,7 +6,7 @@
     mcfric run [PRESET|CONFIG.toml] [-o FILE] [--samples N] [--seed S] [--resume]
                [--force] [--threads T] [--chunk N] [--scheduler ADDRESS] [--peaks N]
                [--peak-rtol X] [--no-peaks] [--F0 N] [--f-min HZ] [--f-max HZ] [--n-freq N]
-               [--no-certify] [--moments | --first-order] [--no-progress]
+               [--no-certify] [--no-bounds] [--moments | --first-order] [--no-progress]
                [--no-figure] [--skip-space-check]
     mcfric config [PRESET|CONFIG.toml]       # complete, commented TOML on stdout
     mcfric info FILE                         # summary of a results file
@@ -101,6 +101,8 @@ def _parser():
                    help="do not refine peaks or look for folds")
     r.add_argument("--no-certify", action="store_true",
                    help="skip the certification of the bounds (searched bounds only)")
+    r.add_argument("--no-bounds", action="store_true",
+                   help="skip the response bounds altogether (bounds.enabled = false)")
     _order_flags(r)
     _model_flags(r)
     _harmonic_flags(r)
@@ -293,6 +295,12 @@ def _overrides(args):
             if getattr(args, flag, False):
                 raise UsageError(f"--{flag.replace('_', '-')}: the order of the "
                                  "certification; not with --no-certify")
+    if getattr(args, "no_bounds", False):
+        o["bounds.enabled"] = (False, "--no-bounds")
+        for flag in ("moments", "first_order"):
+            if getattr(args, flag, False):
+                raise UsageError(f"--{flag.replace('_', '-')}: the order of the "
+                                 "certification; not with --no-bounds")
     if getattr(args, "moments", False):
         o["bounds.certify_moments"] = (True, "--moments")
     if getattr(args, "first_order", False):

@@ -16,7 +16,7 @@ import h5py
 import numpy as np
 import pytest
 
-from mcfric import cli, ensemble
+from mcfric import cli, ensemble, store
 from mcfric.store import Store, writer
 from mcfric.store.lock import OutputLock, lock_path
 
@@ -226,7 +226,20 @@ REFUSED_BEFORE_WORK = [
      "--moments: the order of the certification; not with --no-certify"),
     (["run", "two-beam", *TINY, "--no-certify", "--first-order", "-o", "{dir}/r.h5"],
      "--first-order: the order"),
+    (["run", "two-beam", *TINY, "--no-bounds", "--moments", "-o", "{dir}/r.h5"],
+     "--moments: the order of the certification; not with --no-bounds"),
 ]
+
+
+def test_no_bounds_runs_without_them(tmp_path, capsys):
+    from mcfric.bounds import read_bounds
+
+    out = tmp_path / "r.h5"
+    assert cli.main(["run", "two-beam", "--samples", "4", *TINY, "--no-bounds",
+                     "--no-figure", "-o", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert read_bounds(out) is None and "bounds" not in store.dataset_names(out)
+    assert "searched bounds" not in text and "certified" not in text
 
 
 @pytest.mark.parametrize("argv, message", REFUSED_BEFORE_WORK)
