@@ -161,6 +161,11 @@ def test_a_largest_peak_that_may_lie_higher_is_counted_as_a_lower_estimate(tmp_p
     assert np.all(flagged[low]), np.flatnonzero(low & ~flagged)
     assert rep["unresolved"] == int(np.count_nonzero(flagged & np.isfinite(largest)))
     assert f"{rep['unresolved']} of these are lower estimates" in summary.text()
+    # the same members from Python: Peaks.resolved() is False for every low one
+    res = mcfric.solve(cfg.model(), cfg.frequencies(), mu0, kc, N0, tol=1e-16, max_iter=1,
+                       peaks=cfg.spec.peaks)
+    low_api = ok & (res.peaks.largest() < 0.99 * true_max)
+    assert low_api.sum() >= 1 and not res.peaks.resolved()[low_api].any()
 
 
 def _naive_sweep(model, freqs, mu0, kc, N0, law):
