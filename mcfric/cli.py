@@ -913,33 +913,57 @@ def _verify_source(args):
     return spec.model, params, None
 
 
+#: ``verify FILE --f HZ``: a frequency this close (relative) to one of the run's grid
+#: frequencies is taken as that one (the run summary prints them to 4 digits)
+GRID_MATCH = 1e-3
+
+
 def _stored_points(path, member, freqs):
     """What a results file holds for ``member`` at each verified frequency: verify solves
     its harmonic balance afresh (default solver settings, each frequency from a cold
-    start), so the lines say what that is compared with, or that there is nothing."""
+    start), so the lines say what that is compared with, or that there is nothing.
+
+    Returns the frequencies to verify (a typed one within ``GRID_MATCH`` of a grid
+    frequency, and nearer to it than to its neighbours, becomes that grid frequency) and
+    the lines to print.
+    """
     import numpy as np
 
     from .metric import METRIC_UNITS
     from .store import read, read_attrs
 
     f = read(path, "frequency")
-    conv = read(path, "converged")[member]
-    metric = read(path, "metric")[member]
-    unit = METRIC_UNITS.get(json.loads(read_attrs(path)["config_json"])["metric"]["quantity"],
-                            "")
+    conv = read(path, "converged", member)
+    metric = read(path, "metric", member)
+    q = json.loads(read_attrs(path)["config_json"])["metric"]["quantity"]
     lines = [f"file: member {member}'s harmonic balance here is solved afresh (default solver "
              f"settings, a cold start at each frequency: near a fold it may reach another "
              f"branch than the run's upward sweep)"]
+    out = []
     for fk in freqs:
+        if not (math.isfinite(fk) and fk > 0):
+            out.append(fk)              # refused with its own message before any work
+            continue
         k = int(np.argmin(np.abs(f - fk)))
-        if not abs(f[k] - fk) <= 1e-9 * fk:
-            lines.append(f"file: {fk:g} Hz is not a grid frequency of the run (nearest "
-                         f"{f[k]:.6g} Hz)")
-        elif not conv[k]:
-            lines.append(f"file: at {fk:g} Hz the run did not converge (no value stored)")
+        step = np.min(np.abs(np.diff(f)[max(k - 1, 0):k + 1])) if len(f) > 1 else np.inf
+        if abs(f[k] - fk) <= 1e-12 * fk:
+            fk = float(f[k])
+        elif abs(f[k] - fk) <= GRID_MATCH * fk and abs(f[k] - fk) < step / 2:
+            lines.append(f"file: --f {fk:g} Hz taken as the run's grid frequency "
+                         f"{f[k]:.10g} Hz")
+            fk = float(f[k])
         else:
-            lines.append(f"file: at {fk:g} Hz the run stored M = {metric[k]:.6g} {unit}")
-    return lines
+            lines.append(f"file: {fk:g} Hz is not a grid frequency of the run (nearest "
+                         f"{f[k]:.10g} Hz)")
+            out.append(fk)
+            continue
+        out.append(fk)
+        if not conv[k]:
+            lines.append(f"file: at {fk:.10g} Hz the run did not converge (no value stored)")
+        else:
+            lines.append(f"file: at {fk:.10g} Hz the run stored M = {metric[k]:.6g} "
+                         f"{METRIC_UNITS[q]} ({q}, the run's metric)")
+    return out, lines
 
 
 def cmd_verify(args):
@@ -957,6 +981,9 @@ def cmd_verify(args):
         raise UsageError(f"--harmonics: expected an odd integer (the odd harmonics 1, 3, ..., "
                          f"H are balanced), got {args.harmonics}")
     model, (mu0, kc, N0), stem = _verify_source(args)
+    stored = []
+    if stem is not None:
+        args.f, stored = _stored_points(args.source, args.member, args.f)
 
     def usage(e):
         msg = str(e).splitlines()[0]
@@ -980,9 +1007,8 @@ def cmd_verify(args):
              "member parameters")
     print(f"mcfric verify: {model.name}, {label}, F0 = {model.excitation.F0:g} N; "
           f"time integration against harmonic balance (H = 1 and H = {args.harmonics})")
-    if stem is not None:
-        for line in _stored_points(args.source, args.member, args.f):
-            print(line)
+    for line in stored:
+        print(line)
     rows = []
     for v in vs:
         print(v.table())

@@ -264,14 +264,18 @@ def test_verify_takes_a_member_of_a_results_file(tmp_path, capsys):
         m = h["metric"][2, 3]
         h["converged"][2, 5] = False
     capsys.readouterr()
-    assert cli.main(["verify", str(res), "--member", "2", "--f", repr(float(f[3])),
-                     repr(float(f[5])),
-                     "30", "-o", str(out), "--no-figure", "--harmonics", "1"]) == 0
+    # as the run summary prints them (4 digits): taken as the grid frequencies
+    typed = [f"{f[3]:.4g}", f"{f[5]:.4g}", "30"]
+    assert cli.main(["verify", str(res), "--member", "2", "--f", *typed, "-o", str(out),
+                     "--no-figure", "--harmonics", "1"]) == 0
     text = capsys.readouterr().out
-    assert f"at {f[3]:g} Hz the run stored M = {m:.6g} m" in text
-    assert f"at {f[5]:g} Hz the run did not converge (no value stored)" in text
+    assert f"--f {typed[0]} Hz taken as the run's grid frequency {f[3]:.10g} Hz" in text
+    assert f"at {f[3]:.10g} Hz the run stored M = {m:.6g} m (displacement" in text
+    assert f"at {f[5]:.10g} Hz the run did not converge (no value stored)" in text
     assert "30 Hz is not a grid frequency of the run" in text
     assert "solved afresh" in text
+    np.testing.assert_allclose(np.genfromtxt(out, delimiter=",", names=True)["frequency_hz"],
+                               np.repeat([f[3], f[5], 30.0], 2), rtol=1e-9)   # verified there
     # a member not done holds zeros, not NaN: refused by its done flag
     with h5py.File(res, "r+") as h:
         h["done"][1] = 0

@@ -11,7 +11,8 @@ from .files import DONE, StoreError
 
 
 def _open_read(path):
-    if not isinstance(path, (str, bytes, os.PathLike)):     # h5py's TypeError names no input
+    if not (isinstance(path, (str, bytes, os.PathLike)) or hasattr(path, "read")):
+        # h5py's TypeError names no input (a file-like object h5py takes stays allowed)
         raise StoreError(f"path: expected a results file's path, got {type(path).__name__}")
     try:
         # locking=False: readable while a run writes it (its metadata does not change)
@@ -68,10 +69,11 @@ def iter_records(path, names, block=4096, only_done=True):
             yield a, arrays
 
 
-def read(path, name):
-    """One whole dataset (use :func:`iter_records` for big ones)."""
+def read(path, name, row=None):
+    """One whole dataset, or only its record ``row`` (use :func:`iter_records` to go
+    through big ones)."""
     with _open_read(path) as h5:
-        return h5[name][...]
+        return h5[name][...] if row is None else h5[name][row]
 
 
 def open_results(path, allow_incomplete=False):
