@@ -253,11 +253,12 @@ def report_text(report, unit):
     """The lines ``mcfric info`` and the run summary print about the peaks."""
     st = report["statistics"]
     k = report.get("unresolved", 0)
+    share = (f"the grid's maximum is {report['grid_ratio']:.3g} of the refined peak, median"
+             + (f" of the {st['members'] - k} fully refined" if k else "")
+             if st["members"] > k else "none fully refined")
     lines = [f"peaks:       each member's largest, refined: median {st['median']:.4g}, "
              f"95th percentile {st['p95']:.4g}, max {st['max']:.4g} {unit} "
-             f"({st['members']} members; the grid's maximum is {report['grid_ratio']:.3g} "
-             f"of the refined peak, median"
-             + (f" of the {st['members'] - k} fully refined)" if k else ")")
+             f"({st['members']} members; {share})"
              + (f"; {k} of these are lower estimates: a peak of the member was not "
                 f"refined (a solver failed near it) and may lie higher" if k else ""),
              f"folds:       {report['folds']} of {report['members']} members have more than "

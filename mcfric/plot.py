@@ -153,7 +153,8 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
             px.append(arr["peak_frequency"][keep].ravel())
             py.append(arr["peak_metric"][keep].ravel())
             ps.append(arr["peak_status"][keep].ravel())
-        px, py, ps = np.concatenate(px), np.concatenate(py), np.concatenate(ps)
+        # no member done (a partial file): nothing to draw
+        px, py, ps = (np.concatenate(v) if v else np.empty(0) for v in (px, py, ps))
         py = py * omega_power(px, quantity, stored)
         ok = np.isfinite(py) & (px >= lo_f) & (px <= hi_f) & (py > 0)
         grid = ok & (ps == PEAK_GRID)
@@ -200,8 +201,9 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
         g = read_group(path, "bounds")[1]
         if "peak_upper" in g and lo_f <= g["peak_upper_frequency"] <= hi_f:
             fb = g["peak_upper_frequency"]
+            how = "refined" if g.get("peak_upper_refined", 1) else "largest (not refined)"
             ax.plot([fb], [g["peak_upper"] * omega_power(fb, quantity, stored)], "*",
-                    color="tab:blue", ms=9, label="refined peak of the upper bound (searched)")
+                    color="tab:blue", ms=9, label=f"{how} peak of the upper bound (searched)")
     for mm in measured:
         g = mm.to_quantity(quantity)
         mf = g.frequency_hz

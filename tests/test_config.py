@@ -178,6 +178,9 @@ def test_config_json_round_trips_floats_exactly():
      "model.table.shapes"),                 # zero at the drive: every response zero
     ({"model": {"table": {"shapes": [[2.55, 0.0, 0.48], [-1.84, 0.0, 1.42]]}}},
      "model.table.shapes"),                 # zero at the output
+    ({"model": {"preset": "two-beam",       # the driven beam's own shapes are to blame
+                "beam": [{"beam": 1, "shapes": [[2.55, 0.99, 0.0], [-1.84, 2.18, 0.0]]}]}},
+     "model.beam[1].shapes"),
 ])
 def test_errors_name_the_key(raw, key):
     with pytest.raises(ConfigError) as e:

@@ -168,6 +168,16 @@ def test_a_largest_peak_that_may_lie_higher_is_counted_as_a_lower_estimate(tmp_p
     assert low_api.sum() >= 1 and not res.peaks.resolved()[low_api].any()
 
 
+def test_report_with_every_member_a_lower_estimate_prints_no_nan():
+    from mcfric.peaks import report_text, statistics
+
+    rep = {"statistics": statistics([1e-3, 2e-3]), "grid_ratio": np.nan, "unresolved": 2,
+           "members": 2, "folds": 0, "unchecked": 0}
+    line = report_text(rep, "m")[0]
+    assert "none fully refined" in line and "nan" not in line
+    assert "2 of these are lower estimates" in line
+
+
 def _naive_sweep(model, freqs, mu0, kc, N0, law):
     """A stepped sine with tests/naive.py: each frequency solved from the previous root."""
     beams, pairs, force = naive_beams(model), naive_pairs(model), model.force

@@ -106,6 +106,17 @@ def test_a_path_that_is_no_path_is_a_store_error(path):
             read(path)
 
 
+def test_a_file_like_object_is_read_as_h5py_reads_it(tmp_path):
+    import io
+
+    path = tmp_path / "r.h5"
+    s = make(path, n=20)
+    s.write(0, records(0, 20))
+    s.commit([(0, 20)])
+    final = s.finish({"count": np.int64(0), "wall": np.float64(0.0)})
+    assert store.read_attrs(io.BytesIO(final.read_bytes()))["complete"] == 1
+
+
 def test_partial_file_is_not_complete_and_reopens(tmp_path):
     path = tmp_path / "r.h5"
     s = make(path)

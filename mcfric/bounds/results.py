@@ -20,11 +20,12 @@ def to_group(B):
         "upper": (("frequency",), B.upper, {
             "units": unit, "long_name": "searched upper bound of M (the paper's: the largest "
                                         "box value found or the force bound, the smaller), "
-                                        "not certified (upper_certified is); NaN where the "
-                                        "search failed"}),
+                                        "not certified (upper_certified, where computed, "
+                                        "is); NaN where the search failed"}),
         "lower": (("frequency",), B.lower, {
             "units": unit, "long_name": "searched lower bound of M (the smallest box value "
-                                        "found), not certified (lower_certified is)"}),
+                                        "found), not certified (lower_certified, where "
+                                        "computed, is)"}),
         "limited_by": (("frequency",), B.limited_by, {
             "long_name": "constraint that sets the upper bound", "flag_values": [0, 1],
             "flag_meanings": "box force"}),

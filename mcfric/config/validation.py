@@ -167,9 +167,22 @@ def _validate(raw):
     except ValueError as e:   # a rule of the Model itself that the checks above missed
         key, _, message = str(e).partition(": ")
         if key in ("drive", "output"):      # shapes all zero there
-            raise InputError("model.table.shapes", message) from None
+            raise InputError(_zero_shapes_key(out["model"], key),
+                             f"{message} (or model.{key} names the wrong position)") from None
         raise InputError("model", str(e)) from None
     return cfg
+
+
+def _zero_shapes_key(m, label):
+    """The shapes to blame for a column of zeros at position ``m[label]``: the table's if
+    its column is zero, else the first per-beam override whose column is."""
+    col = m["table"]["positions"].index(m[label])
+    if not any(row[col] for row in m["table"]["shapes"]):
+        return "model.table.shapes"
+    for n, b in enumerate(m["beam"], 1):
+        if "shapes" in b and not any(row[col] for row in b["shapes"]):
+            return f"model.beam[{n}].shapes"
+    return "model.table.shapes"
 
 
 def _cross_checks(c):
