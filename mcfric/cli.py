@@ -289,18 +289,14 @@ def _overrides(args):
             o[key] = (getattr(args, attr), flag)
     if getattr(args, "no_peaks", False):
         o["peaks.enabled"] = (False, "--no-peaks")
-    if getattr(args, "no_certify", False):
-        o["bounds.certify"] = (False, "--no-certify")
+    for skip, key in (("no_certify", "bounds.certify"), ("no_bounds", "bounds.enabled")):
+        if not getattr(args, skip, False):
+            continue
+        o[key] = (False, f"--{skip.replace('_', '-')}")
         for flag in ("moments", "first_order"):
             if getattr(args, flag, False):
                 raise UsageError(f"--{flag.replace('_', '-')}: the order of the "
-                                 "certification; not with --no-certify")
-    if getattr(args, "no_bounds", False):
-        o["bounds.enabled"] = (False, "--no-bounds")
-        for flag in ("moments", "first_order"):
-            if getattr(args, flag, False):
-                raise UsageError(f"--{flag.replace('_', '-')}: the order of the "
-                                 "certification; not with --no-bounds")
+                                 f"certification; not with --{skip.replace('_', '-')}")
     if getattr(args, "moments", False):
         o["bounds.certify_moments"] = (True, "--moments")
     if getattr(args, "first_order", False):
