@@ -862,7 +862,8 @@ def cmd_hbm(args):
 
 def _verify_source(args):
     """Model and parameters of ``mcfric verify``: a preset/config and the flags, or a
-    results file's configuration and one member's parameters."""
+    results file's configuration and one member's parameters. Returns ``(model, params,
+    stem, solver)``: ``stem`` and ``solver`` (the run's solver settings) only for a file."""
     import numpy as np
 
     from . import config
@@ -893,7 +894,7 @@ def _verify_source(args):
         if (read(src, "done")[args.member] != 1
                 or not all(np.all(np.isfinite(p)) for p in params)):
             raise UsageError(f"--member: member {args.member} is not in the file (not done)")
-        return spec.model, params, Path(src).stem
+        return spec.model, params, Path(src).stem, spec.solver
     if args.member is not None:
         raise UsageError("--member: only with a results file")
     spec = _load(args).spec
@@ -906,7 +907,7 @@ def _verify_source(args):
         except InputError as e:
             raise UsageError(str(e)) from None
         params.append(v)
-    return spec.model, params, None
+    return spec.model, params, None, None
 
 
 #: ``verify FILE --f HZ``: a frequency this close (relative) to one of the run's grid
@@ -916,8 +917,8 @@ GRID_MATCH = 1e-3
 
 def _stored_points(path, member, freqs):
     """What a results file holds for ``member`` at each verified frequency: verify solves
-    its harmonic balance afresh (default solver settings, each frequency from a cold
-    start), so the lines say what that is compared with, or that there is nothing.
+    its harmonic balance afresh (the run's tolerance and iterations, each frequency from a
+    cold start), so the lines say what that is compared with, or that there is nothing.
 
     Returns the frequencies to verify (a typed one within ``GRID_MATCH`` of a grid
     frequency, and nearer to it than to its neighbours, becomes that grid frequency) and
@@ -932,9 +933,9 @@ def _stored_points(path, member, freqs):
     conv = read(path, "converged", member)
     metric = read(path, "metric", member)
     q = json.loads(read_attrs(path)["config_json"])["metric"]["quantity"]
-    lines = [f"file: member {member}'s harmonic balance here is solved afresh (default solver "
-             f"settings, a cold start at each frequency: near a fold it may reach another "
-             f"branch than the run's upward sweep)"]
+    lines = [f"file: member {member}'s harmonic balance here is solved afresh (the run's "
+             f"tolerance and iterations, a cold start at each frequency: near a fold it may "
+             f"reach another branch than the run's upward sweep)"]
     out = []
     for fk in freqs:
         if not (math.isfinite(fk) and fk > 0):
@@ -976,7 +977,7 @@ def cmd_verify(args):
     if args.harmonics % 2 == 0:
         raise UsageError(f"--harmonics: expected an odd integer (the odd harmonics 1, 3, ..., "
                          f"H are balanced), got {args.harmonics}")
-    model, (mu0, kc, N0), stem = _verify_source(args)
+    model, (mu0, kc, N0), stem, solver = _verify_source(args)
     stored = []
     if stem is not None:
         args.f, stored = _stored_points(args.source, args.member, args.f)
@@ -994,8 +995,10 @@ def cmd_verify(args):
     else:
         out = _output_path(args, ".csv", prefix="verify-", figure=not args.no_figure)
     try:
+        # a file's member: its harmonic balance with the run's tolerance and iterations
         vs = verify(model, args.f, mu0, kc, N0, harmonics=args.harmonics, start=args.start,
-                    max_periods=args.max_periods, progress=not args.no_progress)
+                    max_periods=args.max_periods, progress=not args.no_progress,
+                    hb_tol=solver and solver.tol, hb_max_iter=solver and solver.max_iter)
     except ValueError as e:
         raise usage(e) from None
     label = (f"mu0 = {np.ravel(mu0)[0]:g}, kc = {np.ravel(kc)[0]:g} N/m, "

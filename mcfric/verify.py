@@ -202,7 +202,8 @@ def _single_harmonic_state(model, omega, mu0, kc, N0, s):
 
 
 def verify(model, freq_hz, mu0, kc, N0=0.5, *, harmonics=9, start="single", tol=TOL,
-           settle=SETTLE, max_periods=MAX_PERIODS, steps=None, progress=False):
+           settle=SETTLE, max_periods=MAX_PERIODS, steps=None, progress=False,
+           hb_tol=None, hb_max_iter=None):
     """Integrate to a periodic state at each frequency and compare with harmonic balance.
 
     Parameters
@@ -228,6 +229,9 @@ def verify(model, freq_hz, mu0, kc, N0=0.5, *, harmonics=9, start="single", tol=
         Time steps per period (default from the fastest mode; at least 64).
     progress : bool
         Show a tqdm bar over the frequencies on stderr (an integration takes seconds).
+    hb_tol, hb_max_iter : float, int, optional
+        The harmonic-balance solver's residual tolerance and Newton iterations (default:
+        :func:`mcfric.solve`'s), e.g. a results file's, to solve its points as its run did.
 
     Returns
     -------
@@ -249,9 +253,10 @@ def verify(model, freq_hz, mu0, kc, N0=0.5, *, harmonics=9, start="single", tol=
         integer(lo)(v, name)
     f, n_steps_at = time_steps(model, freq_hz, kc, steps)
     orders = harmonic_orders(max(harmonics, 3))
-    shb = solve(model, f, mu0[None], kc[None], N0[None])
+    hb = {k: v for k, v in (("tol", hb_tol), ("max_iter", hb_max_iter)) if v is not None}
+    shb = solve(model, f, mu0[None], kc[None], N0[None], **hb)
     mhb = solve(model, f, mu0[None], kc[None], N0[None], harmonics=harmonics,
-                store_harmonics=True) if harmonics > 1 else None
+                store_harmonics=True, **hb) if harmonics > 1 else None
     fr, z, u = model.modal_arrays()
     w = 2 * np.pi * fr
     uc, uo, ud = (np.ascontiguousarray(u[:, :, i]) for i in range(3))

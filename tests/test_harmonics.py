@@ -285,6 +285,24 @@ def test_verify_takes_a_member_of_a_results_file(tmp_path, capsys):
     assert rc == 2 and "not done" in capsys.readouterr().err and not out.exists()
 
 
+def test_verify_solves_a_members_points_with_the_runs_solver_settings(tmp_path, capsys,
+                                                                      monkeypatch):
+    from mcfric import verify as verify_module
+
+    cfg = tmp_path / "c.toml"
+    cfg.write_text('model.preset = "two-beam"\nsolver.tol = 1e-8\nsolver.max_iter = 30\n')
+    res = tmp_path / "r.h5"
+    assert cli.main(["run", str(cfg), "--samples", "2", "--n-freq", "10", "-o", str(res),
+                     "--no-progress", "--no-figure", "--no-bounds"]) == 0
+    seen = []
+    solve = verify_module.solve
+    monkeypatch.setattr(verify_module, "solve", lambda *a, **k: seen.append(k) or solve(*a, **k))
+    assert cli.main(["verify", str(res), "--member", "1", "--f", "30", "--harmonics", "3",
+                     "--no-figure", "-o", str(tmp_path / "v.csv")]) == 0
+    assert len(seen) == 2 and all(k["tol"] == 1e-8 and k["max_iter"] == 30 for k in seen)
+    assert "the run's tolerance and iterations" in capsys.readouterr().out
+
+
 def test_plot_marks_the_points_the_indicator_flags(tmp_path, capsys):
     """The figure's count of flagged points equals a plain count over the file."""
     import h5py
