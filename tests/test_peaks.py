@@ -146,6 +146,7 @@ def test_a_largest_peak_that_may_lie_higher_is_counted_as_a_lower_estimate(tmp_p
         status = h5["peak_status"][()]
         both = np.concatenate([h5["peak_metric"][()], h5["peak_metric_down"][()]], axis=1)
         mu0, kc, N0 = (h5[k][()] for k in ("mu0", "kc", "N0"))
+        grid_max = np.nanmax(h5["metric"][()], axis=1)
     ranked = np.where(np.isnan(both), -np.inf, both)
     largest = np.max(ranked, axis=1)
     top = np.argmax(ranked, axis=1)
@@ -160,6 +161,8 @@ def test_a_largest_peak_that_may_lie_higher_is_counted_as_a_lower_estimate(tmp_p
     assert (low & ~top_grid).sum() >= 1     # a refined largest that is not the largest
     assert np.all(flagged[low]), np.flatnonzero(low & ~flagged)
     assert rep["unresolved"] == int(np.count_nonzero(flagged & np.isfinite(largest)))
+    # the grid's share is over the fully refined members only (a lower estimate's is not)
+    assert rep["grid_ratio"] == pytest.approx(np.median((grid_max / largest)[~flagged]))
     assert f"{rep['unresolved']} of these are lower estimates" in summary.text()
     # the same members from Python: Peaks.resolved() is False for every low one
     res = mcfric.solve(cfg.model(), cfg.frequencies(), mu0, kc, N0, tol=1e-16, max_iter=1,
