@@ -251,6 +251,11 @@ def verify(model, freq_hz, mu0, kc, N0=0.5, *, harmonics=9, start="single", tol=
         raise ValueError(f"tol: expected a number in (0, 1), got {tol!r}")
     for name, v, lo in (("settle", settle, 1), ("max_periods", max_periods, 1)):
         integer(lo)(v, name)
+    # named here: solve() would blame "tol", which is the integration's
+    if hb_tol is not None and not (is_num(hb_tol) and math.isfinite(hb_tol) and 0 < hb_tol < 1):
+        raise ValueError(f"hb_tol: expected a number in (0, 1), got {hb_tol!r}")
+    if hb_max_iter is not None:
+        integer(1, 10000)(hb_max_iter, "hb_max_iter")
     f, n_steps_at = time_steps(model, freq_hz, kc, steps)
     orders = harmonic_orders(max(harmonics, 3))
     hb = {k: v for k, v in (("tol", hb_tol), ("max_iter", hb_max_iter)) if v is not None}

@@ -127,6 +127,17 @@ def test_a_beam_at_rest_has_no_relative_differences(two_beam):
     assert "nan" not in text and text.splitlines()[-1].split()[2] == "-"
 
 
+@pytest.mark.parametrize("kwargs, starts", [
+    (dict(hb_tol=0.0), "hb_tol: expected a number in (0, 1)"),     # solve() blamed "tol"
+    (dict(hb_tol="1e-8"), "hb_tol"),
+    (dict(hb_max_iter=True), "hb_max_iter"),
+])
+def test_verify_names_its_harmonic_balance_settings(two_beam, kwargs, starts):
+    with pytest.raises(ValueError) as e:
+        verify(two_beam, 50.0, 0.5, 6000.0, 0.5, harmonics=3, **kwargs)
+    assert str(e.value).startswith(starts)
+
+
 # drive frequencies across 10-150 Hz, with the 3:1 and 5:1 region 17-40 Hz
 POINTS = [("two-beam", 0.3, 3000.0, [17.0, 35.3, 60.0]),
           ("eight-beam", 0.5, 6000.0, [17.5, 21.0, 37.5, 120.0])]
