@@ -863,7 +863,7 @@ def cmd_hbm(args):
 def _verify_source(args):
     """Model and parameters of ``mcfric verify``: a preset/config and the flags, or a
     results file's configuration and one member's parameters. Returns ``(model, params,
-    stem, solver)``: ``stem`` and ``solver`` (the run's solver settings) only for a file."""
+    stem, run)``: ``stem`` and ``run`` (the run's validated spec) only for a file."""
     import numpy as np
 
     from . import config
@@ -894,7 +894,7 @@ def _verify_source(args):
         if (read(src, "done")[args.member] != 1
                 or not all(np.all(np.isfinite(p)) for p in params)):
             raise UsageError(f"--member: member {args.member} is not in the file (not done)")
-        return spec.model, params, Path(src).stem, spec.solver
+        return spec.model, params, Path(src).stem, spec
     if args.member is not None:
         raise UsageError("--member: only with a results file")
     spec = _load(args).spec
@@ -915,7 +915,7 @@ def _verify_source(args):
 GRID_MATCH = 1e-3
 
 
-def _stored_points(path, member, freqs):
+def _stored_points(path, member, freqs, quantity):
     """What a results file holds for ``member`` at each verified frequency: verify solves
     its harmonic balance afresh (the run's tolerance and iterations, each frequency from a
     cold start), so the lines say what that is compared with, or that there is nothing.
@@ -927,12 +927,11 @@ def _stored_points(path, member, freqs):
     import numpy as np
 
     from .metric import METRIC_UNITS
-    from .store import read, read_attrs
+    from .store import read
 
     f = read(path, "frequency")
     conv = read(path, "converged", member)
     metric = read(path, "metric", member)
-    q = json.loads(read_attrs(path)["config_json"])["metric"]["quantity"]
     lines = [f"file: member {member}'s harmonic balance here is solved afresh (the run's "
              f"tolerance and iterations, a cold start at each frequency: near a fold it may "
              f"reach another branch than the run's upward sweep)"]
@@ -959,7 +958,7 @@ def _stored_points(path, member, freqs):
             lines.append(f"file: at {fk:.10g} Hz the run did not converge (no value stored)")
         else:
             lines.append(f"file: at {fk:.10g} Hz the run stored M = {metric[k]:.6g} "
-                         f"{METRIC_UNITS[q]} ({q}, the run's metric)")
+                         f"{METRIC_UNITS[quantity]} ({quantity}, the run's metric)")
     return out, lines
 
 
@@ -977,10 +976,10 @@ def cmd_verify(args):
     if args.harmonics % 2 == 0:
         raise UsageError(f"--harmonics: expected an odd integer (the odd harmonics 1, 3, ..., "
                          f"H are balanced), got {args.harmonics}")
-    model, (mu0, kc, N0), stem, solver = _verify_source(args)
+    model, (mu0, kc, N0), stem, run = _verify_source(args)
     stored = []
     if stem is not None:
-        args.f, stored = _stored_points(args.source, args.member, args.f)
+        args.f, stored = _stored_points(args.source, args.member, args.f, run.metric.quantity)
 
     def usage(e):
         msg = str(e).splitlines()[0]
@@ -998,7 +997,7 @@ def cmd_verify(args):
         # a file's member: its harmonic balance with the run's tolerance and iterations
         vs = verify(model, args.f, mu0, kc, N0, harmonics=args.harmonics, start=args.start,
                     max_periods=args.max_periods, progress=not args.no_progress,
-                    hb_tol=solver and solver.tol, hb_max_iter=solver and solver.max_iter)
+                    hb_tol=run and run.solver.tol, hb_max_iter=run and run.solver.max_iter)
     except ValueError as e:
         raise usage(e) from None
     label = (f"mu0 = {np.ravel(mu0)[0]:g}, kc = {np.ravel(kc)[0]:g} N/m, "

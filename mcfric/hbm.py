@@ -23,8 +23,8 @@ from .metric import check_beams, response_metric
 from .model import CONTACT_LAWS, Model
 from .peaks import Peaks, PeakSettings, refine
 from .threads import threads
+from .validators import fraction, integer, is_bool, real_array
 from .validators import frequencies as check_frequencies
-from .validators import integer, is_bool, is_num, real_array
 from .validators import per_damper as check_parameters
 
 #: Default accepted relative residual ``|s kc A - mu0 N0| <= tol mu0 N0``; Newton aims
@@ -179,8 +179,7 @@ def solve(model, freq_hz, mu0, kc, N0=0.5, *, modal_freq_hz=None, tol=TOL,
     nd = model.n_dampers
     p = check_parameters(nd, mu0=mu0, kc=kc, N0=N0)
     n_s = p["mu0"].shape[0]
-    if not (is_num(tol) and np.isfinite(tol) and 0 < tol < 1):
-        raise ValueError(f"tol: expected a number in (0, 1), got {tol!r}")
+    fraction("tol", tol)
     for name, flag in (("indicator", indicator), ("aft", aft),
                        ("store_harmonics", store_harmonics)):
         if not is_bool(flag):     # "no" would be true

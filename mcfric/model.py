@@ -200,7 +200,7 @@ class Model:
             for label in (self.contact, self.output, self.drive):
                 t.column(label)
         object.__setattr__(self, "beams", beams)
-        self.excitation.force(len(beams))  # validates the driven beam index
+        force = self.excitation.force(len(beams))  # validates the driven beam index
         ex = self.excitation
         if ex.pattern == "mode" and not ex.mode < len(beams):
             # m = n drives no beam, m and 2n - m the same pattern: one name for each
@@ -210,7 +210,7 @@ class Model:
             # E and E + n drive the same wave: one name for each
             raise ValueError(f"engine_order: expected 0..{len(beams) - 1} (n_beams - 1), "
                              f"got {ex.engine_order}")
-        driven = np.abs(self.excitation.force(len(beams))) > 0
+        driven = np.abs(force) > 0
         if not any(np.any(t.column(self.drive)) for t, d in zip(beams, driven) if d):
             # a legal model whose every response is zero: most likely a wrong label
             raise ValueError(f"drive: every mode shape of the driven beams is zero at the "

@@ -26,6 +26,11 @@ def _figure(size=(8, 4.5)):
     return fig
 
 
+def _mathtext(text):
+    """``m/s^2`` with the exponent drawn as a superscript."""
+    return text.replace("^2", "$^2$")
+
+
 def _stored_quantity(attrs):
     return _config(attrs).get("metric", {}).get("quantity", "displacement")
 
@@ -226,7 +231,7 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
                         color="tab:blue", alpha=0.12, lw=0)
         ax.set_ylim(bottom, top)
     ax.set_xlabel("frequency [Hz]")
-    unit = METRIC_UNITS[quantity].replace("^2", "$^2$")   # mathtext superscript
+    unit = _mathtext(METRIC_UNITS[quantity])
     ax.set_ylabel(f"{quantity} amplitude M [{unit}]")
     if title is None:
         name = attrs.get("model_name", "")
@@ -287,10 +292,10 @@ def hbm_figure(freq_hz, amplitude, metric, converged, png_path, title="",
         ax.plot(freq_hz, np.where(amp[:, b] > 0, amp[:, b], np.nan), lw=0.9,
                 label=f"beam {b + 1}")
     ax.plot(freq_hz, np.where(met > 0, met, np.nan), color="k", lw=2.4,
-            label=metric_label.replace("^2", "$^2$"))
+            label=_mathtext(metric_label))
     ax.set_yscale("log")
     ax.set_xlabel("frequency [Hz]")
-    ax.set_ylabel(ylabel.replace("^2", "$^2$"))
+    ax.set_ylabel(_mathtext(ylabel))
     ax.set_title(title, fontsize=9)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7, ncol=2 if amp.shape[1] > 4 else 1)

@@ -146,6 +146,13 @@ def real(name, value, *, lo=None, lo_open=False, allow_inf=False):
     return v
 
 
+def fraction(name, value):
+    """A tolerance argument: a finite number strictly between 0 and 1, as a float."""
+    if not (is_num(value) and math.isfinite(value) and 0 < value < 1):
+        raise InputError(name, f"expected a number in (0, 1), got {value!r}")
+    return float(value)
+
+
 def choice(*options):
     """One of the words ``options``."""
     def check(v, key):

@@ -21,8 +21,8 @@ from .core.receptance import contact_space
 from .core.time_integration import integrate
 from .hbm import check_harmonics, solve
 from .model import Model
+from .validators import fraction, integer
 from .validators import frequencies as check_frequencies
-from .validators import integer, is_num
 from .validators import per_damper as check_parameters
 
 #: Defaults: relative change of the harmonics per period that counts as settled, the
@@ -247,13 +247,12 @@ def verify(model, freq_hz, mu0, kc, N0=0.5, *, harmonics=9, start="single", tol=
     harmonics, _ = check_harmonics(harmonics)
     if start not in STARTS:
         raise ValueError(f"start: expected one of {STARTS}, got {start!r}")
-    if not (is_num(tol) and math.isfinite(tol) and 0 < tol < 1):
-        raise ValueError(f"tol: expected a number in (0, 1), got {tol!r}")
+    fraction("tol", tol)
     for name, v, lo in (("settle", settle, 1), ("max_periods", max_periods, 1)):
         integer(lo)(v, name)
     # named here: solve() would blame "tol", which is the integration's
-    if hb_tol is not None and not (is_num(hb_tol) and math.isfinite(hb_tol) and 0 < hb_tol < 1):
-        raise ValueError(f"hb_tol: expected a number in (0, 1), got {hb_tol!r}")
+    if hb_tol is not None:
+        fraction("hb_tol", hb_tol)
     if hb_max_iter is not None:
         integer(1, 10000)(hb_max_iter, "hb_max_iter")
     f, n_steps_at = time_steps(model, freq_hz, kc, steps)
