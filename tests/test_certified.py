@@ -21,23 +21,48 @@ N0 = 0.5
 F_LIM = force_limit(1.0, N0)
 
 
+_ASSEMBLED = {}
+
+
+def _assembled(model, freq_hz):
+    """The naive physical-space matrices at one frequency, kept: the searches below call
+    :func:`physical_grid` thousands of times at a few frequencies, and assembling them is
+    most of a call's time."""
+    key = (id(model), float(freq_hz))
+    if key not in _ASSEMBLED:
+        if len(_ASSEMBLED) > 64:
+            _ASSEMBLED.clear()
+        D, Fext, index = naive._assemble(2 * np.pi * freq_hz, naive_beams(model),
+                                         model.force, 0, 1, 2)
+        # the model is kept with its matrices so that its id is not reused meanwhile
+        _ASSEMBLED[key] = (model, D, Fext, index, naive_pairs(model))
+    return _ASSEMBLED[key][1:]
+
+
 def physical_grid(model, freq_hz, K, forces=False):
     """M and the largest ``|K_j q_j| / F_LIM`` at every row of ``K`` (P, nd), solved in
     physical space: ``(I - D Kphys) Y = D Fext`` batched over the rows (``forces``: every
     damper's ``|K_j q_j|`` (P, nd; N) instead of the largest ratio)."""
-    D, Fext, index = naive._assemble(2 * np.pi * freq_hz, naive_beams(model), model.force,
-                                     0, 1, 2)
-    pairs = naive_pairs(model)
+    D, Fext, index, pairs = _assembled(model, freq_hz)
     n = D.shape[0]
-    Kphys = np.zeros((len(K), n, n), complex)
-    for j, (a, b) in enumerate(pairs):
-        ia, ib = index[(a, 0)], index[(b, 0)]
-        Kphys[:, ia, ia] -= K[:, j]
-        Kphys[:, ia, ib] += K[:, j]
-        Kphys[:, ib, ia] += K[:, j]
-        Kphys[:, ib, ib] -= K[:, j]
-    Y = np.linalg.solve(np.eye(n) - D @ Kphys, np.broadcast_to(D @ Fext, (len(K), n))[..., None])
-    Y = Y[..., 0]
+    # Kphys is zero outside the contact dofs: D Kphys is D's contact columns times its
+    # contact block, placed in those columns (rows in slices: a ring's n is hundreds)
+    c = sorted({index[(a, 0)] for a, _ in pairs} | {index[(b, 0)] for _, b in pairs})
+    at = {dof: i for i, dof in enumerate(c)}
+    Y = np.empty((len(K), n), complex)
+    for lo in range(0, len(K), 200):
+        Kp = K[lo:lo + 200]
+        Kc = np.zeros((len(Kp), len(c), len(c)), complex)
+        for j, (a, b) in enumerate(pairs):
+            ia, ib = at[index[(a, 0)]], at[index[(b, 0)]]
+            Kc[:, ia, ia] -= Kp[:, j]
+            Kc[:, ia, ib] += Kp[:, j]
+            Kc[:, ib, ia] += Kp[:, j]
+            Kc[:, ib, ib] -= Kp[:, j]
+        A = np.broadcast_to(np.eye(n, dtype=complex), (len(Kp), n, n)).copy()
+        A[:, :, c] -= D[:, c] @ Kc
+        Y[lo:lo + 200] = np.linalg.solve(
+            A, np.broadcast_to(D @ Fext, (len(Kp), n))[..., None])[..., 0]
     out = [index[(b, 1)] for b in range(model.n_beams)]
     M = np.abs(Y[:, out]).max(axis=1)
     q = np.stack([Y[:, index[(a, 0)]] - Y[:, index[(b, 0)]] for a, b in pairs], axis=1)
