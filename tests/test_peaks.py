@@ -31,7 +31,8 @@ def members(model, n, seed):
 def test_refined_peaks_equal_the_peaks_of_a_fine_grid(model, n):
     """Each refined peak of every member equals the nearest local maximum of a 0.0005 Hz
     sweep over +-0.3 Hz around it within 1e-4; the largest refined peak is not below the
-    maximum of a 0.0005 Hz sweep over the first resonance (15-18 Hz): no peak is missed."""
+    maximum of a 0.0005 Hz sweep over the first resonance (15-18 Hz): no peak of these
+    members is missed (members of other draws can be: the strict xfail below)."""
     mu0, kc = members(model, n, 7)
     r = mcfric.solve(model, F, mu0, kc, 0.5, peaks=PeakSettings(count=2))
     P = r.peaks
@@ -57,6 +58,25 @@ def test_refined_peaks_equal_the_peaks_of_a_fine_grid(model, n):
         assert np.all(P.largest()[a:a + 100] >= ref.max(axis=1) * (1 - RTOL))
     # the grid alone is far off: the point of refining
     assert np.median(r.metric().max(axis=1) / P.largest()) < 0.95
+
+
+@pytest.mark.xfail(strict=True, raises=AssertionError,
+                   reason="known miss: a narrow resonance on the flank of a "
+                   "larger grid maximum, outside its bracket of grid neighbours, is not "
+                   "searched (docs/peaks.md, 'What it misses')")
+def test_a_narrow_resonance_on_the_flank_of_a_grid_maximum_is_found():
+    """Members 24, 249 and 320 of the default configuration (found among its first 400
+    by the search below): each has a narrow first-mode resonance between the second and
+    first grid points below a larger grid maximum, where no grid point is a local
+    maximum. Their largest refined peak should not lie below the maximum of a 0.0005 Hz
+    sweep over 15-18 Hz; today it does, by 4.6, 9.5 and 4.3 %. Strict: when the
+    refinement finds them this test fails as an unexpected pass, and the marker goes."""
+    spec = config.load("eight-beam").spec
+    d = spec.sampler.draw(np.array([24, 249, 320]))
+    r = mcfric.solve(spec.model, F, d.mu0, d.kc, d.N0, peaks=PeakSettings(count=2))
+    ref = mcfric.solve(spec.model, np.arange(15.0, 18.0, FINE), d.mu0, d.kc, d.N0).metric()
+    assert np.all(r.peaks.largest() >= ref.max(axis=1) * (1 - RTOL)), (
+        r.peaks.largest() / ref.max(axis=1))
 
 
 def test_linear_limit_peak_equals_an_independent_search():
