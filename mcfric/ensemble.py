@@ -249,7 +249,7 @@ def layout(spec):
                                                 "long_name": "frequency of each peak"}),
             "peak_status": (pk, np.int8, {
                 "long_name": "0 refined to peaks.rtol, 1 at an end of the band, 2 the grid "
-                "value (refinement failed), -1 no such peak",
+                "value (refinement or the search between grid points failed), -1 no such peak",
                 "flag_values": [-1, 0, 1, 2], "flag_meanings": "none refined at_edge grid"}),
             "fold": (pk, np.int8, {
                 "long_name": "1: sweeping down around the peak reaches another steady state; "
@@ -369,6 +369,13 @@ def prepare(spec, path, *, resume=False, force=False):
             raise RunError(f"{e}; use --force to replace it") from None
         diff = _same_run(spec, attrs, final)
         if diff is None and attrs.get("complete") == 1:
+            fp = fingerprint()
+            if attrs.get("solver_fingerprint") != fp:
+                # the same run by other code or libraries: its bits need not be this code's
+                raise RunError(f"{final} holds this run, made by other solver code, "
+                               f"numpy/scipy/numba/llvmlite versions or kind of CPU "
+                               f"(fingerprint {attrs.get('solver_fingerprint')} vs {fp}); "
+                               f"use --force to recompute it, or choose another -o")
             return "complete", attrs
         raise RunError(f"{final} exists and holds a different run (first difference: "
                        f"{diff}); use --force to replace it, or choose another -o")

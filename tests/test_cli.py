@@ -140,6 +140,14 @@ def test_run_info_and_figure(tmp_path, monkeypatch, capsys):
                       capsys)
     assert rc == 2 and err.count("\n") == 1 and "--force" in err
     assert (tmp_path / "r.h5").stat().st_mtime_ns == mtime
+    # the same run made by other code (another fingerprint): refused, not "nothing to do"
+    with h5py.File(tmp_path / "r.h5", "r+") as h5:
+        h5.attrs["solver_fingerprint"] = "0" * 16
+    mtime = (tmp_path / "r.h5").stat().st_mtime_ns
+    rc, out, err = call(["run", "two-beam", "--samples", "40", "--n-freq", "25", "--seed", "3",
+                         "--F0", "0.72", "-o", "r.h5", "--no-progress"], capsys)
+    assert rc == 2 and err.count("\n") == 1 and "other solver code" in err and "--force" in err
+    assert "already holds" not in out and (tmp_path / "r.h5").stat().st_mtime_ns == mtime
 
 
 def _before_third_solve(monkeypatch, action):
