@@ -79,8 +79,9 @@ class Peaks:
         Every beam's output amplitude at the peak, m.
     status : ndarray of int8, shape (n_s, count)
         0 refined to ``rtol``; 1 the maximum is at an end of the band (refined there);
-        2 not refined (a solver failed in the refinement, or at a grid neighbour, where
-        the peak may lie): the grid value; -1 no such peak (NaN).
+        2 not refined (a solver failed in the refinement or in the search between grid
+        points, or at a grid neighbour, where the peak may lie; or the grid is too coarse
+        to search): the grid value; -1 no such peak (NaN).
     fold : ndarray of int8, shape (n_s, count)
         1 where the downward sweep around the peak reached another steady state, 0 where
         it reproduced the upward one, -1 where it could not be checked.

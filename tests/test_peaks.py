@@ -52,6 +52,9 @@ def test_refined_peaks_equal_the_peaks_of_a_fine_grid(model, n):
             assert abs(ff[j] - fp) <= 0.01, (i, p, fp, ff[j])
             checked += 1
     assert checked >= n                        # at least one refined peak per member
+    # no resonance reported twice (the searches of neighbouring maxima overlap)
+    both = (P.status == REFINED).all(axis=1)
+    assert np.all(np.abs(P.freq_hz[both, 0] - P.freq_hz[both, 1]) > 0.05)
     first = np.arange(15.0, 18.0, FINE)
     for a in range(0, n, 100):
         ref = mcfric.solve(model, first, mu0[a:a + 100], kc[a:a + 100], 0.5).metric()
@@ -60,20 +63,20 @@ def test_refined_peaks_equal_the_peaks_of_a_fine_grid(model, n):
     assert np.median(r.metric().max(axis=1) / P.largest()) < 0.95
 
 
-@pytest.mark.xfail(strict=True, raises=AssertionError,
-                   reason="known miss: a narrow resonance on the flank of a "
-                   "larger grid maximum, outside its bracket of grid neighbours, is not "
-                   "searched (docs/peaks.md, 'What it misses')")
-def test_a_narrow_resonance_on_the_flank_of_a_grid_maximum_is_found():
+@pytest.mark.parametrize("n_freq, index", [(1000, [24, 249, 320]), (400, [60, 193])])
+def test_a_narrow_resonance_on_the_flank_of_a_grid_maximum_is_found(n_freq, index):
     """Members 24, 249 and 320 of the default configuration (found among its first 400
-    by the search below): each has a narrow first-mode resonance between the second and
-    first grid points below a larger grid maximum, where no grid point is a local
-    maximum. Their largest refined peak should not lie below the maximum of a 0.0005 Hz
-    sweep over 15-18 Hz; today it does, by 4.6, 9.5 and 4.3 %. Strict: when the
-    refinement finds them this test fails as an unexpected pass, and the marker goes."""
+    by ``bench/peaks_missed.py``): each has a narrow first-mode resonance between the
+    second and first grid points below a larger grid maximum, where no grid point is a
+    local maximum; on a 400-point grid members 60 and 193 have one inside the bracket of
+    their grid maximum, beside the resonance its refinement climbs. Their largest refined
+    peak is not below the maximum of a 0.0005 Hz sweep over 15-18 Hz (it was, by 4.3 to
+    21 %, before the brackets and flanks were searched again)."""
     spec = config.load("eight-beam").spec
-    d = spec.sampler.draw(np.array([24, 249, 320]))
-    r = mcfric.solve(spec.model, F, d.mu0, d.kc, d.N0, peaks=PeakSettings(count=2))
+    d = spec.sampler.draw(np.array(index))
+    r = mcfric.solve(spec.model, np.linspace(10.0, 150.0, n_freq), d.mu0, d.kc, d.N0,
+                     peaks=PeakSettings(count=2))
+    assert np.all(r.peaks.status == REFINED)
     ref = mcfric.solve(spec.model, np.arange(15.0, 18.0, FINE), d.mu0, d.kc, d.N0).metric()
     assert np.all(r.peaks.largest() >= ref.max(axis=1) * (1 - RTOL)), (
         r.peaks.largest() / ref.max(axis=1))
@@ -149,15 +152,19 @@ def test_fold_search_over_the_default_ensemble(tmp_path):
 
 
 def test_a_largest_peak_that_may_lie_higher_is_counted_as_a_lower_estimate(tmp_path):
-    """With one Newton iteration per attempt many refinements fail: a member's largest
+    """With one Newton iteration per attempt some refinements fail: a member's largest
     peak may then be a small refined one while its first-mode peak stays at a low grid
-    value. Every member whose reported largest lies below a dense sweep's maximum must be
-    counted as a lower estimate, and left out of the grid ratio."""
+    value (``unresolved`` counts such a member: any peak at its grid value). Every
+    member whose reported largest lies below a dense sweep's maximum must be counted as
+    a lower estimate, and left out of the grid ratio."""
     import h5py
 
+    from mcfric.peaks import unresolved
+
+    # a refined largest (status 0) beside a lower peak left at its grid value (2)
+    assert list(unresolved(np.array([[0, 2], [0, 0]]), np.array([[2.0, 1.0]] * 2))) == [1, 0]
     cfg = config.load("eight-beam", {"sampling.samples": (30, "--samples"),
-                                     "frequency.n": (20, "--n-freq"),
-                                     "solver.tol": (1e-16, "tol"),
+                                     "frequency.n": (60, "--n-freq"),
                                      "solver.max_iter": (1, "max_iter"),
                                      "bounds.enabled": (False, "bounds")})
     summary = ensemble.run(cfg, tmp_path / "t.h5", progress=False, groups=None)
@@ -169,23 +176,20 @@ def test_a_largest_peak_that_may_lie_higher_is_counted_as_a_lower_estimate(tmp_p
         grid_max = np.nanmax(h5["metric"][()], axis=1)
     ranked = np.where(np.isnan(both), -np.inf, both)
     largest = np.max(ranked, axis=1)
-    top = np.argmax(ranked, axis=1)
-    top_grid = (top < status.shape[1]) & (status[np.arange(len(top)), top % status.shape[1]]
-                                          == 2)
     # the first mode's peaks by a dense sweep at the default solver settings
     dense = mcfric.solve(cfg.model(), np.linspace(14.0, 19.0, 2500), mu0, kc, N0)
     ok = dense.converged.all(axis=1)
     true_max = dense.metric().max(axis=1)
     low = ok & (largest < 0.99 * true_max)
     flagged = (status == 2).any(axis=1)
-    assert (low & ~top_grid).sum() >= 1     # a refined largest that is not the largest
+    assert low.sum() >= 1 and (~flagged).sum() >= 10   # both kinds of member
     assert np.all(flagged[low]), np.flatnonzero(low & ~flagged)
     assert rep["unresolved"] == int(np.count_nonzero(flagged & np.isfinite(largest)))
     # the grid's share is over the fully refined members only (a lower estimate's is not)
     assert rep["grid_ratio"] == pytest.approx(np.median((grid_max / largest)[~flagged]))
     assert f"{rep['unresolved']} of these are lower estimates" in summary.text()
     # the same members from Python: Peaks.resolved() is False for every low one
-    res = mcfric.solve(cfg.model(), cfg.frequencies(), mu0, kc, N0, tol=1e-16, max_iter=1,
+    res = mcfric.solve(cfg.model(), cfg.frequencies(), mu0, kc, N0, max_iter=1,
                        peaks=cfg.spec.peaks)
     low_api = ok & (res.peaks.largest() < 0.99 * true_max)
     assert low_api.sum() >= 1 and not res.peaks.resolved()[low_api].any()

@@ -18,7 +18,17 @@ sweep on a grid underestimates the member's peak. After the sweep, for every mem
    points on both sides of the best are within a quarter of ``rtol`` of it; the peak
    reported is the best point actually
    solved, never an interpolation;
-3. the sweep is repeated downward over ``window`` grid points on each side of the peak,
+3. each kept maximum's bracket and flanks are searched again: the first mode of
+   coupled beams is a cluster of narrow resonances, and one of them can lie between two
+   grid points beside the maximum (neither of them a local maximum), or in the bracket
+   beside the one refined. Each grid interval of the bracket and within ``FLANK`` steps
+   of it is solved at inner points about one half-power width
+   of the narrowest mode apart (continued from below), and any inner point above both
+   its neighbours is climbed as above; the
+   best point found replaces the peak where it is higher. A flank that could not be
+   solved or climbed, or a grid step of more than ``N_FLANK_MAX`` widths, leaves the
+   peak a lower estimate (``PEAK_GRID``);
+4. the sweep is repeated downward over ``window`` grid points on each side of the peak,
    from the upward solution above it. Where the downward branch differs from the upward
    one (relative ``FOLD_RTOL`` in ``M``), the member has more than one steady state
    there: the fold is flagged and the downward branch's peak is refined the same way,
@@ -61,6 +71,13 @@ N_SUB = 8
 MAX_STEPS = 40
 #: Steps of the first climb from the grid neighbours alone, before sub-sampling.
 QUICK_STEPS = 4
+#: Grid intervals searched on each side of the largest grid maximum's bracket, and the
+#: sub-intervals each is solved at: enough for one per half-power width of the narrowest
+#: mode, ``2 zeta f``, within these limits (a resonance hidden between grid points shows
+#: as an inner point above both its neighbours).
+FLANK = 2
+N_FLANK = 4
+N_FLANK_MAX = 64
 _INV_PHI = 0.6180339887498949
 
 
@@ -390,6 +407,58 @@ def _beam_peaks(best, lo, hi, start, from_below, P, S, rtol):
 
 
 @jit
+def _flanks(k_lo, k_hi, i, omega, y, s, status, M, P, S, rtol, x, top, top_y, width):
+    """The best point of the resonances hidden between grid points in the bracket
+    ``k_lo .. k_hi`` and beside it (``FLANK`` intervals on each side; see the module
+    docstring),
+    written to ``top`` (omega, M) and ``top_y`` (responses) where it is above ``top[1]``.
+    ``width``: the narrowest mode's half-power width, rad/s.
+
+    Returns (found, complete): ``found`` if ``top`` was raised; ``complete`` is False if
+    an interval could not be solved, a climb did not converge, or the grid step is more
+    than ``N_FLANK_MAX`` widths.
+    """
+    n_f = omega.shape[0]
+    nd = x.shape[0]
+    pw, pm = S[0], S[1]
+    found = False
+    idx = np.empty(N_FLANK_MAX + 1, np.int64)
+    for g in range(max(k_lo - FLANK, 0), min(k_hi + FLANK, n_f - 1)):
+        if status[i, g] < 0 or status[i, g + 1] < 0:
+            return found, False                   # a gap beside the peak: not searched
+        step = omega[g + 1] - omega[g]
+        if not step <= N_FLANK_MAX * width:
+            return found, False                   # a grid too coarse to search
+        n = max(int(math.ceil(step / width)), N_FLANK)
+        S[4][0] = 0                               # each interval afresh
+        _log_s(s, i, g, nd, x)
+        idx[0] = _seed(omega[g], x, y[i, g], M[g], S)
+        for t in range(1, n):
+            idx[t] = _add_point(omega[g] + step * t / n, S[2][idx[t - 1]], P, S)
+            if idx[t] < 0:
+                return found, False
+        _log_s(s, i, g + 1, nd, x)
+        idx[n] = _seed(omega[g + 1], x, y[i, g + 1], M[g + 1], S)
+        for t in range(1, n):
+            # an inner local maximum, unless it is the refined peak's (a sub-point above
+            # the refined value is another resonance beside it)
+            if (pm[idx[t]] > pm[idx[t - 1]] and pm[idx[t]] > pm[idx[t + 1]]
+                    and (pm[idx[t]] > top[1]
+                         or not pw[idx[t - 1]] <= top[0] <= pw[idx[t + 1]])):
+                best, ok = _climb(idx[t], pw[idx[t - 1]], pw[idx[t + 1]], idx[0],
+                                  np.bool_(True), P, S, rtol, np.int64(MAX_STEPS),
+                                  np.int64(-1))
+                if not ok:
+                    return found, False
+                if pm[best] > top[1]:
+                    found = True
+                    top[0], top[1] = pw[best], pm[best]
+                    for bb in range(top_y.shape[0]):
+                        top_y[bb] = S[3][best, bb]
+    return found, True
+
+
+@jit
 def _log_s(s, i, k, nd, x):
     """``x = log s`` of sample ``i`` at grid point ``k`` (0 where s is 0 or not finite)."""
     for j in range(nd):
@@ -422,10 +491,17 @@ def _member(i, omega, modal_f, zeta, u, force, a, b, mu0, N0, kc, tol, max_iter,
          np.empty((4, n_beams), np.complex128), np.empty((nd, nd), np.complex128),
          np.empty(nd, np.complex128), beams, power, np.empty(nd),
          np.empty(n_beams, np.complex128), law, cn.workspace(nd), lanes)
-    cap = 2 * N_SUB + 2 * MAX_STEPS + 2 * window + 8
+    # the refinement's points, or one flank interval's and two climbs
+    cap = 2 * N_SUB + 4 * MAX_STEPS + N_FLANK_MAX + 2 * window + 8
+    width = math.inf                      # the narrowest mode's half-power width, rad/s
+    for bb in range(modal_f.shape[1]):
+        for m in range(modal_f.shape[2]):
+            width = min(width, 4.0 * math.pi * zeta[bb, m] * modal_f[r, bb, m])
     S = (np.empty(cap), np.empty(cap), np.empty((cap, nd)),
          np.empty((cap, n_beams), np.complex128), np.zeros(1, np.int64))
     x = np.empty(nd)
+    top = np.empty(2)
+    top_y = np.empty(n_beams, np.complex128)
     # the metric on the grid; local maxima, largest first
     M = np.empty(n_f)
     for k in range(n_f):
@@ -479,6 +555,20 @@ def _member(i, omega, modal_f, zeta, u, force, a, b, mu0, N0, kc, tol, max_iter,
             pk_st[i, p] = PEAK_AT_EDGE if edge else PEAK_REFINED
             pk_w[i, p], pk_m[i, p] = S[0][best], S[1][best]
             pk_y[i, p, :] = S[3][best]
+            top[0], top[1] = pk_w[i, p], pk_m[i, p]
+            found, complete = _flanks(k_lo, k_hi, i, omega, y, s, status, M, P, S, rtol,
+                                      x, top, top_y, width)
+            for q in range(p):
+                # a resonance an earlier peak reported already (their flanks overlap)
+                found = found and not abs(top[0] - pk_w[i, q]) < width
+            if not complete:
+                # a flank where a higher resonance may hide was not searched
+                pk_st[i, p] = PEAK_GRID
+                pk_w[i, p], pk_m[i, p] = omega[k], M[k]
+                pk_y[i, p, :] = y[i, k, :]
+            elif found:
+                pk_w[i, p], pk_m[i, p] = top[0], top[1]
+                pk_y[i, p, :] = top_y
         pkd_w[i, p], pkd_m[i, p] = pk_w[i, p], pk_m[i, p]
         # the same stretch swept downward, from the upward state above the peak
         k_top = min(k + window, n_f - 1)
