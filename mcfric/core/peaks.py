@@ -22,12 +22,11 @@ sweep on a grid underestimates the member's peak. After the sweep, for every mem
    coupled beams is a cluster of narrow resonances, and one of them can lie between two
    grid points beside the maximum (neither of them a local maximum), or in the bracket
    beside the one refined. Each grid interval of the bracket and within ``FLANK`` steps
-   of it is solved at inner points about one half-power width
-   of the narrowest mode apart (continued from below), and any inner point above both
-   its neighbours is climbed as above; the
-   best point found replaces the peak where it is higher. A flank that could not be
-   solved or climbed, or a grid step of more than ``N_FLANK_MAX`` widths, leaves the
-   peak a lower estimate (``PEAK_GRID``);
+   of it is solved at inner points about one half-power width of the narrowest mode
+   apart (continued from below), and any inner point above both its neighbours is
+   climbed as above; the best point found replaces the peak where it is higher. A flank
+   that could not be solved or climbed, or a grid step of more than ``N_FLANK_MAX``
+   widths, leaves the peak a lower estimate (``PEAK_GRID``);
 4. the sweep is repeated downward over ``window`` grid points on each side of the peak,
    from the upward solution above it. Where the downward branch differs from the upward
    one (relative ``FOLD_RTOL`` in ``M``), the member has more than one steady state
@@ -71,10 +70,11 @@ N_SUB = 8
 MAX_STEPS = 40
 #: Steps of the first climb from the grid neighbours alone, before sub-sampling.
 QUICK_STEPS = 4
-#: Grid intervals searched on each side of the largest grid maximum's bracket, and the
-#: sub-intervals each is solved at: enough for one per half-power width of the narrowest
-#: mode, ``2 zeta f``, within these limits (a resonance hidden between grid points shows
-#: as an inner point above both its neighbours).
+#: Grid intervals searched on each side of a kept grid maximum's bracket, and the
+#: sub-intervals each is solved at: at least ``N_FLANK``, one per half-power width of the
+#: narrowest mode, ``2 zeta f``; a step of more than ``N_FLANK_MAX`` widths is not searched
+#: (a resonance hidden between grid points shows as an inner point above both its
+#: neighbours).
 FLANK = 2
 N_FLANK = 4
 N_FLANK_MAX = 64
@@ -410,9 +410,8 @@ def _beam_peaks(best, lo, hi, start, from_below, P, S, rtol):
 def _flanks(k_lo, k_hi, i, omega, y, s, status, M, P, S, rtol, x, top, top_y, width):
     """The best point of the resonances hidden between grid points in the bracket
     ``k_lo .. k_hi`` and beside it (``FLANK`` intervals on each side; see the module
-    docstring),
-    written to ``top`` (omega, M) and ``top_y`` (responses) where it is above ``top[1]``.
-    ``width``: the narrowest mode's half-power width, rad/s.
+    docstring), written to ``top`` (omega, M) and ``top_y`` (responses) where it is above
+    ``top[1]``. ``width``: the narrowest mode's half-power width, rad/s.
 
     Returns (found, complete): ``found`` if ``top`` was raised; ``complete`` is False if
     an interval could not be solved, a climb did not converge, or the grid step is more
@@ -567,6 +566,8 @@ def _member(i, omega, modal_f, zeta, u, force, a, b, mu0, N0, kc, tol, max_iter,
                 pk_w[i, p], pk_m[i, p] = omega[k], M[k]
                 pk_y[i, p, :] = y[i, k, :]
             elif found:
+                # an interior resonance, refined (not the band's end any more)
+                pk_st[i, p] = PEAK_REFINED
                 pk_w[i, p], pk_m[i, p] = top[0], top[1]
                 pk_y[i, p, :] = top_y
         pkd_w[i, p], pkd_m[i, p] = pk_w[i, p], pk_m[i, p]
