@@ -369,13 +369,10 @@ def prepare(spec, path, *, resume=False, force=False):
             raise RunError(f"{e}; use --force to replace it") from None
         diff = _same_run(spec, attrs, final)
         if diff is None and attrs.get("complete") == 1:
-            fp = fingerprint()
-            if attrs.get("solver_fingerprint") != fp:
-                # the same run by other code or libraries: its bits need not be this code's
-                raise RunError(f"{final} holds this run, made by other solver code, "
-                               f"numpy/scipy/numba/llvmlite versions or kind of CPU "
-                               f"(fingerprint {attrs.get('solver_fingerprint')} vs {fp}); "
-                               f"use --force to recompute it, or choose another -o")
+            # the same run by other code or libraries: its bits need not be this code's
+            _check_fingerprint(attrs, f"{final} holds this run, made by other solver code, "
+                                      f"numpy/scipy/numba/llvmlite versions or kind of CPU",
+                               "use --force to recompute it, or choose another -o")
             return "complete", attrs
         raise RunError(f"{final} exists and holds a different run (first difference: "
                        f"{diff}); use --force to replace it, or choose another -o")
@@ -396,13 +393,10 @@ def prepare(spec, path, *, resume=False, force=False):
             raise RunError(f"cannot resume {part}: it was started with a different "
                            f"configuration (first difference: {diff}); use --force to "
                            f"start again")
-        fp = fingerprint()
-        if attrs.get("solver_fingerprint") != fp:
-            raise RunError(f"cannot resume {part}: the solver code, numpy/scipy/numba/"
-                           f"llvmlite or this machine's kind of CPU changed since it was "
-                           f"started (fingerprint "
-                           f"{attrs.get('solver_fingerprint')} vs {fp}), so results would "
-                           f"mix two versions; use --force to start again")
+        _check_fingerprint(attrs, f"cannot resume {part}: the solver code, numpy/scipy/"
+                                  f"numba/llvmlite or this machine's kind of CPU changed "
+                                  f"since it was started",
+                           "results would mix two versions; use --force to start again")
         try:
             # read before reopening: HDF5 refuses a second handle with other locking flags
             not_conv = _count_not_converged(part)
@@ -410,6 +404,15 @@ def prepare(spec, path, *, resume=False, force=False):
         except StoreError as e:
             raise RunError(f"cannot resume: {e}; use --force to start again") from None
     return "new", None
+
+
+def _check_fingerprint(attrs, what, remedy):
+    """Raise :class:`RunError` ``"{what} (fingerprint X vs Y); {remedy}"`` when the file's
+    solver fingerprint (``attrs``) is not this process's."""
+    fp = fingerprint()
+    if attrs.get("solver_fingerprint") != fp:
+        raise RunError(f"{what} (fingerprint {attrs.get('solver_fingerprint')} vs {fp}); "
+                       f"{remedy}")
 
 
 def iter_done(path):

@@ -210,7 +210,8 @@ def test_resume_refuses_other_config_or_other_solver_code(tmp_path, monkeypatch)
     with pytest.raises(RunError, match="different configuration.*frequency.n"):
         run(cfg.replace("frequency.n", 11), out, resume=True)
     monkeypatch.setattr(ensemble, "fingerprint", lambda: "0000")
-    with pytest.raises(RunError, match="solver code"):
+    with pytest.raises(RunError, match=r"cannot resume .*solver code.*\(fingerprint "
+                                        r"[0-9a-f]+ vs 0000\); results would mix"):
         run(cfg, out, resume=True)
     monkeypatch.undo()
     assert run(cfg, out, resume=True).complete
