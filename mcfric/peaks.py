@@ -260,8 +260,9 @@ def report_text(report, unit):
     lines = [f"peaks:       each member's largest, refined: median {st['median']:.4g}, "
              f"95th percentile {st['p95']:.4g}, max {st['max']:.4g} {unit} "
              f"({st['members']} members; {share})"
-             + (f"; {k} of these are lower estimates: a peak of the member was not "
-                f"refined (a solver failed near it) and may lie higher" if k else ""),
+             + (f"; {k} of these {'is a lower estimate' if k == 1 else 'are lower estimates'}"
+                f": a peak of the member was not refined (a solver failed near it) and may "
+                f"lie higher" if k else ""),
              f"folds:       {report['folds']} of {report['members']} members have more than "
              f"one steady state near a peak"
              + (f" ({report['unchecked']} could not be checked)" if report["unchecked"]
