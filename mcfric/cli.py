@@ -575,7 +575,18 @@ def cmd_bounds(args):
         t = time.perf_counter()
         B = bounds.from_spec(spec)
         print(f"{B.summary()} ({time.perf_counter() - t:.1f} s)")
-        bounds.write_bounds_file(out, cfg, B)
+        peak = None
+        if spec.peaks:
+            # as a run's bounds group has it: the upper bound's peak between grid points
+            from .bounds.peak import peak_attrs
+            from .metric import METRIC_UNITS
+            from .peaks import bound_peak_line
+
+            peak = peak_attrs(model, B, spec.peaks.rtol)
+            print(bound_peak_line(peak["peak_upper"], peak["peak_upper_frequency"],
+                                  peak["peak_upper_refined"],
+                                  METRIC_UNITS[spec.metric.quantity]))
+        bounds.write_bounds_file(out, cfg, B, peak=peak)
     finally:
         lock.release()
     print(f"bounds: {out}")
@@ -772,6 +783,17 @@ def cmd_info(args):
     report = peak_report(path)
     if report is not None:
         lines += report_text(report, METRIC_UNITS[q])
+    else:
+        # a bounds file: the bound's peak alone, when it was refined
+        from .peaks import bound_peak_line
+        from .store import read_group
+
+        g = read_group(path, "bounds")
+        if g is not None and "peak_upper" in g[1]:
+            lines.append(bound_peak_line(float(g[1]["peak_upper"]),
+                                         float(g[1]["peak_upper_frequency"]),
+                                         bool(g[1].get("peak_upper_refined", 0)),
+                                         METRIC_UNITS[q]))
     lines += indicator_report(path)
     from .bounds import read_bounds
     B = read_bounds(path)

@@ -627,12 +627,9 @@ def _bounds_groups(spec, verbose):
         B = from_spec(spec)
         variables, attrs = to_group(B)
         if spec.peaks:
-            from .bounds.peak import refine_upper_peak
+            from .bounds.peak import peak_attrs
 
-            f_pk, up_pk, ok = refine_upper_peak(spec.model, B, spec.peaks.rtol)
-            attrs.update({"peak_upper": np.float64(up_pk),
-                          "peak_upper_frequency": np.float64(f_pk),
-                          "peak_upper_refined": np.int8(ok)})
+            attrs.update(peak_attrs(spec.model, B, spec.peaks.rtol))
         if verbose:
             print(f"{B.summary()} ({time.perf_counter() - t:.1f} s)", flush=True)
         return {"bounds": (variables, attrs)}

@@ -268,11 +268,17 @@ def report_text(report, unit):
              + (f" ({report['unchecked']} could not be checked)" if report["unchecked"]
                 else "")]
     if "bound_peak" in report:
-        how = "refined" if report.get("bound_peak_refined", True) else "not refined"
-        lines.append(f"bound peak:  searched upper bound {report['bound_peak']:.4g} {unit} "
-                     f"at {report['bound_peak_hz']:.5g} Hz ({how}); largest member / bound "
-                     f"{st['max'] / report['bound_peak']:.4g}")
+        lines.append(bound_peak_line(report["bound_peak"], report["bound_peak_hz"],
+                                     report.get("bound_peak_refined", True), unit)
+                     + f"; largest member / bound {st['max'] / report['bound_peak']:.4g}")
     return lines
+
+
+def bound_peak_line(value, hz, refined, unit):
+    """The ``bound peak:`` line of a summary: the upper bound's refined peak, ``value`` in
+    ``unit`` at ``hz`` (Hz); ``refined`` False says the refinement did not converge."""
+    how = "refined" if refined else "not refined"
+    return f"bound peak:  searched upper bound {value:.4g} {unit} at {hz:.5g} Hz ({how})"
 
 
 def maximize(fun, lo, hi, m_lo, m_hi, rtol, n_sub=_kernel.N_SUB, max_steps=_kernel.MAX_STEPS):

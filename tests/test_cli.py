@@ -165,6 +165,34 @@ def _before_third_solve(monkeypatch, action):
     monkeypatch.setattr(ensemble.hbm, "solve", wrapped)
 
 
+def test_bounds_file_holds_the_bound_peak_as_a_run_does(tmp_path, capsys):
+    """``mcfric bounds`` refines the upper bound's peak as a run does: printed, written to
+    ``bounds/`` (``peak_upper*``), printed again by ``mcfric info``; with ``[peaks]
+    enabled = false`` neither."""
+    out = tmp_path / "b.h5"
+    rc, text, _ = call(["bounds", "two-beam", "--n-freq", "60", "-o", str(out),
+                        "--no-figure", "--no-certify"], capsys)
+    assert rc == 0
+    line = next(x for x in text.splitlines() if x.startswith("bound peak:"))
+    with h5py.File(out) as h:
+        a = dict(h["bounds"].attrs)
+        f, upper = h["frequency"][...], h["bounds/upper"][...]
+    k = int(np.argmax(upper))
+    # between the grid neighbours of the largest grid value, and not below it
+    assert f[k - 1] <= a["peak_upper_frequency"] <= f[k + 1]
+    assert a["peak_upper"] >= upper[k] and a["peak_upper_refined"] == 1
+    assert f"searched upper bound {a['peak_upper']:.4g} m at " in line and "(refined)" in line
+    rc, info, _ = call(["info", str(out)], capsys)
+    assert rc == 0 and line in info.splitlines()
+    (tmp_path / "c.toml").write_text('[model]\npreset = "two-beam"\n[frequency]\nn = 60\n'
+                                     '[peaks]\nenabled = false\n[bounds]\ncertify = false\n')
+    rc, text, _ = call(["bounds", str(tmp_path / "c.toml"), "-o", str(tmp_path / "c.h5"),
+                        "--no-figure"], capsys)
+    assert rc == 0 and "bound peak:" not in text
+    with h5py.File(tmp_path / "c.h5") as h:
+        assert "peak_upper" not in h["bounds"].attrs
+
+
 def test_info_of_a_partial_file(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
 

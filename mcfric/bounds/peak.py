@@ -5,8 +5,10 @@ resonance as the members' grid peaks do. Here the bracket between its grid neigh
 is searched again on a sub-grid (the same search as on the grid, continuation along
 the sub-grid included), and the best sub-interval refined by
 :func:`mcfric.peaks.maximize`, the bound at each new frequency searched from the
-uniform corners and the optima of the two nearest frequencies already searched.
-Like the bound itself, the refined peak is the result of a search.
+uniform corners and the optima of the two nearest frequencies already searched. Where
+the force limit takes over from the box beside the best sub-grid point (a kink, which
+misleads the parabolic steps), a golden-section search of the bracket is kept where it
+finds more. Like the bound itself, the refined peak is the result of a search.
 """
 
 from __future__ import annotations
@@ -86,4 +88,66 @@ def refine_upper_peak(model, B, rtol=1e-4):
                            float(s_up[j_lo]), float(s_up[j_hi]), rtol)
     if not np.isfinite(m) or m < s_up[j]:
         return float(sub_f[j]), float(s_up[j]), False
+    # where the force limit takes over from the box beside the best sub-grid point, the
+    # bound has a kink there, which misleads parabolic steps: a golden-section search of
+    # the same bracket (unimodal functions, kinks included) is kept where it finds more
+    if len(set(S.limited_by[[j_lo, j, j_hi]].tolist())) > 1:
+        xg, mg, okg = _golden(upper_at, float(sub_f[j_lo]), float(sub_f[j_hi]), rtol)
+        if np.isfinite(mg) and mg > m:
+            x, m, ok = xg, mg, okg
     return float(x), float(m), ok
+
+
+def _golden(fun, lo, hi, rtol, x_rtol=1e-8, max_steps=80):
+    """Golden-section search for the largest ``fun(x)[0]`` on ``[lo, hi]``.
+
+    Returns the best point evaluated, its value and whether the search ended with a
+    bracket narrower than ``x_rtol`` times its centre whose two inner points' values are
+    within ``rtol / 4`` of the best (a failed evaluation ends it unconverged).
+    """
+    r = (np.sqrt(5.0) - 1.0) / 2.0
+    a, b = lo, hi
+    c, d = b - r * (b - a), a + r * (b - a)
+    mc, md = fun(c)[0], fun(d)[0]
+    best = max((mc, c), (md, d))
+    for _ in range(max_steps):
+        if not (np.isfinite(mc) and np.isfinite(md)):
+            return best[1], best[0], False
+        if mc >= md:
+            b, d, md = d, c, mc
+            c = b - r * (b - a)
+            mc = fun(c)[0]
+            best = max(best, (mc, c))
+        else:
+            a, c, mc = c, d, md
+            d = a + r * (b - a)
+            md = fun(d)[0]
+            best = max(best, (md, d))
+        if b - a <= x_rtol * 0.5 * (a + b):
+            ok = min(mc, md) >= best[0] * (1.0 - 0.25 * rtol)
+            return best[1], best[0], bool(ok)
+    return best[1], best[0], False
+
+
+def peak_attrs(model, B, rtol=1e-4):
+    """The ``bounds/`` group attributes of the upper bound's refined peak.
+
+    Parameters
+    ----------
+    model : Model
+        The model the bounds ``B`` were computed for.
+    B : Bounds
+        Bounds on an increasing frequency grid.
+    rtol : float
+        Relative tolerance of the refined value.
+
+    Returns
+    -------
+    dict
+        ``peak_upper`` (the metric's unit), ``peak_upper_frequency`` (Hz) and
+        ``peak_upper_refined`` (1 if the refinement converged), as
+        :func:`refine_upper_peak` gives them.
+    """
+    f_pk, up_pk, ok = refine_upper_peak(model, B, rtol)
+    return {"peak_upper": np.float64(up_pk), "peak_upper_frequency": np.float64(f_pk),
+            "peak_upper_refined": np.int8(ok)}

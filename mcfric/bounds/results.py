@@ -122,9 +122,11 @@ def read_bounds(path):
                   cert)
 
 
-def write_bounds_file(path, cfg, B):
+def write_bounds_file(path, cfg, B, peak=None):
     """A bounds-only results file: ``frequency``, ``damper`` and ``bounds/``, root
-    attributes as a run's (configuration, versions), written atomically by the store."""
+    attributes as a run's (configuration, versions), written atomically by the store;
+    ``peak`` (:func:`mcfric.bounds.peak.peak_attrs`), when given, joins the group's
+    attributes as in a run's file."""
     from .. import __version__
     from ..store import write_file
 
@@ -140,4 +142,6 @@ def write_bounds_file(path, cfg, B):
     attrs = {"title": f"mcfric response bounds: {model.name}", "model_name": model.name,
              "config": spec.config_toml, "config_json": spec.config_json,
              "samples": np.int64(0), "mcfric_version": __version__}
-    return write_file(path, coords, {"bounds": to_group(B)}, attrs)
+    variables, group_attrs = to_group(B)
+    group_attrs.update(peak or {})
+    return write_file(path, coords, {"bounds": (variables, group_attrs)}, attrs)
