@@ -95,7 +95,7 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
         raise ValueError(f"f_window: no frequencies of {path} in {lo_f:g}..{hi_f:g} Hz")
     fw = f[win]
 
-    fig = _figure()
+    fig = _figure((8, 6.0))      # the extra height holds the legend below the axes
     ax = fig.add_subplot()
     n = int(attrs.get("samples", 0))
     drawn = 0
@@ -252,7 +252,8 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
         ax2.tick_params(axis="y", colors="tab:orange", labelsize=8)
         handles += ax2.get_lines()
         labels.append("share flagged (right axis; rerun with --harmonics)")
-    ax.legend(handles, labels, loc="best", fontsize=8)
+    # below the axes: with up to nine entries no corner of the axes is free of data
+    fig.legend(handles, labels, loc="outside lower center", ncol=2, fontsize=7)
     fig.savefig(out, dpi=150)
     return {"n_members": n if drawn else 0, "n_drawn": drawn, "has_bounds": B is not None,
             "n_flagged": int(flagged_at.sum()), "n_not_converged": n_failed,
