@@ -130,16 +130,8 @@ def _golden(fun, lo, hi, rtol, x_rtol=1e-8, max_steps=80):
 
 
 def peak_attrs(model, B, rtol=1e-4):
-    """The ``bounds/`` group attributes of the upper bound's refined peak.
-
-    Parameters
-    ----------
-    model : Model
-        The model the bounds ``B`` were computed for.
-    B : Bounds
-        Bounds on an increasing frequency grid.
-    rtol : float
-        Relative tolerance of the refined value.
+    """The ``bounds/`` group attributes of the upper bound's refined peak (``model``,
+    ``B`` and ``rtol`` as for :func:`refine_upper_peak`).
 
     Returns
     -------
