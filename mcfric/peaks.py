@@ -277,6 +277,8 @@ def report_text(report, unit):
 def bound_peak_line(value, hz, refined, unit):
     """The ``bound peak:`` line of a summary: the upper bound's refined peak, ``value`` in
     ``unit`` at ``hz`` (Hz); ``refined`` False says the refinement did not converge."""
+    if not np.isfinite(value):
+        return "bound peak:  none (the upper bound's search failed at every frequency)"
     how = "refined" if refined else "not refined"
     return f"bound peak:  searched upper bound {value:.4g} {unit} at {hz:.5g} Hz ({how})"
 

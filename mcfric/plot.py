@@ -252,7 +252,7 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
         ax2.tick_params(axis="y", colors="tab:orange", labelsize=8)
         handles += ax2.get_lines()
         labels.append("share flagged (right axis; rerun with --harmonics)")
-    # below the axes: with up to nine entries no corner of the axes is free of data
+    # below the axes: with ten entries or more no corner of the axes is free of data
     fig.legend(handles, labels, loc="outside lower center", ncol=2, fontsize=7)
     fig.savefig(out, dpi=150)
     return {"n_members": n if drawn else 0, "n_drawn": drawn, "has_bounds": B is not None,

@@ -184,6 +184,12 @@ def test_bounds_file_holds_the_bound_peak_as_a_run_does(tmp_path, capsys):
     assert f"searched upper bound {a['peak_upper']:.4g} m at " in line and "(refined)" in line
     rc, info, _ = call(["info", str(out)], capsys)
     assert rc == 0 and line in info.splitlines()
+    # a run of the same configuration stores the same peak
+    rc, _, _ = call(["run", "two-beam", "--n-freq", "60", "--samples", "4", "--no-certify",
+                     "-o", str(tmp_path / "r.h5"), "--no-progress", "--no-figure"], capsys)
+    with h5py.File(tmp_path / "r.h5") as h:
+        assert rc == 0 and {k: h["bounds"].attrs[k] for k in a if k.startswith("peak_")} == \
+            {k: v for k, v in a.items() if k.startswith("peak_")}
     (tmp_path / "c.toml").write_text('[model]\npreset = "two-beam"\n[frequency]\nn = 60\n'
                                      '[peaks]\nenabled = false\n[bounds]\ncertify = false\n')
     rc, text, _ = call(["bounds", str(tmp_path / "c.toml"), "-o", str(tmp_path / "c.h5"),
@@ -191,6 +197,8 @@ def test_bounds_file_holds_the_bound_peak_as_a_run_does(tmp_path, capsys):
     assert rc == 0 and "bound peak:" not in text
     with h5py.File(tmp_path / "c.h5") as h:
         assert "peak_upper" not in h["bounds"].attrs
+    rc, info, _ = call(["info", str(tmp_path / "c.h5")], capsys)
+    assert rc == 0 and "bound peak:" not in info
 
 
 def test_info_of_a_partial_file(tmp_path, monkeypatch, capsys):

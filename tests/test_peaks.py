@@ -131,6 +131,32 @@ def test_the_upper_bound_peak_equals_a_dense_search(name, F0):
     assert abs(f_pk - dense[j]) <= 2 * (dense[1] - dense[0])
 
 
+def test_golden_section_finds_a_kink_and_skips_a_failed_first_point():
+    """``_golden`` on the smaller of a rising and a falling line (a kink at 16.3385 Hz,
+    the shape where the force limit meets the box): the kink within 1e-8 Hz and
+    converged; a NaN at the first inner point is not taken for the best; a NaN at every
+    point ends unconverged."""
+    from mcfric.bounds.peak import _golden
+
+    top = 16.3385
+
+    def kink(x):
+        return min(1.0 + 0.5 * (x - top), 1.0 - 40.0 * (x - top)), None
+
+    x, m, ok = _golden(kink, 16.30, 16.36, 1e-4)
+    assert ok and abs(x - top) <= 1e-8 and m == pytest.approx(1.0, rel=1e-8)
+    first = []
+
+    def nan_first(x):
+        first.append(x)
+        return (np.nan, None) if len(first) == 1 else kink(x)
+
+    x, m, ok = _golden(nan_first, 16.30, 16.36, 1e-4)
+    assert np.isfinite(m) and not ok and x == first[1]
+    x, m, ok = _golden(lambda x: (np.nan, None), 16.30, 16.36, 1e-4)
+    assert not ok and not np.isfinite(m)
+
+
 def test_peak_settings_are_checked():
     with pytest.raises(ValueError, match="peaks.count"):
         PeakSettings(count=0)

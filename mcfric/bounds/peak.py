@@ -87,7 +87,7 @@ def refine_upper_peak(model, B, rtol=1e-4):
     x, m, _, ok = maximize(upper_at, float(sub_f[j_lo]), float(sub_f[j_hi]),
                            float(s_up[j_lo]), float(s_up[j_hi]), rtol)
     if not np.isfinite(m) or m < s_up[j]:
-        return float(sub_f[j]), float(s_up[j]), False
+        x, m, ok = float(sub_f[j]), float(s_up[j]), False
     # where the force limit takes over from the box beside the best sub-grid point, the
     # bound has a kink there, which misleads parabolic steps: a golden-section search of
     # the same bracket (unimodal functions, kinks included) is kept where it finds more
@@ -103,13 +103,18 @@ def _golden(fun, lo, hi, rtol, x_rtol=1e-8, max_steps=80):
 
     Returns the best point evaluated, its value and whether the search ended with a
     bracket narrower than ``x_rtol`` times its centre whose two inner points' values are
-    within ``rtol / 4`` of the best (a failed evaluation ends it unconverged).
+    within ``rtol / 4`` of the best (a failed evaluation ends it unconverged). Like any
+    golden-section search it assumes one maximum in ``[lo, hi]``, kink or not.
     """
+
+    def key(t):                     # a failed (NaN) value never counts as the best
+        return t[0] if np.isfinite(t[0]) else -np.inf
+
     r = (np.sqrt(5.0) - 1.0) / 2.0
     a, b = lo, hi
     c, d = b - r * (b - a), a + r * (b - a)
     mc, md = fun(c)[0], fun(d)[0]
-    best = max((mc, c), (md, d))
+    best = max((mc, c), (md, d), key=key)
     for _ in range(max_steps):
         if not (np.isfinite(mc) and np.isfinite(md)):
             return best[1], best[0], False
@@ -117,12 +122,12 @@ def _golden(fun, lo, hi, rtol, x_rtol=1e-8, max_steps=80):
             b, d, md = d, c, mc
             c = b - r * (b - a)
             mc = fun(c)[0]
-            best = max(best, (mc, c))
+            best = max(best, (mc, c), key=key)
         else:
             a, c, mc = c, d, md
             d = a + r * (b - a)
             md = fun(d)[0]
-            best = max(best, (md, d))
+            best = max(best, (md, d), key=key)
         if b - a <= x_rtol * 0.5 * (a + b):
             ok = min(mc, md) >= best[0] * (1.0 - 0.25 * rtol)
             return best[1], best[0], bool(ok)
