@@ -785,15 +785,12 @@ def cmd_info(args):
         lines += report_text(report, METRIC_UNITS[q])
     else:
         # a bounds file: the bound's peak alone, when it was refined
-        from .peaks import bound_peak_line
-        from .store import read_group
+        from .peaks import bound_peak, bound_peak_line
 
-        g = read_group(path, "bounds")
-        if g is not None and "peak_upper" in g[1]:
-            lines.append(bound_peak_line(float(g[1]["peak_upper"]),
-                                         float(g[1]["peak_upper_frequency"]),
-                                         bool(g[1].get("peak_upper_refined", 0)),
-                                         METRIC_UNITS[q]))
+        pk = bound_peak(path)
+        if pk:
+            lines.append(bound_peak_line(pk["bound_peak"], pk["bound_peak_hz"],
+                                         pk["bound_peak_refined"], METRIC_UNITS[q]))
     lines += indicator_report(path)
     from .bounds import read_bounds
     B = read_bounds(path)

@@ -212,7 +212,7 @@ def file_report(path):
         lower estimate, and they are left out of ``grid_ratio``), and the bound's peak
         ``bound_peak``, ``bound_peak_hz``, ``bound_peak_refined`` when the file has bounds.
     """
-    from .store import dataset_names, iter_records, read_group
+    from .store import dataset_names, iter_records
 
     if "peak_metric" not in dataset_names(path):
         return None
@@ -242,12 +242,21 @@ def file_report(path):
     out = {"statistics": statistics(largest), "members": int(largest.size),
            "grid_ratio": float(np.nanmedian(ratio)) if np.isfinite(ratio).any() else np.nan,
            "folds": folds, "unchecked": unchecked, "unresolved": n_unresolved}
-    g = read_group(path, "bounds")
-    if g is not None and "peak_upper" in g[1]:
-        out["bound_peak"] = float(g[1]["peak_upper"])
-        out["bound_peak_hz"] = float(g[1]["peak_upper_frequency"])
-        out["bound_peak_refined"] = bool(g[1].get("peak_upper_refined", 0))
+    out.update(bound_peak(path))
     return out
+
+
+def bound_peak(path):
+    """The bound's refined peak stored in a file's ``bounds/`` group: ``bound_peak``,
+    ``bound_peak_hz`` (Hz) and ``bound_peak_refined``; empty where none was stored."""
+    from .store import read_group
+
+    g = read_group(path, "bounds")
+    if g is None or "peak_upper" not in g[1]:
+        return {}
+    return {"bound_peak": float(g[1]["peak_upper"]),
+            "bound_peak_hz": float(g[1]["peak_upper_frequency"]),
+            "bound_peak_refined": bool(g[1].get("peak_upper_refined", 0))}
 
 
 def report_text(report, unit):
