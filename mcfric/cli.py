@@ -14,7 +14,7 @@
                [--f-min HZ] [--f-max HZ] [--n-freq N] [-o OUT.csv] [--no-figure]
     mcfric bounds [PRESET|CONFIG.toml] [-o FILE] [--F0 N] [--f-min HZ] [--f-max HZ]
                [--n-freq N] [--k-max N_PER_M] [--F-lim N] [--threads T] [--no-certify]
-               [--moments | --first-order] [--no-figure]
+               [--moments | --first-order] [--no-progress] [--no-figure]
     mcfric plot FILE [-o FIG.png|pdf] [--quantity Q] [--f-min HZ] [--f-max HZ]
                [--member I] [--measured DATA ...] [--nodes N1,N2,...] [--no-indicator]
     mcfric verify [PRESET|CONFIG.toml] --f HZ [HZ ...] [--mu0 X] [--kc N_PER_M] [--N0 N]
@@ -154,6 +154,8 @@ def _parser():
                    help="skip the certification of the bounds (a quick look: the searched "
                         "bounds alone)")
     _order_flags(b)
+    b.add_argument("--no-progress", action="store_true",
+                   help="no progress bars (the certification's, shown on a terminal)")
     b.add_argument("--no-figure", action="store_true", help="do not draw the figure")
 
     pl = sub.add_parser("plot", help="figure of a results or bounds file",
@@ -573,7 +575,7 @@ def cmd_bounds(args):
               f"F0 = {model.excitation.F0:g} N; box 0 <= Re K <= {lim.k_max_re:g} N/m, "
               f"0 <= Im K <= {lim.k_max_im:g} N/m, F_lim = {lim.F_lim:g} N", flush=True)
         t = time.perf_counter()
-        B = bounds.from_spec(spec)
+        B = bounds.from_spec(spec, progress=False if args.no_progress else None)
         print(f"{B.summary()} ({time.perf_counter() - t:.1f} s)")
         peak = None
         if spec.peaks:

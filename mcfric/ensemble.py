@@ -624,7 +624,7 @@ def _bounds_groups(spec, verbose):
             print("note: the bounds are for the nominal rig; mistuned members need not lie "
                   "inside them", flush=True)
         t = time.perf_counter()
-        B = from_spec(spec)
+        B = from_spec(spec, progress=None if verbose else False)
         variables, attrs = to_group(B)
         if spec.peaks:
             from .bounds.peak import peak_attrs

@@ -201,6 +201,36 @@ def test_bounds_file_holds_the_bound_peak_as_a_run_does(tmp_path, capsys):
     assert rc == 0 and "bound peak:" not in info
 
 
+def test_no_progress_silences_the_certification_bars(tmp_path, monkeypatch, capsys):
+    """``--no-progress`` of ``mcfric bounds`` and ``mcfric run`` turns off the
+    certification's bars (splitting the box, second-order relaxations); without it they
+    show on a terminal only (tqdm's ``disable=None``)."""
+    import tqdm
+
+    bars = []
+
+    class Recorder(tqdm.tqdm):
+        def __init__(self, *a, **k):
+            bars.append((k.get("desc"), k.get("disable")))
+            super().__init__(*a, **k)
+
+    monkeypatch.setattr(tqdm, "tqdm", Recorder)
+    # five frequencies across the first resonance of the rig: both long stages run there
+    grid = ["eight-beam", "--f-min", "16.1", "--f-max", "16.5", "--n-freq", "5",
+            "--no-figure"]
+    for argv, disable in ((["bounds", *grid, "-o", str(tmp_path / "b.h5")], None),
+                          (["bounds", *grid, "-o", str(tmp_path / "c.h5"), "--no-progress"],
+                           True),
+                          (["run", *grid, "--samples", "2", "-o", str(tmp_path / "r.h5"),
+                            "--no-progress"], True)):
+        bars.clear()
+        rc, _, err = call(argv, capsys)
+        names = {d for d, _ in bars}
+        assert rc == 0, err
+        assert {"splitting the box (upper)", "second-order relaxations"} <= names, argv
+        assert all(x is disable for _, x in bars), (argv, bars)
+
+
 def test_info_of_a_partial_file(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
 

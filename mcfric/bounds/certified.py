@@ -451,7 +451,8 @@ def _relaxed(args, kr, ki, F_lim, want_max, cert, wit, rtol, atol, turn=False, n
     return cert, K_round, beam_bounds, total[2:4]
 
 
-def _split(args, kr, ki, F_lim, want_max, cert, wit, rtol, atol, beam_bounds, budget):
+def _split(args, kr, ki, F_lim, want_max, cert, wit, rtol, atol, beam_bounds, budget,
+           progress=None):
     """``cert`` tightened, where it is not yet within the tolerance of ``wit``, by the
     branch and bound over relaxations of parts of the box
     (:mod:`mcfric.core.relaxation_branch`), ``budget`` relaxations per frequency at most;
@@ -459,7 +460,8 @@ def _split(args, kr, ki, F_lim, want_max, cert, wit, rtol, atol, beam_bounds, bu
     the number of relaxations, for the lower bound the rounded points of the
     :data:`ROUNDED_PARTS` open parts of least bound where it stays loose (n_f,
     2 ROUNDED_PARTS, nd; N/m, NaN where none), and the numbers of relaxations made
-    (the lower bound's roundings included) and failed (2,)."""
+    (the lower bound's roundings included) and failed (2,). ``progress`` as for
+    :func:`certify`."""
     n_f, nd = args[1].shape
     K_round = np.full((n_f, 0 if want_max else 2 * ROUNDED_PARTS, nd), np.nan + 0j)
     loose = np.flatnonzero(~_met(want_max, cert, wit, rtol, atol) & np.isfinite(cert))
@@ -472,8 +474,8 @@ def _split(args, kr, ki, F_lim, want_max, cert, wit, rtol, atol, beam_bounds, bu
     stats = np.zeros((64, 5), np.int64)
     args_ = (*args, kr, ki, F_lim, want_max, np.ascontiguousarray(cert),
              np.ascontiguousarray(target), int(budget))
-    # up to a second per frequency: a bar on stderr (shown on a terminal only)
-    with tqdm(total=len(loose), unit="frequency", disable=None, leave=False,
+    # up to a second per frequency: a bar on stderr
+    with tqdm(total=len(loose), unit="frequency", disable=_disable(progress), leave=False,
               desc=f"splitting the box ({'upper' if want_max else 'lower'})") as bar:
         def step(item):
             branch_frequencies(*args_, np.asarray(item[1], np.int64), beam_bounds, got,
@@ -525,7 +527,7 @@ def _witness_for_beams(G, q0, ylin, H, K):
     return out
 
 
-def _second_order(args, kr, ki, F_lim, cert, wit, K, beam_bounds, rtol):
+def _second_order(args, kr, ki, F_lim, cert, wit, K, beam_bounds, rtol, progress=None):
     """The upper ``cert`` improved by the second-order moment relaxation
     (:mod:`.moments`) where it is not yet within ``rtol`` of ``wit``: per frequency the
     beams in decreasing order of ``beam_bounds`` until the next is proven no higher than
@@ -537,7 +539,7 @@ def _second_order(args, kr, ki, F_lim, cert, wit, K, beam_bounds, rtol):
     (:func:`.moments_branch.geometric_cuts`). Returns the new ``cert``, the
     relaxation's first moments of the beam of largest bound as describing functions
     (n_f, 1, nd; N/m, clipped to the box; NaN where none: starts for the witness) and the
-    number of relaxations solved and failed."""
+    number of relaxations solved and failed. ``progress`` as for :func:`certify`."""
     from tqdm import tqdm
 
     from . import moments, moments_branch
@@ -622,9 +624,9 @@ def _second_order(args, kr, ki, F_lim, cert, wit, K, beam_bounds, rtol):
             done = max(done, min(beam_bounds[k, b], value))
         new[k] = min(cert[k], max(done, rest, wit[k]))
 
-    # about a second per relaxation: a bar on stderr (shown on a terminal only)
+    # about a second per relaxation: a bar on stderr
     with tqdm(total=len(todo), unit="frequency", desc="second-order relaxations",
-              disable=None, leave=False) as bar:
+              disable=_disable(progress), leave=False) as bar:
         def step(i):
             one(i)
             bar.update()
@@ -663,12 +665,17 @@ def _polish(args, kr, ki, F_lim, cert, wit, K, beam_bounds, rtol):
     return wit
 
 
+def _disable(progress):
+    """The tqdm ``disable`` of ``progress``: None shows the bar on a terminal only."""
+    return None if progress is None else not progress
+
+
 def _pct(x):
     return "unbounded" if not np.isfinite(x) else f"{100 * x:.3g} %"
 
 
 def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
-            rtol=None, split=None, moments=False, turned=False):
+            rtol=None, split=None, moments=False, turned=False, progress=None):
     """Certified bounds from contact-space arrays (all beams of the metric).
 
     Parameters
@@ -709,6 +716,9 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
         beams take its multipliers turned, verified on their own forms); up to
         ``MAX_TIED`` dampers the relaxations with the multipliers tied across dampers
         (the upper bound's but near the beam) tighten them.
+    progress : bool or None
+        Progress bars on stderr for the stages that take long (the splitting of the box,
+        the second-order relaxations): None (default) on a terminal only, False never.
 
     Returns
     -------
@@ -795,7 +805,8 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
             cert, used, K_parts, n = _split(args, kr, ki, F_lim, want_max, cert, wit, rtol,
                                             atol, beam_bounds,
                                             split if want_max else min(split,
-                                                                       LOWER_SPLIT_BUDGET))
+                                                                       LOWER_SPLIT_BUDGET),
+                                            progress)
             first_order += n
             split_used[int(not want_max)] = used
             if not want_max:
@@ -805,7 +816,7 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
                 _descend(args, kr, ki, F_lim, K_parts, cert, wit, K, rtol, atol)
             elif moments:
                 cert, K_first, second_order = _second_order(args, kr, ki, F_lim, cert, wit,
-                                                            K, beam_bounds, rtol)
+                                                            K, beam_bounds, rtol, progress)
                 # its first moments start one more climb in the forces
                 wit = _force_ascent(args, kr, ki, F_lim, K_first,
                                     np.fmin(cert / (1 + rtol), box_max), wit, K)

@@ -190,7 +190,7 @@ def rotation_invariant(model):
 
 def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity="displacement",
                    beams=None, n_starts=N_STARTS, max_sweeps=MAX_SWEEPS, seed=0, n_threads=None,
-                   certified=True, budget=None, split=None, moments="auto"):
+                   certified=True, budget=None, split=None, moments="auto", progress=None):
     """Equivalent-linear bounds on the response metric of ``model``.
 
     Parameters
@@ -240,6 +240,9 @@ def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity
         first order alone (about a quarter of the time on eight beams, the upper bound
         within 1 % of its witness at 84-93 % of the frequencies instead of 99.8-99.9 %:
         docs/bounds.md); True: an error where it cannot run.
+    progress : bool or None
+        Progress bars of the certification on stderr: None (default) on a terminal only,
+        False never.
 
     Returns
     -------
@@ -267,6 +270,8 @@ def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity
             integer(lo)(v, name)
     if not is_bool(certified):     # "no" would be true
         raise ValueError(f"certified: expected True or False, got {certified!r}")
+    if progress is not None and not is_bool(progress):
+        raise ValueError(f"progress: expected True, False or None, got {progress!r}")
     if model.contact_law != "coulomb":
         # the box of describing functions and the force limit are Coulomb friction's
         raise ValueError(f"model: the bounds are for Coulomb friction contacts, got "
@@ -305,15 +310,17 @@ def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity
         scale = omega ** QUANTITIES.index(quantity)
         cert = (certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget,
                         split=split, moments=moments,
-                        turned=invariant and sel == list(range(model.n_beams)))
+                        turned=invariant and sel == list(range(model.n_beams)),
+                        progress=progress)
                 if certified else None)
     return Bounds(f, upper * scale, lower * scale, upper_box * scale, upper_force * scale,
                   limited_by, K_upper, K_lower, kr, ki, F_lim, quantity, beams, cert)
 
 
-def from_spec(spec, n_threads=None):
+def from_spec(spec, n_threads=None, progress=None):
     """Bounds of a :class:`~mcfric.spec.RunSpec` (its nominal model, frequency grid,
-    metric and bounds settings); ``n_threads`` defaults to the spec's execution threads.
+    metric and bounds settings); ``n_threads`` defaults to the spec's execution threads,
+    ``progress`` as for :func:`compute_bounds`.
 
     The model is the nominal one: mistuned members come from other linear rigs and need
     not lie inside (the paper's bounds cover friction only).
@@ -323,5 +330,5 @@ def from_spec(spec, n_threads=None):
                           F_lim=None if np.isinf(b.F_lim) else b.F_lim,
                           quantity=spec.metric.quantity, beams=spec.metric.beams,
                           n_starts=b.n_starts, certified=b.certify, budget=b.budget,
-                          split=b.split, moments=b.moments,
+                          split=b.split, moments=b.moments, progress=progress,
                           n_threads=spec.execution.threads if n_threads is None else n_threads)
