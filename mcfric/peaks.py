@@ -246,17 +246,39 @@ def file_report(path):
     return out
 
 
+#: ``bounds/`` attributes of the certified bound near its peak (:func:`bound_peak`).
+CERTIFIED_PEAK_ATTRS = ("peak_upper_certified", "peak_upper_certified_frequency",
+                        "peak_upper_witness", "peak_upper_witness_frequency",
+                        "peak_sub_grid_step")
+
+
 def bound_peak(path):
     """The bound's refined peak stored in a file's ``bounds/`` group: ``bound_peak``,
-    ``bound_peak_hz`` (Hz) and ``bound_peak_refined``; empty where none was stored."""
+    ``bound_peak_hz`` (Hz) and ``bound_peak_refined``; where the bounds were certified,
+    ``certified_peak``, a dict of the certified bound near the peak (``certified``,
+    ``witness``, their ``*_frequency``, ``peak_sub_grid_step`` and the grid's largest
+    certified upper bound ``grid`` at ``grid_frequency``); empty where none was
+    stored."""
     from .store import read_group
 
     g = read_group(path, "bounds")
     if g is None or "peak_upper" not in g[1]:
         return {}
-    return {"bound_peak": float(g[1]["peak_upper"]),
-            "bound_peak_hz": float(g[1]["peak_upper_frequency"]),
-            "bound_peak_refined": bool(g[1].get("peak_upper_refined", 0))}
+    a = g[1]
+    out = {"bound_peak": float(a["peak_upper"]),
+           "bound_peak_hz": float(a["peak_upper_frequency"]),
+           "bound_peak_refined": bool(a.get("peak_upper_refined", 0))}
+    if "peak_upper_certified" in a:
+        out["certified_peak"] = {k[len("peak_upper_"):] if k.startswith("peak_upper_") else k:
+                                 float(a[k]) for k in CERTIFIED_PEAK_ATTRS}
+        from .bounds import read_bounds
+
+        B = read_bounds(path)
+        if B is not None and B.certificate is not None:
+            c = np.where(np.isnan(B.certificate.upper), np.inf, B.certificate.upper)
+            i = int(np.argmax(c))
+            out["certified_peak"].update(grid=float(c[i]), grid_frequency=float(B.freq_hz[i]))
+    return out
 
 
 def report_text(report, unit):
@@ -280,7 +302,24 @@ def report_text(report, unit):
         lines.append(bound_peak_line(report["bound_peak"], report["bound_peak_hz"],
                                      report.get("bound_peak_refined", True), unit)
                      + f"; largest member / bound {st['max'] / report['bound_peak']:.4g}")
+    if "certified_peak" in report:
+        lines.append(certified_peak_line(report["certified_peak"], unit))
     return lines
+
+
+def certified_peak_line(cp, unit):
+    """The ``certified:`` line of a summary: the certified upper bound near the bound's
+    peak, ``cp`` as :func:`bound_peak` gives it (``certified_peak``), values in ``unit``."""
+    def value(x):
+        return "unbounded" if np.isinf(x) else f"{x:.4g} {unit}"
+
+    grid = (f" (the grid's: {value(cp['grid'])} at {cp['grid_frequency']:.5g} Hz)"
+            if "grid" in cp else "")
+    wit = (f"; a witness attains {value(cp['witness'])} at {cp['witness_frequency']:.5g} Hz"
+           if np.isfinite(cp["witness"]) else "; no witness")
+    return (f"certified:   largest certified upper bound {value(cp['certified'])} at "
+            f"{cp['certified_frequency']:.5g} Hz on a sub-grid {cp['peak_sub_grid_step']:.2g} "
+            f"Hz apart around the bound peak{grid}{wit}")
 
 
 def bound_peak_line(value, hz, refined, unit):

@@ -75,8 +75,10 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
         ``n_members``, ``n_drawn``, ``has_bounds``, ``n_flagged`` (flagged points over
         the whole ensemble, 0 if not marked), ``n_not_converged`` (points of the whole
         ensemble in the window that did not converge: gaps in the lines) and
-        ``n_peaks_unrefined`` (drawn member peaks left at their grid values): what was
-        drawn.
+        ``n_peaks_unrefined`` (drawn member peaks left at their grid values) and
+        ``bound_peaks`` (the bound's peaks marked: ``"searched"``, the refined peak of
+        the searched upper bound, and ``"certified"``, the largest certified upper bound
+        on the sub-grid around it): what was drawn.
     """
     from matplotlib.collections import LineCollection
 
@@ -173,6 +175,7 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
                     mew=0.8, label="member peaks not refined (grid values, may lie higher)")
     B = read_bounds(path)
     band = None
+    marked = []
     if B is not None:
         C = B.certificate
         if C is None:
@@ -209,6 +212,14 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
             how = "refined" if g.get("peak_upper_refined", 1) else "largest (not refined)"
             ax.plot([fb], [g["peak_upper"] * omega_power(fb, quantity, stored)], "*",
                     color="tab:blue", ms=9, label=f"{how} peak of the upper bound (searched)")
+            marked.append("searched")
+        fc = g.get("peak_upper_certified_frequency", np.nan)
+        if (np.isfinite(g.get("peak_upper_certified", np.nan)) and lo_f <= fc <= hi_f):
+            # the grid can miss the certified bound's peak: its largest near the peak
+            ax.plot([fc], [g["peak_upper_certified"] * omega_power(fc, quantity, stored)],
+                    "v", color="tab:blue", mfc="none", ms=8, mew=1.2,
+                    label="largest certified upper bound near the peak (sub-grid)")
+            marked.append("certified")
     for mm in measured:
         g = mm.to_quantity(quantity)
         mf = g.frequency_hz
@@ -257,7 +268,7 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
     fig.savefig(out, dpi=150)
     return {"n_members": n if drawn else 0, "n_drawn": drawn, "has_bounds": B is not None,
             "n_flagged": int(flagged_at.sum()), "n_not_converged": n_failed,
-            "n_peaks_unrefined": n_unrefined}
+            "n_peaks_unrefined": n_unrefined, "bound_peaks": marked}
 
 
 def _config(attrs):

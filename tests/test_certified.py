@@ -486,3 +486,32 @@ def test_the_branch_and_bound_witness_is_the_value_of_a_solve():
                                      np.empty((nd, nd), complex), np.empty(nd, np.int64),
                                      np.empty(nd, complex))
             assert ok and v == w, (freq, want_max, v, w)
+
+
+def test_the_certified_bound_near_the_peak_encloses_a_dense_grid():
+    """One damper at F0 = 0.22 N, force limit on: the certified upper bound that
+    ``peak_attrs`` stores for the sub-grid around the bound's peak lies above every
+    admissible point of a dense grid of the box at each sub-grid frequency, its witness
+    attains (within 1 %) the grid's largest, and both sit at sub-grid frequencies."""
+    from mcfric.bounds.peak import SUB_GRID, peak_attrs
+
+    model = mcfric.two_beam(0.22)
+    f = np.linspace(10.0, 25.0, 40)
+    B = compute_bounds(model, f, K_MAX, F_lim=F_LIM, moments=False)
+    a = peak_attrs(model, B)
+    k = int(np.argmax(B.upper))
+    sub = np.linspace(f[k - 1], f[k + 1], SUB_GRID)
+    assert a["peak_sub_grid_step"] == pytest.approx(sub[1] - sub[0])
+    for name in ("certified", "witness"):
+        assert np.min(np.abs(sub - a[f"peak_upper_{name}_frequency"])) < 1e-9
+    K = np.concatenate([grid_points(1, 201), edge_points(4001)])
+    best = 0.0
+    for fk in sub:
+        M, force = physical_grid(model, fk, K)
+        best = max(best, M[force <= 1.0].max())
+    assert best <= a["peak_upper_certified"] * (1 + 1e-9), (best, a)
+    assert a["peak_upper_witness"] <= a["peak_upper_certified"]
+    assert a["peak_upper_witness"] >= best * (1 - 0.01), (best, a)
+    # and the searched bound is refined on the same sub-grid, the certified left as is
+    assert "peak_upper_certified" not in peak_attrs(
+        model, compute_bounds(model, f, K_MAX, F_lim=F_LIM, certified=False))

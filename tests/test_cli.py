@@ -201,6 +201,29 @@ def test_bounds_file_holds_the_bound_peak_as_a_run_does(tmp_path, capsys):
     assert rc == 0 and "bound peak:" not in info
 
 
+def test_certified_bound_near_the_peak_is_printed_stored_and_drawn(tmp_path, capsys):
+    """Certified bounds: ``mcfric bounds`` prints the ``certified:`` line of the sub-grid
+    around the bound's peak from the stored ``peak_upper_certified*``, ``mcfric info``
+    prints the same line, and the figure marks it."""
+    out = tmp_path / "b.h5"
+    rc, text, _ = call(["bounds", "two-beam", "--n-freq", "40", "--f-max", "25", "-o",
+                        str(out)], capsys)
+    assert rc == 0
+    line = next(x for x in text.splitlines() if x.startswith("certified:"))
+    with h5py.File(out) as h:
+        a = dict(h["bounds"].attrs)
+        grid = float(np.max(h["bounds/upper_certified"][...]))
+    assert a["peak_upper_witness"] <= a["peak_upper_certified"]
+    assert (f"largest certified upper bound {a['peak_upper_certified']:.4g} m at "
+            f"{a['peak_upper_certified_frequency']:.5g} Hz") in line
+    assert f"(the grid's: {grid:.4g} m at " in line
+    assert f"a witness attains {a['peak_upper_witness']:.4g} m" in line
+    rc, info, _ = call(["info", str(out)], capsys)
+    assert rc == 0 and line in info.splitlines()
+    assert plot.results_figure(out, tmp_path / "b.png")["bound_peaks"] == ["searched",
+                                                                            "certified"]
+
+
 def test_no_progress_silences_the_certification_bars(tmp_path, monkeypatch, capsys):
     """``--no-progress`` of ``mcfric bounds`` and ``mcfric run`` turns off the
     certification's bars (splitting the box, second-order relaxations); without it they
@@ -228,7 +251,10 @@ def test_no_progress_silences_the_certification_bars(tmp_path, monkeypatch, caps
         names = {d for d, _ in bars}
         assert rc == 0, err
         assert {"splitting the box (upper)", "second-order relaxations"} <= names, argv
-        assert all(x is disable for _, x in bars), (argv, bars)
+        # the grid's certification first; the short certification of the sub-grid
+        # around the bound's peak after it never shows bars
+        assert [x for _, x in bars[:2]] == [disable] * 2, (argv, bars)
+        assert all(x is True for _, x in bars[2:]), (argv, bars)
 
 
 def test_info_of_a_partial_file(tmp_path, monkeypatch, capsys):
