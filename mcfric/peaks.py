@@ -271,13 +271,14 @@ def bound_peak(path):
     if "peak_upper_certified" in a:
         out["certified_peak"] = {k[len("peak_upper_"):] if k.startswith("peak_upper_") else k:
                                  float(a[k]) for k in CERTIFIED_PEAK_ATTRS}
-        from .bounds import read_bounds
+        if "upper_certified" in g[0]:
+            from .store import read
 
-        B = read_bounds(path)
-        if B is not None and B.certificate is not None:
-            c = np.where(np.isnan(B.certificate.upper), np.inf, B.certificate.upper)
+            c = np.asarray(g[0]["upper_certified"], float)
+            c = np.where(np.isnan(c), np.inf, c)
             i = int(np.argmax(c))
-            out["certified_peak"].update(grid=float(c[i]), grid_frequency=float(B.freq_hz[i]))
+            out["certified_peak"].update(grid=float(c[i]),
+                                         grid_frequency=float(read(path, "frequency")[i]))
     return out
 
 

@@ -515,3 +515,34 @@ def test_the_certified_bound_near_the_peak_encloses_a_dense_grid():
     # and the searched bound is refined on the same sub-grid, the certified left as is
     assert "peak_upper_certified" not in peak_attrs(
         model, compute_bounds(model, f, K_MAX, F_lim=F_LIM, certified=False))
+
+
+def test_the_second_order_near_the_peak_runs_where_the_first_leaves_it_above(monkeypatch):
+    """Three beams (two dampers): where the grid's certificate used the second order, the
+    sub-grid around the peak is certified at first order and again with the second order
+    where its bound is above the largest witness (forced here at every such frequency by
+    a zero tolerance); the merged bound encloses an exhaustive grid of the box at each
+    sub-grid frequency and stays above the merged witness."""
+    from mcfric.bounds import peak
+
+    model = chain(3, 0.25)
+    f = np.array([16.2, 16.3, 16.4])
+    B = compute_bounds(model, f, K_MAX, F_lim=F_LIM)
+    assert B.certificate.moments
+    B.certificate.rtol = 0.0
+    orders = []
+    real_compute = peak.compute_bounds
+
+    def counting(*a, **k):
+        orders.append((k.get("moments"), len(a[1])))
+        return real_compute(*a, **k)
+
+    monkeypatch.setattr(peak, "compute_bounds", counting)
+    sub = np.linspace(f[0], f[-1], 9)
+    up, wit = peak.certified_near_peak(model, B, sub)
+    assert orders[0] == (False, 9) and len(orders) == 2 and orders[1][0] is True, orders
+    assert np.all(wit <= up)
+    K = grid_points(2, 9)
+    for fk, u in zip(sub, up):
+        M, force = physical_grid(model, fk, K)
+        assert M[force <= 1.0].max() <= u * (1 + 1e-9), (fk, u)
