@@ -581,19 +581,14 @@ def cmd_bounds(args):
         if spec.peaks:
             # as a run's bounds group has it: the upper bound's peak between grid points
             from .bounds.peak import peak_attrs
-            from .metric import METRIC_UNITS
-            from .peaks import bound_peak_line
 
             peak = peak_attrs(model, B, spec.peaks.rtol)
-            print(bound_peak_line(peak["peak_upper"], peak["peak_upper_frequency"],
-                                  peak["peak_upper_refined"],
-                                  METRIC_UNITS[spec.metric.quantity]))
         bounds.write_bounds_file(out, cfg, B, peak=peak)
-        if peak is not None and "peak_upper_certified" in peak:
-            from .peaks import bound_peak, certified_peak_line
+        from .metric import METRIC_UNITS
+        from .peaks import bound_peak, bound_peak_lines
 
-            print(certified_peak_line(bound_peak(out)["certified_peak"],
-                                      METRIC_UNITS[spec.metric.quantity]))
+        for line in bound_peak_lines(bound_peak(out), METRIC_UNITS[spec.metric.quantity]):
+            print(line)
     finally:
         lock.release()
     print(f"bounds: {out}")
@@ -792,14 +787,9 @@ def cmd_info(args):
         lines += report_text(report, METRIC_UNITS[q])
     else:
         # a bounds file: the bound's peak alone, when it was refined
-        from .peaks import bound_peak, bound_peak_line, certified_peak_line
+        from .peaks import bound_peak, bound_peak_lines
 
-        pk = bound_peak(path)
-        if pk:
-            lines.append(bound_peak_line(pk["bound_peak"], pk["bound_peak_hz"],
-                                         pk["bound_peak_refined"], METRIC_UNITS[q]))
-        if "certified_peak" in pk:
-            lines.append(certified_peak_line(pk["certified_peak"], METRIC_UNITS[q]))
+        lines += bound_peak_lines(bound_peak(path), METRIC_UNITS[q])
     lines += indicator_report(path)
     from .bounds import read_bounds
     B = read_bounds(path)

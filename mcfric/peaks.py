@@ -299,28 +299,41 @@ def report_text(report, unit):
              f"one steady state near a peak"
              + (f" ({report['unchecked']} could not be checked)" if report["unchecked"]
                 else "")]
-    if "bound_peak" in report:
-        lines.append(bound_peak_line(report["bound_peak"], report["bound_peak_hz"],
-                                     report.get("bound_peak_refined", True), unit)
-                     + f"; largest member / bound {st['max'] / report['bound_peak']:.4g}")
-    if "certified_peak" in report:
-        lines.append(certified_peak_line(report["certified_peak"], unit))
+    return lines + bound_peak_lines(report, unit, st["max"])
+
+
+def bound_peak_lines(pk, unit, largest_member=None):
+    """The ``bound peak:`` lines of a summary, ``pk`` as :func:`bound_peak` gives it
+    (none where it is empty); ``largest_member`` (``unit``), when given, is compared with
+    the searched peak."""
+    if "bound_peak" not in pk:
+        return []
+    lines = [bound_peak_line(pk["bound_peak"], pk["bound_peak_hz"],
+                             pk.get("bound_peak_refined", True), unit)
+             + ("" if largest_member is None else
+                f"; largest member / bound {largest_member / pk['bound_peak']:.4g}")]
+    if "certified_peak" in pk:
+        lines.append(certified_peak_line(pk["certified_peak"], unit))
     return lines
 
 
 def certified_peak_line(cp, unit):
-    """The ``certified:`` line of a summary: the certified upper bound near the bound's
-    peak, ``cp`` as :func:`bound_peak` gives it (``certified_peak``), values in ``unit``."""
-    def value(x):
-        return "unbounded" if np.isinf(x) else f"{x:.4g} {unit}"
-
-    grid = (f" (the grid's: {value(cp['grid'])} at {cp['grid_frequency']:.5g} Hz)"
-            if "grid" in cp else "")
-    wit = (f"; a witness attains {value(cp['witness'])} at {cp['witness_frequency']:.5g} Hz"
-           if np.isfinite(cp["witness"]) else "; no witness")
-    return (f"certified:   largest certified upper bound {value(cp['certified'])} at "
-            f"{cp['certified_frequency']:.5g} Hz on a sub-grid {cp['peak_sub_grid_step']:.2g} "
-            f"Hz apart around the bound peak{grid}{wit}")
+    """The second ``bound peak:`` line of a summary (indented under the first): the worst
+    case on the sub-grid around the bound's peak, between the largest witness and the
+    largest certified upper bound; ``cp`` as :func:`bound_peak` gives it
+    (``certified_peak``), values in ``unit``."""
+    up = ("unbounded (a frequency not certified)" if np.isinf(cp["certified"])
+          else f"{cp['certified']:.4g} {unit} (certified)")
+    low = (f"{cp['witness']:.4g} {unit} (attained by a witness at "
+           f"{cp['witness_frequency']:.5g} Hz)" if np.isfinite(cp["witness"])
+           else "0 (no witness)")
+    grid = ("" if "grid" not in cp else
+            "; the grid's largest certified value anywhere: "
+            + ("unbounded" if np.isinf(cp["grid"]) else
+               f"{cp['grid']:.4g} {unit} at {cp['grid_frequency']:.5g} Hz"))
+    return (f"             certified: at the frequencies of a sub-grid "
+            f"{cp['peak_sub_grid_step']:.2g} Hz apart around it, the worst case lies between "
+            f"{low} and {up}; between them it is not certified{grid}")
 
 
 def bound_peak_line(value, hz, refined, unit):

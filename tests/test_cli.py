@@ -202,26 +202,37 @@ def test_bounds_file_holds_the_bound_peak_as_a_run_does(tmp_path, capsys):
 
 
 def test_certified_bound_near_the_peak_is_printed_stored_and_drawn(tmp_path, capsys):
-    """Certified bounds: ``mcfric bounds`` prints the ``certified:`` line of the sub-grid
-    around the bound's peak from the stored ``peak_upper_certified*``, ``mcfric info``
-    prints the same line, and the figure marks it."""
+    """Certified bounds: ``mcfric bounds`` prints, under the ``bound peak:`` line, the
+    worst case on the sub-grid around the peak from the stored ``peak_upper_certified*``
+    and ``peak_upper_witness*``; ``mcfric info`` prints the same lines, a run of the same
+    configuration stores and prints the same, and the figure marks it."""
     out = tmp_path / "b.h5"
-    rc, text, _ = call(["bounds", "two-beam", "--n-freq", "40", "--f-max", "25", "-o",
-                        str(out)], capsys)
+    grid = ["two-beam", "--n-freq", "40", "--f-max", "25"]
+    rc, text, _ = call(["bounds", *grid, "-o", str(out)], capsys)
     assert rc == 0
-    line = next(x for x in text.splitlines() if x.startswith("certified:"))
+    lines = text.splitlines()
+    k = next(i for i, x in enumerate(lines) if x.startswith("bound peak:"))
+    line = lines[k + 1]
     with h5py.File(out) as h:
         a = dict(h["bounds"].attrs)
-        grid = float(np.max(h["bounds/upper_certified"][...]))
+        grid_max = float(np.max(h["bounds/upper_certified"][...]))
     assert a["peak_upper_witness"] <= a["peak_upper_certified"]
-    assert (f"largest certified upper bound {a['peak_upper_certified']:.4g} m at "
-            f"{a['peak_upper_certified_frequency']:.5g} Hz") in line
-    assert f"(the grid's: {grid:.4g} m at " in line
-    assert f"a witness attains {a['peak_upper_witness']:.4g} m" in line
+    assert line.startswith("             certified: at the frequencies of a sub-grid ")
+    assert (f"between {a['peak_upper_witness']:.4g} m (attained by a witness at "
+            f"{a['peak_upper_witness_frequency']:.5g} Hz) and "
+            f"{a['peak_upper_certified']:.4g} m (certified)") in line
+    assert f"the grid's largest certified value anywhere: {grid_max:.4g} m at " in line
     rc, info, _ = call(["info", str(out)], capsys)
-    assert rc == 0 and line in info.splitlines()
+    assert rc == 0 and lines[k:k + 2] == [x for x in info.splitlines()
+                                          if x.startswith(("bound peak:", "             c"))]
     assert plot.results_figure(out, tmp_path / "b.png")["bound_peaks"] == ["searched",
                                                                             "certified"]
+    rc, text, _ = call(["run", *grid, "--samples", "4", "-o", str(tmp_path / "r.h5"),
+                        "--no-progress", "--no-figure"], capsys)
+    assert rc == 0 and line in text.splitlines()
+    with h5py.File(tmp_path / "r.h5") as h:
+        assert {k: h["bounds"].attrs[k] for k in a if k.startswith("peak_")} == \
+            {k: v for k, v in a.items() if k.startswith("peak_")}
 
 
 def test_no_progress_silences_the_certification_bars(tmp_path, monkeypatch, capsys):

@@ -198,8 +198,9 @@ def peak_attrs(model, B, rtol=1e-4):
         certified upper bound on the refinement's sub-grid ``peak_upper_certified`` (the
         metric's unit; inf where a sub-grid frequency was not certified) at
         ``peak_upper_certified_frequency`` (Hz), the largest witness there
-        ``peak_upper_witness`` at ``peak_upper_witness_frequency`` (NaN where none), and
-        the sub-grid's spacing ``peak_sub_grid_step`` (Hz).
+        ``peak_upper_witness`` at ``peak_upper_witness_frequency`` (both NaN where no
+        sub-grid frequency has a witness), and the sub-grid's spacing
+        ``peak_sub_grid_step`` (Hz).
     """
     f_pk, up_pk, ok, sub_f = _refine(model, B, rtol)
     out = {"peak_upper": np.float64(up_pk), "peak_upper_frequency": np.float64(f_pk),
@@ -208,6 +209,8 @@ def peak_attrs(model, B, rtol=1e-4):
         for name, v in zip(("certified", "witness"), certified_near_peak(model, B, sub_f)):
             i = int(np.argmax(np.nan_to_num(v, nan=-np.inf)))
             out[f"peak_upper_{name}"] = np.float64(v[i])
-            out[f"peak_upper_{name}_frequency"] = np.float64(sub_f[i])
+            # no witness at all: no frequency either
+            out[f"peak_upper_{name}_frequency"] = np.float64(sub_f[i] if not np.isnan(v[i])
+                                                             else np.nan)
         out["peak_sub_grid_step"] = np.float64(sub_f[1] - sub_f[0])
     return out
