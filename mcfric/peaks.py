@@ -411,4 +411,42 @@ def maximize(fun, lo, hi, m_lo, m_hi, rtol, n_sub=_kernel.N_SUB, max_steps=_kern
     return best, pts[best][0], pts[best][1], complete
 
 
-_INV_PHI = 0.6180339887498949
+_INV_PHI = _kernel._INV_PHI
+
+
+def golden_maximize(fun, lo, hi, rtol, x_rtol=1e-8, max_steps=80):
+    """Golden-section search for the largest ``fun(x)[0]`` on ``[lo, hi]``.
+
+    Returns the best point evaluated, its value and whether the search ended with a
+    bracket narrower than ``x_rtol`` times its centre whose two inner points' values are
+    within ``rtol / 4`` of the best (a failed evaluation ends it unconverged). Like any
+    golden-section search it assumes one maximum in ``[lo, hi]``, kink or not, where
+    :func:`maximize`'s parabolic steps assume a smooth peak (the upper bound's kink where
+    the force limit takes over from the box: :mod:`mcfric.bounds.peak`).
+    """
+
+    def key(t):                     # a failed (NaN) value never counts as the best
+        return t[0] if np.isfinite(t[0]) else -np.inf
+
+    r = _INV_PHI
+    a, b = lo, hi
+    c, d = b - r * (b - a), a + r * (b - a)
+    mc, md = fun(c)[0], fun(d)[0]
+    best = max((mc, c), (md, d), key=key)
+    for _ in range(max_steps):
+        if not (np.isfinite(mc) and np.isfinite(md)):
+            return best[1], best[0], False
+        if mc >= md:
+            b, d, md = d, c, mc
+            c = b - r * (b - a)
+            mc = fun(c)[0]
+            best = max(best, (mc, c), key=key)
+        else:
+            a, c, mc = c, d, md
+            d = a + r * (b - a)
+            md = fun(d)[0]
+            best = max(best, (md, d), key=key)
+        if b - a <= x_rtol * 0.5 * (a + b):
+            ok = min(mc, md) >= best[0] * (1.0 - 0.25 * rtol)
+            return best[1], best[0], bool(ok)
+    return best[1], best[0], False

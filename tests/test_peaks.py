@@ -132,18 +132,18 @@ def test_the_upper_bound_peak_equals_a_dense_search(name, F0):
 
 
 def test_golden_section_finds_a_kink_and_skips_a_failed_first_point():
-    """``_golden`` on the smaller of a rising and a falling line (a kink at 16.3385 Hz,
+    """``golden_maximize`` on the smaller of a rising and a falling line (a kink at 16.3385 Hz,
     the shape where the force limit meets the box): the kink within 1e-8 Hz and
     converged; a NaN at the first inner point is not taken for the best; a NaN at every
     point ends unconverged."""
-    from mcfric.bounds.peak import _golden
+    from mcfric.peaks import golden_maximize
 
     top = 16.3385
 
     def kink(x):
         return min(1.0 + 0.5 * (x - top), 1.0 - 40.0 * (x - top)), None
 
-    x, m, ok = _golden(kink, 16.30, 16.36, 1e-4)
+    x, m, ok = golden_maximize(kink, 16.30, 16.36, 1e-4)
     assert ok and abs(x - top) <= 1e-8 and m == pytest.approx(1.0, rel=1e-8)
     first = []
 
@@ -151,9 +151,9 @@ def test_golden_section_finds_a_kink_and_skips_a_failed_first_point():
         first.append(x)
         return (np.nan, None) if len(first) == 1 else kink(x)
 
-    x, m, ok = _golden(nan_first, 16.30, 16.36, 1e-4)
+    x, m, ok = golden_maximize(nan_first, 16.30, 16.36, 1e-4)
     assert np.isfinite(m) and not ok and x == first[1]
-    x, m, ok = _golden(lambda x: (np.nan, None), 16.30, 16.36, 1e-4)
+    x, m, ok = golden_maximize(lambda x: (np.nan, None), 16.30, 16.36, 1e-4)
     assert not ok and not np.isfinite(m)
 
 

@@ -24,7 +24,7 @@ import numpy as np
 
 from ..core.receptance import contact_space
 from ..metric import QUANTITIES
-from ..peaks import maximize
+from ..peaks import golden_maximize, maximize
 from .equivalent_linear import MAX_SWEEPS, MAX_SWEEPS_FRACTION_MAX, compute_bounds, upper_bound
 
 _CORNERS = np.array([0, 1, 1 + 1j, 1j])
@@ -103,7 +103,7 @@ def _refine(model, B, rtol):
     # bound has a kink there, which misleads parabolic steps: a golden-section search of
     # the same bracket (unimodal functions, kinks included) is kept where it finds more
     if len(set(S.limited_by[[j_lo, j, j_hi]].tolist())) > 1:
-        xg, mg, okg = _golden(upper_at, float(sub_f[j_lo]), float(sub_f[j_hi]), rtol)
+        xg, mg, okg = golden_maximize(upper_at, float(sub_f[j_lo]), float(sub_f[j_hi]), rtol)
         if np.isfinite(mg) and mg > m:
             x, m, ok = xg, mg, okg
     return float(x), float(m), ok, sub_f
@@ -147,42 +147,6 @@ def certified_near_peak(model, B, sub_f):
             up[again] = np.fmin(up[again], T.upper)
             wit[again] = np.fmax(wit[again], T.upper_witness)
     return up, wit
-
-
-def _golden(fun, lo, hi, rtol, x_rtol=1e-8, max_steps=80):
-    """Golden-section search for the largest ``fun(x)[0]`` on ``[lo, hi]``.
-
-    Returns the best point evaluated, its value and whether the search ended with a
-    bracket narrower than ``x_rtol`` times its centre whose two inner points' values are
-    within ``rtol / 4`` of the best (a failed evaluation ends it unconverged). Like any
-    golden-section search it assumes one maximum in ``[lo, hi]``, kink or not.
-    """
-
-    def key(t):                     # a failed (NaN) value never counts as the best
-        return t[0] if np.isfinite(t[0]) else -np.inf
-
-    r = (np.sqrt(5.0) - 1.0) / 2.0
-    a, b = lo, hi
-    c, d = b - r * (b - a), a + r * (b - a)
-    mc, md = fun(c)[0], fun(d)[0]
-    best = max((mc, c), (md, d), key=key)
-    for _ in range(max_steps):
-        if not (np.isfinite(mc) and np.isfinite(md)):
-            return best[1], best[0], False
-        if mc >= md:
-            b, d, md = d, c, mc
-            c = b - r * (b - a)
-            mc = fun(c)[0]
-            best = max(best, (mc, c), key=key)
-        else:
-            a, c, mc = c, d, md
-            d = a + r * (b - a)
-            md = fun(d)[0]
-            best = max(best, (md, d), key=key)
-        if b - a <= x_rtol * 0.5 * (a + b):
-            ok = min(mc, md) >= best[0] * (1.0 - 0.25 * rtol)
-            return best[1], best[0], bool(ok)
-    return best[1], best[0], False
 
 
 def peak_attrs(model, B, rtol=1e-4):
