@@ -106,7 +106,8 @@ def _parser():
     _order_flags(r)
     _model_flags(r)
     _harmonic_flags(r)
-    r.add_argument("--no-progress", action="store_true", help="no progress bar")
+    r.add_argument("--no-progress", action="store_true",
+                   help="no progress bars (the run's and the certification's)")
     r.add_argument("--skip-space-check", action="store_true",
                    help="start even if the results file looks too large for the free disk "
                         "space")

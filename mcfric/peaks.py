@@ -210,7 +210,8 @@ def file_report(path):
         (members with a fold), ``unchecked`` (members whose fold check failed),
         ``members``, ``unresolved`` (members with a peak not refined: their largest is a
         lower estimate, and they are left out of ``grid_ratio``), and the bound's peak
-        ``bound_peak``, ``bound_peak_hz``, ``bound_peak_refined`` when the file has bounds.
+        ``bound_peak``, ``bound_peak_hz``, ``bound_peak_refined`` (and, where certified,
+        ``certified_peak``) when the file has them (:func:`bound_peak`).
     """
     from .store import dataset_names, iter_records
 
@@ -325,15 +326,15 @@ def certified_peak_line(cp, unit):
     up = ("unbounded (a frequency not certified)" if np.isinf(cp["certified"])
           else f"{cp['certified']:.4g} {unit} (certified)")
     low = (f"{cp['witness']:.4g} {unit} (attained by a witness at "
-           f"{cp['witness_frequency']:.5g} Hz)" if np.isfinite(cp["witness"])
+           f"{cp['witness_frequency']:.6g} Hz)" if np.isfinite(cp["witness"])
            else "0 (no witness)")
     grid = ("" if "grid" not in cp else
             "; the grid's largest certified value anywhere: "
             + ("unbounded" if np.isinf(cp["grid"]) else
-               f"{cp['grid']:.4g} {unit} at {cp['grid_frequency']:.5g} Hz"))
+               f"{cp['grid']:.4g} {unit} at {cp['grid_frequency']:.6g} Hz"))
     return (f"             certified: at the frequencies of a sub-grid "
-            f"{cp['peak_sub_grid_step']:.2g} Hz apart around it, the worst case lies between "
-            f"{low} and {up}; between them it is not certified{grid}")
+            f"{cp['peak_sub_grid_step']:.2g} Hz apart around it (only there), the worst case "
+            f"is at least {low} and at most {up}{grid}")
 
 
 def bound_peak_line(value, hz, refined, unit):
@@ -417,12 +418,17 @@ _INV_PHI = _kernel._INV_PHI
 def golden_maximize(fun, lo, hi, rtol, x_rtol=1e-8, max_steps=80):
     """Golden-section search for the largest ``fun(x)[0]`` on ``[lo, hi]``.
 
-    Returns the best point evaluated, its value and whether the search ended with a
-    bracket narrower than ``x_rtol`` times its centre whose two inner points' values are
-    within ``rtol / 4`` of the best (a failed evaluation ends it unconverged). Like any
+    ``fun(x)`` returns ``(m, extra)``; NaN ``m`` counts as a failure. Like any
     golden-section search it assumes one maximum in ``[lo, hi]``, kink or not, where
     :func:`maximize`'s parabolic steps assume a smooth peak (the upper bound's kink where
     the force limit takes over from the box: :mod:`mcfric.bounds.peak`).
+
+    Returns
+    -------
+    (x, m, complete)
+        The best point evaluated, its value, and whether the search ended with a bracket
+        narrower than ``x_rtol`` times its centre whose two inner points' values are
+        within ``rtol / 4`` of the best (a failed evaluation ends it unconverged).
     """
 
     def key(t):                     # a failed (NaN) value never counts as the best

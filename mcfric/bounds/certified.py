@@ -718,7 +718,8 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
         (the upper bound's but near the beam) tighten them.
     progress : bool or None
         Progress bars on stderr for the stages that take long (the splitting of the box,
-        the second-order relaxations): None (default) on a terminal only, False never.
+        the second-order relaxations): None (default) on a terminal only, False never,
+        True always.
 
     Returns
     -------

@@ -242,7 +242,7 @@ def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity
         docs/bounds.md); True: an error where it cannot run.
     progress : bool or None
         Progress bars of the certification on stderr: None (default) on a terminal only,
-        False never.
+        False never, True always.
 
     Returns
     -------

@@ -13,9 +13,8 @@ finds more. Like the bound itself, the refined peak is the result of a search.
 Where the bounds were certified, the sub-grid is certified too
 (:func:`certified_near_peak`): the largest certified upper bound on it and the largest
 witness (attained by an admissible set of describing functions) bracket the worst case
-near the peak, as far as the sub-grid samples it. The grid alone can miss much of it:
-on ``disk-24`` the certified bound's largest grid value is a quarter below its largest
-sub-grid value.
+near the peak, as far as the sub-grid samples it; the grid alone can miss much of it
+(measured: the docs' peaks page).
 """
 
 from __future__ import annotations
@@ -124,6 +123,15 @@ def certified_near_peak(model, B, sub_f):
     the first order leaves the bound above the largest witness by more than the
     certificate's tolerance (nowhere near the first resonance of the presets: the
     docs' peaks page).
+
+    Parameters
+    ----------
+    model : Model
+        The model the bounds ``B`` were computed for.
+    B : Bounds
+        Certified bounds (their certificate's settings are reused).
+    sub_f : ndarray, shape (n,)
+        Frequencies, Hz.
 
     Returns
     -------
