@@ -772,14 +772,18 @@ def cmd_info(args):
         f"{m['topology']}; "
         f"excitation {ex['pattern']}, F0 = {ex['F0']:g} N",
         f"frequencies: {fr['n']}, {fr['f_min']:g} to {fr['f_max']:g} Hz ({fr['spacing']})",
-        f"sampling:    {n} samples, seed {sa['seed']}; mu0 ~ {dist(sa['mu0'])}, "
-        f"kc ~ {dist(sa['kc'])} N/m, N0 ~ {dist(sa['N0'])} N"
+        (f"sampling:    {n} samples, seed {sa['seed']}; " if n else
+         "sampling:    none (a bounds file: no members); the bounds' limits from ")
+        + f"mu0 ~ {dist(sa['mu0'])}, kc ~ {dist(sa['kc'])} N/m, N0 ~ {dist(sa['N0'])} N"
         + (f", mistuning {sa['mistuning']:g} per {sa['mistuning_per']}"
            if sa["mistuning"] else ""),
-        f"converged:   {pts - bad:,} of {pts:,} points ({bad:,} not converged)",
-        (f"metric:      {q} {METRIC_UNITS[q]}, {lo:.4g} to {hi:.4g}" if lo <= hi
-         else f"metric:      {q}, no converged points"),
     ]
+    if n:
+        lines += [f"converged:   {pts - bad:,} of {pts:,} points ({bad:,} not converged)",
+                  (f"metric:      {q} {METRIC_UNITS[q]}, {lo:.4g} to {hi:.4g}" if lo <= hi
+                   else f"metric:      {q}, no converged points")]
+    else:
+        lines.append(f"metric:      {q} {METRIC_UNITS[q]}")
     if nan:
         lines.append(f"WARNING:     {nan:,} points marked converged hold no finite metric "
                      "(the file was edited or damaged; they are left out above)")

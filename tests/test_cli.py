@@ -184,6 +184,9 @@ def test_bounds_file_holds_the_bound_peak_as_a_run_does(tmp_path, capsys):
     assert f"searched upper bound {a['peak_upper']:.4g} m at " in line and "(refined)" in line
     rc, info, _ = call(["info", str(out)], capsys)
     assert rc == 0 and line in info.splitlines()
+    # a bounds file holds no members: info says so rather than '0 of 0 points'
+    assert "sampling:    none (a bounds file: no members)" in info
+    assert "converged:" not in info and "metric:      displacement m\n" in info
     # a run of the same configuration stores the same peak
     rc, _, _ = call(["run", "two-beam", "--n-freq", "60", "--samples", "4", "--no-certify",
                      "-o", str(tmp_path / "r.h5"), "--no-progress", "--no-figure"], capsys)
