@@ -16,12 +16,15 @@ import numpy as np
 from .core import peaks as _kernel
 from .metric import QUANTITIES, check_beams, check_quantity
 from .model import CONTACT_LAWS
+from .quantiles import quantile_interval
 from .validators import integer, real
 
 #: Default relative tolerance of a refined peak's amplitude.
 RTOL = 1e-4
 #: Default number of grid points swept downward on each side of a peak.
 WINDOW = 3
+#: Coverage of the confidence intervals of the peak statistics in the summaries.
+CONFIDENCE = 0.95
 #: Status and fold codes (see :mod:`mcfric.core.peaks`).
 REFINED, AT_EDGE, GRID, NONE = (_kernel.PEAK_REFINED, _kernel.PEAK_AT_EDGE,
                                 _kernel.PEAK_GRID, _kernel.PEAK_NONE)
@@ -172,25 +175,35 @@ def refine(model, result, omega, modal_freq_hz, settings, mu0, N0, kc, tol, max_
                  take(out_md, order, 1))
 
 
-def statistics(largest):
-    """Median, 95th percentile and maximum of the members' largest peaks (NaN ignored).
+def statistics(largest, confidence=CONFIDENCE):
+    """Median, 95th percentile and maximum of the members' largest peaks (NaN ignored),
+    with distribution-free confidence intervals of the first two.
 
     Parameters
     ----------
     largest : array_like, shape (n_s,)
         Each member's largest peak of the metric.
+    confidence : float
+        Least coverage of the intervals (:func:`mcfric.quantiles.quantile_interval`).
 
     Returns
     -------
     dict
-        ``members`` (with a peak), ``median``, ``p95``, ``max``.
+        ``members`` (with a peak), ``median``, ``p95``, ``max`` (the metric's unit),
+        ``median_ci`` and ``p95_ci`` (two members' values holding the population's
+        median, or 95th percentile, with at least ``confidence``; ``inf`` on a side too
+        few members close) and ``confidence``.
     """
     v = np.asarray(largest, dtype=float)
     v = v[np.isfinite(v)]
     if v.size == 0:
-        return {"members": 0, "median": np.nan, "p95": np.nan, "max": np.nan}
+        nan2 = (np.nan, np.nan)
+        return {"members": 0, "median": np.nan, "p95": np.nan, "max": np.nan,
+                "median_ci": nan2, "p95_ci": nan2, "confidence": confidence}
     return {"members": int(v.size), "median": float(np.median(v)),
-            "p95": float(np.percentile(v, 95)), "max": float(v.max())}
+            "p95": float(np.percentile(v, 95)), "max": float(v.max()),
+            "median_ci": quantile_interval(v, 0.5, confidence),
+            "p95_ci": quantile_interval(v, 0.95, confidence), "confidence": confidence}
 
 
 def unresolved(status, metric):
@@ -290,8 +303,9 @@ def report_text(report, unit):
     share = (f"the grid's maximum is {report['grid_ratio']:.3g} of the refined peak, median"
              + (f" of the {st['members'] - k} fully refined" if k else "")
              if st["members"] > k else "none fully refined")
-    lines = [f"peaks:       each member's largest, refined: median {st['median']:.4g}, "
-             f"95th percentile {st['p95']:.4g}, max {st['max']:.4g} {unit} "
+    lines = [f"peaks:       each member's largest, refined: median {st['median']:.4g}"
+             f"{_interval(st, 'median_ci')}, 95th percentile {st['p95']:.4g}"
+             f"{_interval(st, 'p95_ci')}, max {st['max']:.4g} {unit} "
              f"({st['members']} members; {share})"
              + (f"; {k} of these {'is a lower estimate' if k == 1 else 'are lower estimates'}"
                 f": a peak of the member was not refined (a solver failed near it) and may "
@@ -301,6 +315,17 @@ def report_text(report, unit):
              + (f" ({report['unchecked']} could not be checked)" if report["unchecked"]
                 else "")]
     return lines + bound_peak_lines(report, unit, st["max"])
+
+
+def _interval(st, key):
+    """`` (lo-hi, 95 % conf.)``: the confidence interval of a statistic as the summary
+    prints it (``above lo`` where too few members close its upper side; empty where
+    there is none)."""
+    lo, hi = st.get(key, (np.nan, np.nan))
+    pct = f"{100 * st.get('confidence', CONFIDENCE):g} % conf."
+    if not np.isfinite(lo):
+        return ""
+    return f" ({lo:.4g}-{hi:.4g}, {pct})" if np.isfinite(hi) else f" (above {lo:.4g}, {pct})"
 
 
 def bound_peak_lines(pk, unit, largest_member=None):

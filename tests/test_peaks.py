@@ -260,6 +260,29 @@ def test_report_with_every_member_a_lower_estimate_prints_no_nan():
     assert "; 1 of these is a lower estimate: " in report_text(rep, "m")[0]
 
 
+def test_report_prints_the_confidence_intervals_of_median_and_p95():
+    from scipy import stats
+
+    from mcfric.peaks import report_text, statistics
+
+    if not hasattr(stats, "quantile_test"):
+        pytest.skip("scipy.stats.quantile_test is newer than this scipy")
+    x = np.random.default_rng(5).lognormal(-5.0, 0.3, 2000)
+    rep = {"statistics": statistics(x), "grid_ratio": 0.7, "unresolved": 0,
+           "members": 2000, "folds": 0, "unchecked": 0}
+    line = report_text(rep, "m")[0]
+    for name, p in (("median", 0.5), ("95th percentile", 0.95)):
+        ci = stats.quantile_test(x, q=0.0, p=p).confidence_interval(0.95)
+        m = re.search(rf"{name} \S+ \(([0-9.e-]+)-([0-9.e-]+), 95 % conf\.\)", line)
+        assert m, line
+        assert float(m[1]) == pytest.approx(ci.low, rel=1e-3)
+        assert float(m[2]) == pytest.approx(ci.high, rel=1e-3)
+    # 20 members cannot close the 95th percentile's upper side: said, not a number
+    rep["statistics"] = statistics(x[:20])
+    assert re.search(r"95th percentile \S+ \(above \S+, 95 % conf\.\)",
+                     report_text(rep, "m")[0])
+
+
 def _naive_sweep(model, freqs, mu0, kc, N0, law):
     """A stepped sine with tests/naive.py: each frequency solved from the previous root."""
     beams, pairs, force = naive_beams(model), naive_pairs(model), model.force

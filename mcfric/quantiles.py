@@ -1,0 +1,59 @@
+"""Distribution-free confidence intervals of a quantile from a sample.
+
+The number of members below the population's ``p``-quantile ``xi_p`` is binomial,
+``B ~ Bin(n, p)``, whatever the distribution (continuous or not). For order statistics
+``x_(l) <= x_(u)`` (1-based) of the sorted sample,
+
+    P(x_(l) <= xi_p <= x_(u)) >= P(l <= B <= u - 1),
+
+so choosing ``l`` and ``u`` with at most ``(1 - confidence) / 2`` of the binomial's mass
+on each side gives an interval that holds ``xi_p`` with at least that confidence. No
+shape is assumed; the members must be independent draws (each member of an ensemble has
+its own random stream). Where the sample is too small for a side (``l < 1`` or
+``u > n``), that side is open (``-inf`` or ``inf``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import stats
+
+
+def quantile_interval(values, p, confidence=0.95):
+    """Confidence interval of the ``p``-quantile of the population behind ``values``.
+
+    Parameters
+    ----------
+    values : array_like, shape (n,)
+        Independent draws (NaN are left out), any unit.
+    p : float
+        Probability of the quantile, ``0 < p < 1`` (0.95: the 95th percentile).
+    confidence : float
+        Least coverage of the interval, ``0 < confidence < 1``.
+
+    Returns
+    -------
+    (float, float)
+        Two order statistics of ``values`` (their unit) that hold the quantile with at
+        least ``confidence``; ``-inf`` or ``inf`` on a side the sample cannot close, both
+        NaN for an empty sample.
+    """
+    if not 0.0 < p < 1.0 or not 0.0 < confidence < 1.0:
+        raise ValueError(f"quantile_interval: expected 0 < p, confidence < 1, got {p!r}, "
+                         f"{confidence!r}")
+    x = np.sort(np.asarray(values, dtype=float).ravel())
+    x = x[np.isfinite(x)] if x.size else x
+    n = x.size
+    if n == 0:
+        return float("nan"), float("nan")
+    tail = 0.5 * (1.0 - confidence)
+    k = np.arange(n + 2)
+    # the largest l with P(B <= l - 1) <= tail, the smallest u with P(B >= u) <= tail
+    below = stats.binom.cdf(k - 1, n, p)
+    above = stats.binom.sf(k - 1, n, p)
+    l_ok = np.flatnonzero(below <= tail)
+    u_ok = np.flatnonzero(above <= tail)
+    lo = int(l_ok[-1]) if l_ok.size else 0
+    hi = int(u_ok[0]) if u_ok.size else n + 1
+    return (float(x[lo - 1]) if lo >= 1 else -np.inf,
+            float(x[hi - 1]) if hi <= n else np.inf)

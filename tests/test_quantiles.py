@@ -1,0 +1,45 @@
+"""Confidence intervals of quantiles: coverage by simulation, and scipy's quantile test."""
+
+import numpy as np
+import pytest
+from scipy import stats
+
+from mcfric.quantiles import quantile_interval
+
+
+@pytest.mark.parametrize("n, p", [(30, 0.5), (200, 0.95), (2000, 0.95)])
+def test_intervals_hold_the_true_quantile_at_least_as_often_as_claimed(n, p):
+    # known populations, one continuous and one with ties (a plateau, as the two-beam
+    # members' peaks have): the interval must hold the true quantile in >= 95 % of draws
+    rng = np.random.default_rng(7)
+    trials = 1500
+    for draw, true in ((lambda: rng.lognormal(size=n), np.exp(stats.norm.ppf(p))),
+                       (lambda: np.where(rng.random(n) < 0.955, 1.0, 1.0 + rng.random(n)),
+                        1.0)):
+        hits = 0
+        for _ in range(trials):
+            lo, hi = quantile_interval(draw(), p, 0.95)
+            hits += lo <= true <= hi
+        # the binomial's 3-sigma margin below 95 %
+        assert hits / trials >= 0.95 - 3 * np.sqrt(0.95 * 0.05 / trials)
+
+
+def test_intervals_equal_scipys_quantile_test():
+    if not hasattr(stats, "quantile_test"):
+        pytest.skip("scipy.stats.quantile_test is newer than this scipy")
+    rng = np.random.default_rng(3)
+    for n in (15, 120, 2000):
+        x = rng.gamma(2.0, size=n)
+        for p in (0.5, 0.9, 0.95):
+            ref = stats.quantile_test(x, q=np.median(x), p=p).confidence_interval(0.95)
+            lo, hi = quantile_interval(x, p, 0.95)
+            assert lo == ref.low
+            # scipy gives NaN where the sample cannot close the upper side
+            assert hi == ref.high or (np.isnan(ref.high) and hi == np.inf)
+
+
+def test_small_empty_and_bad_input():
+    assert quantile_interval([1.0, 2.0], 0.95) == (1.0, np.inf)
+    assert all(np.isnan(quantile_interval([np.nan], 0.5)))
+    with pytest.raises(ValueError, match="0 < p"):
+        quantile_interval([1.0], 1.0)
