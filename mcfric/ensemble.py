@@ -212,10 +212,14 @@ def layout(spec):
                     "beam_a": a + 1, "beam_b": b + 1}),
     }
     P = (RECORD, "damper")
+    H = spec.solver.harmonics
+    # with H > 1 the amplitudes stored are the fundamental's (response_peak: the full
+    # period's peak)
+    fund = "" if H == 1 else f" of the fundamental (odd harmonics 1..{H} balanced)"
     variables = {
         "metric": ((RECORD, "frequency"), np.float64,
                    {"units": METRIC_UNITS[q],
-                    "long_name": f"max over beams of the {q} amplitude at the output "
+                    "long_name": f"max over beams of the {q} amplitude{fund} at the output "
                                  f"position; NaN where not converged",
                     "quantity": q, "beams": json.dumps(spec.metric.beams_label)}),
         "converged": ((RECORD, "frequency"), np.bool_,
@@ -227,14 +231,15 @@ def layout(spec):
     if spec.keep_response and spec.response_format == "amplitude":
         variables = {"amplitude": ((RECORD, "frequency", "beam"), np.float32,
                                    {"units": "m", "long_name":
-                                    "displacement amplitude |X| at the output position "
-                                    "(float32); NaN where not converged"}),
+                                    f"displacement amplitude |X|{fund} at the output "
+                                    f"position (float32); NaN where not converged"}),
                      **variables}
     elif spec.keep_response:
         variables = {"response": ((RECORD, "frequency", "beam"), np.complex128,
                                   {"units": "m", "long_name":
-                                   "complex displacement amplitude at the output position, "
-                                   "x(t) = Re{X exp(i omega t)}; NaN where not converged"}),
+                                   f"complex displacement amplitude{fund} at the output "
+                                   f"position, x{'' if H == 1 else '1'}(t) = "
+                                   f"Re{{X exp(i omega t)}}; NaN where not converged"}),
                      **variables}
     if spec.peaks:
         pk = (RECORD, "peak")

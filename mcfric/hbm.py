@@ -50,15 +50,19 @@ class HBMResult:
         (``x(t) = Re{X e^{i omega t}}``). NaN where not converged.
     s : ndarray, shape (n_s, n_f, nd)
         Slip ratio ``mu0 N0 / (kc A)`` per damper (>= 1: stuck). NaN where not converged;
-        0 for a damper with ``mu0 N0 = 0``, inf for one with ``kc = 0``.
+        0 for a damper with ``mu0 N0 = 0``, inf for one with ``kc = 0``. With
+        ``harmonics > 1``, ``A`` is the fundamental's amplitude ``|Q_j1|``: ``s >= 1`` then
+        only suggests a stuck damper (higher harmonics add to the motion).
     status : ndarray of int8, shape (n_s, n_f)
         0 converged, 1 converged after a restart, 2 by the last-resort solver,
         -1 not converged.
     iterations : ndarray of int16, shape (n_s, n_f)
     residual : ndarray, shape (n_s, n_f)
-        ``max_j |s_j kc_j A_j / (mu0_j N0_j) - 1|`` of the returned point (single
-        harmonic: over the sliding dampers; ``inf`` where not finite, and where a point
-        that did not converge would show a passing value).
+        Single harmonic: ``max_j |s_j kc_j A_j / (mu0_j N0_j) - 1|`` of the returned
+        point over the sliding dampers; ``inf`` where not finite, and where a point that
+        did not converge would show a passing value. With ``harmonics > 1``: the largest
+        modulus of the balance equations' residual over the largest ``|Q_j1|`` or
+        ``|q0_j|`` (a relative displacement error, -).
     mu0, kc, N0 : ndarray, shape (n_s, nd)
         The parameters solved for (N0 in N, kc in N/m).
     peaks : Peaks or None
@@ -203,6 +207,10 @@ def solve(model, freq_hz, mu0, kc, N0=0.5, *, modal_freq_hz=None, tol=TOL,
     if peaks is not None and np.any(np.diff(f) <= 0):
         raise ValueError("peaks: refinement needs increasing frequencies")
     harmonics, n_time = check_harmonics(harmonics, n_time)
+    if model.contact_law != "coulomb" and (harmonics > 1 or aft or indicator):
+        # the AFT and the indicator evaluate the Jenkins (Coulomb) element only
+        raise ValueError(f"contact_law = {model.contact_law!r}: harmonics > 1, aft and "
+                         f"indicator are for the coulomb law only")
     if peaks is not None and (harmonics > 1 or aft):
         raise ValueError("peaks: refinement is single-harmonic only (harmonics = 1)")
     with threads(n_threads):

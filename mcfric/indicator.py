@@ -32,10 +32,16 @@ def file_report(path):
 
     attrs = read_attrs(path)
     H = int(attrs.get("harmonics", 1))
+    names = dataset_names(path)
     if H > 1:
-        return [f"harmonics:   odd harmonics 1..{H} balanced (multi-harmonic); response is "
-                "the fundamental, response_peak the full-period peak"]
-    if "harmonic_indicator" not in dataset_names(path):
+        stored = next((n for n in ("response", "amplitude") if n in names), None)
+        what = [f"metric and {stored} hold the fundamental" if stored else
+                "metric holds the fundamental"]
+        if "response_peak" in names:
+            what.append("response_peak the full-period peak")
+        return [f"harmonics:   odd harmonics 1..{H} balanced (multi-harmonic); "
+                + ", ".join(what)]
+    if "harmonic_indicator" not in names:
         return []
     flagged = total = 0
     worst = []          # (indicator, member, frequency index)
@@ -56,8 +62,9 @@ def file_report(path):
     if not total:
         return []
     lines = [f"harmonics:   single-harmonic; {flagged:,} of {total:,} converged points "
-             f"({100.0 * flagged / total:.3g} %) have higher harmonics above "
-             f"{INDICATOR_THRESHOLD:g} of the fundamental (harmonic_indicator)"]
+             f"({100.0 * flagged / total:.3g} %) may have higher harmonics above "
+             f"{INDICATOR_THRESHOLD:g} of the fundamental (harmonic_indicator, an upper "
+             f"estimate)"]
     if flagged and attrs.get("complete") == 1:   # member numbers need every row done
         freq = read(path, "frequency")
         worst = sorted(worst, reverse=True)[:SHOWN]

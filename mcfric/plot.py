@@ -78,7 +78,8 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
         ``n_peaks_unrefined`` (drawn member peaks left at their grid values) and
         ``bound_peaks`` (the bound's peaks marked: ``"searched"``, the refined peak of
         the searched upper bound, and ``"certified"``, the largest certified upper bound
-        on the sub-grid around it): what was drawn.
+        on the sub-grid around it), ``legend`` (its entries) and ``ylabel``: what was
+        drawn.
     """
     from matplotlib.collections import LineCollection
 
@@ -100,6 +101,7 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
     fig = _figure((8, 6.0))      # the extra height holds the legend below the axes
     ax = fig.add_subplot()
     n = int(attrs.get("samples", 0))
+    harmonics = int(attrs.get("harmonics", 1))
     drawn = 0
     names = dataset_names(path)
     mark = indicator and "harmonic_indicator" in names
@@ -182,11 +184,14 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
             # searched bounds only (--no-certify): the paper's construction, a search
             up = B.upper[win] * scale[win]
             lo = B.lower[win] * scale[win]
-            label = " (searched)"
+            label = " (searched"
         else:
             up = C.upper[win] * scale[win]
             lo = C.lower[win] * scale[win]
-            label = " (certified)"
+            label = " (certified"
+        # the bounds rest on the describing function: with H > 1 they are the
+        # single-harmonic model's, the members' curves the fundamentals
+        label += ", single-harmonic model)" if harmonics > 1 else ")"
         up = np.where(np.isfinite(up), up, np.nan)
         band = lo, up
         ax.plot(fw, up, color="tab:blue", lw=2.0, label="upper bound" + label)
@@ -243,7 +248,8 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
         ax.set_ylim(bottom, top)
     ax.set_xlabel("frequency [Hz]")
     unit = _mathtext(METRIC_UNITS[quantity])
-    ax.set_ylabel(f"{quantity} amplitude M [{unit}]")
+    ax.set_ylabel(f"{quantity} amplitude M [{unit}]" if harmonics == 1 else
+                  f"{quantity} amplitude M of the fundamental, H = {harmonics} [{unit}]")
     if title is None:
         name = attrs.get("model_name", "")
         cfg = _config(attrs)
@@ -268,7 +274,8 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
     fig.savefig(out, dpi=150)
     return {"n_members": n if drawn else 0, "n_drawn": drawn, "has_bounds": B is not None,
             "n_flagged": int(flagged_at.sum()), "n_not_converged": n_failed,
-            "n_peaks_unrefined": n_unrefined, "bound_peaks": marked}
+            "n_peaks_unrefined": n_unrefined, "bound_peaks": marked,
+            "legend": list(labels), "ylabel": ax.get_ylabel()}
 
 
 def _config(attrs):

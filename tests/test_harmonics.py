@@ -127,6 +127,30 @@ def test_a_beam_at_rest_has_no_relative_differences(two_beam):
     assert "nan" not in text and text.splitlines()[-1].split()[2] == "-"
 
 
+@pytest.mark.parametrize("kwargs", [dict(harmonics=3), dict(aft=True),
+                                    dict(indicator=True)])
+def test_the_aft_paths_refuse_a_law_they_do_not_evaluate(two_beam, kwargs):
+    """The AFT, the indicator and the integrator know the Jenkins element only: a cubic
+    contact gave Coulomb answers with status 0 before."""
+    import dataclasses
+
+    cubic = dataclasses.replace(two_beam, contact_law="cubic")
+    with pytest.raises(ValueError, match="coulomb law only"):
+        hbm.solve(cubic, [30.0], 0.5, 6000.0, **kwargs)
+    with pytest.raises(ValueError, match="coulomb law only"):
+        verify(cubic, 30.0, 0.5, 6000.0)
+    hbm.solve(cubic, [30.0], 0.5, 6000.0)          # the single-harmonic dense kernel
+
+
+def test_stuck_contacts_give_no_third_harmonic_difference(two_beam):
+    """Stuck at 20 Hz (two-beam, mu0 = 0.5): the integration's 3rd harmonic is rounding
+    noise and the balance's exactly 0; their relative difference would read -100 %."""
+    v, = verify(two_beam, 20.0, 0.5, 6000.0, 0.5, harmonics=3, max_periods=3)
+    d1, dm, d3 = v.differences()
+    assert np.all(np.abs(v.harmonics[1]) < 1e-9 * np.abs(v.harmonics[0]))
+    assert np.isnan(d3).all() and np.isfinite(dm).all()
+
+
 @pytest.mark.parametrize("kwargs, starts", [
     (dict(hb_tol=0.0), "hb_tol: expected a number in (0, 1)"),     # solve() blamed "tol"
     (dict(hb_tol="1e-8"), "hb_tol"),
@@ -138,25 +162,47 @@ def test_verify_names_its_harmonic_balance_settings(two_beam, kwargs, starts):
     assert str(e.value).startswith(starts)
 
 
-# drive frequencies across 10-150 Hz, with the 3:1 and 5:1 region 17-40 Hz
-POINTS = [("two-beam", 0.3, 3000.0, [17.0, 35.3, 60.0]),
-          ("eight-beam", 0.5, 6000.0, [17.5, 21.0, 37.5, 120.0])]
+# points where the contacts slip (stuck contacts are linear and would pass trivially),
+# 17-106 Hz, with the 5:1 (21.16 Hz) and 3:1 (35.3 Hz) resonances of two-beam
+POINTS = [("two-beam", 0.03, 15000.0, [17.0, 21.16, 35.3, 60.0]),
+          ("eight-beam", 0.5, 6000.0, [17.5, 21.0, 37.5, 106.0])]
+#: Where the integration settles with a static offset that depends on its start (docs:
+#: harmonics, "Why odd harmonics only"): the even content is not checked there.
+STATIC_OFFSET = {("eight-beam", 21.0)}
 
 
 @pytest.mark.parametrize("name, mu0, kc, freqs", POINTS, ids=[p[0] for p in POINTS])
 def test_multi_harmonic_agrees_with_time_integration(name, mu0, kc, freqs):
     model = mcfric.preset(name)
+    single = hbm.solve(model, freqs, mu0, kc, 0.5)
+    assert single.converged.all() and np.all(single.s.min(axis=2) < 1.0)   # slipping
     vs = verify(model, freqs, mu0, kc, 0.5, harmonics=9)
-    settled = [v for v in vs if v.periodic]
-    assert len(settled) >= len(vs) - 1, [v.freq_hz for v in vs if not v.periodic]
-    for v in settled:
+    for v in vs:
+        assert v.periodic, v.table()
         td1, td3 = v.harmonics[0], v.harmonics[1]
         m1, m3 = v.multi[0], v.multi[1]
-        scale1 = np.max(abs(td1))
-        assert np.max(abs(m1 - td1)) <= 5e-3 * scale1, v.table()
+        a1 = abs(td1)
+        # every beam's fundamental within 0.5 % of its own
+        assert np.all(abs(m1 - td1) <= 5e-3 * a1), v.table()
         # the 3rd harmonic within 2 %, relative to itself where it is at least 1 % of the
-        # fundamental (below that, 2 % of 1 % of the fundamental)
-        assert np.all(abs(m3 - td3) <= 0.02 * np.maximum(abs(td3), 0.01 * scale1)), v.table()
+        # beam's fundamental (below that, 2 % of 1 % of the fundamental)
+        assert np.all(abs(m3 - td3) <= 0.02 * np.maximum(abs(td3), 0.01 * a1)), v.table()
+        if (name, v.freq_hz) not in STATIC_OFFSET:
+            # no mean and no 2nd harmonic: the half-period symmetry the balance assumes
+            assert np.all(v.even <= 1e-8 * a1), v.table()
+
+
+def test_a_static_offset_depends_on_the_start_and_leaves_the_odd_harmonics():
+    """Eight beams at 21 Hz: the integration settles with a mean offset of every beam
+    that depends on where it started; the odd harmonics do not, and match the balance."""
+    model = mcfric.preset("eight-beam")
+    runs = [verify(model, 21.0, 0.5, 6000.0, 0.5, harmonics=3, start=s)[0]
+            for s in ("single", "rest")]
+    a1 = abs(runs[0].harmonics[0])
+    even = [v.even / a1 for v in runs]
+    assert all(v.periodic for v in runs)
+    assert np.all(even[0] > 1e-3) and np.all(abs(even[1] / even[0] - 1) > 0.5)
+    assert np.all(abs(runs[0].harmonics - runs[1].harmonics) <= 1e-5 * a1)
 
 
 @pytest.mark.parametrize("argv, message", [
@@ -165,6 +211,7 @@ def test_multi_harmonic_agrees_with_time_integration(name, mu0, kc, freqs):
     (["hbm", "two-beam", "--harmonics", "9", "--n-time", "16", "--n-freq", "5"], "n-time"),
     (["hbm", "eight-beam", "--harmonics", "99", "--n-freq", "2000000"], "GiB"),
     (["verify", "two-beam", "--harmonics", "2", "--f", "20"], "odd"),
+    (["verify", "two-beam", "--harmonics", "1", "--f", "20"], "verify balances H >= 3"),
     (["verify", "two-beam", "--f", "-3"], "freq"),
     # argparse's order put SOURCE after --f in the usage line; --f took it as a number
     (["verify", "--f", "20", "two-beam"], "SOURCE goes before --f: mcfric verify two-beam"),
@@ -278,7 +325,7 @@ def test_verify_takes_a_member_of_a_results_file(tmp_path, capsys):
     # as the run summary prints them (4 digits): taken as the grid frequencies
     typed = [f"{f[3]:.4g}", f"{f[5]:.4g}", "30"]
     assert cli.main(["verify", str(res), "--member", "2", "--f", *typed, "-o", str(out),
-                     "--no-figure", "--harmonics", "1"]) == 0
+                     "--no-figure", "--harmonics", "3"]) == 0
     text = capsys.readouterr().out
     assert f"--f {typed[0]} Hz taken as the run's grid frequency {f[3]:.10g} Hz" in text
     assert f"at {f[3]:.10g} Hz the run stored M = {m:.6g} m (displacement" in text
@@ -312,6 +359,43 @@ def test_verify_solves_a_members_points_with_the_runs_solver_settings(tmp_path, 
                      "--no-figure", "-o", str(tmp_path / "v.csv")]) == 0
     assert len(seen) == 2 and all(k["tol"] == 1e-8 and k["max_iter"] == 30 for k in seen)
     assert "the run's tolerance and iterations" in capsys.readouterr().out
+
+
+def test_a_multi_harmonic_run_says_its_bounds_are_the_single_harmonic_models(tmp_path,
+                                                                              capsys):
+    """With H > 1 the members' fundamentals are compared with single-harmonic bounds:
+    points outside are no fault, and the file, the check and the figure say so."""
+    from mcfric import plot
+
+    res = tmp_path / "r.h5"
+    assert cli.main(["run", "two-beam", "--samples", "5", "--n-freq", "30", "--harmonics",
+                     "3", "-o", str(res), "--no-progress", "--no-figure"]) == 0
+    text = capsys.readouterr().out
+    assert ("odd harmonics 1..3 balanced (multi-harmonic); metric and response hold the "
+            "fundamental, response_peak the full-period peak") in text
+    checks = [ln for ln in text.splitlines() if "bounds check:" in ln]
+    assert len(checks) == 2, text
+    for ln in checks:
+        assert "single-harmonic model's" in ln and "H = 3: not a fault" in ln, ln
+        assert "please report" not in ln
+    with mcfric.open_results(res) as r:
+        assert "fundamental (odd harmonics 1..3 balanced)" in r["metric"].attrs["long_name"]
+        assert "fundamental" in r["response"].attrs["long_name"]
+    drawn = plot.results_figure(res, tmp_path / "a.png")
+    assert "upper bound (certified, single-harmonic model)" in drawn["legend"]
+    assert "fundamental, H = 3" in drawn["ylabel"]
+    # a single-harmonic run's check keeps its warning wording (none where none is outside)
+    from mcfric.cli import _outside_note
+
+    assert _outside_note(2, 1, "x") == " (x: please report)" and _outside_note(0, 1, "x") == ""
+    # without the response the line names only what the file holds
+    cfg = tmp_path / "m.toml"
+    cfg.write_text('[model]\npreset = "two-beam"\n[output]\nkeep_response = false\n'
+                   '[bounds]\nenabled = false\n')
+    assert cli.main(["run", str(cfg), "--samples", "2", "--n-freq", "10", "--harmonics", "3",
+                     "-o", str(tmp_path / "m.h5"), "--no-progress", "--no-figure"]) == 0
+    assert ("odd harmonics 1..3 balanced (multi-harmonic); metric holds the fundamental\n"
+            in capsys.readouterr().out)
 
 
 def test_plot_marks_the_points_the_indicator_flags(tmp_path, capsys):
@@ -355,7 +439,8 @@ def test_a_time_integration_whose_state_is_nan_is_not_periodic(two_beam):
         np.array([6000.0]), np.array([0.25]), eta0, np.zeros_like(w),
         np.zeros(two_beam.n_dampers), orders, 1024, 1e-9, 3, 20, y_h, q_h,
         np.zeros(two_beam.n_beams), np.zeros((1024, two_beam.n_beams)))
-    assert periods < 0 and np.isnan(change)
+    # the periods it integrated (one: NaN from the start), not the limit of 20
+    assert periods == -1 and np.isnan(change)
 
 
 def test_the_memory_check_counts_the_threads_the_solve_uses(two_beam, monkeypatch):

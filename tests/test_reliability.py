@@ -220,7 +220,7 @@ REFUSED_BEFORE_WORK = [
      "would replace the input"),
     (["run", "two-beam", "--samples", "4", *TINY, "-o", "{dir}/r.h5.partial"],
      "ends in .partial"),
-    (["verify", "two-beam", "--f", "0.001", "--harmonics", "1"], "--f: at 0.001 Hz"),
+    (["verify", "two-beam", "--f", "0.001", "--harmonics", "3"], "--f: at 0.001 Hz"),
     (["verify", "two-beam", "--f", "nan"], "--f:"),
     (["bounds", "eight-beam", "--no-certify", "--moments", "-o", "{dir}/b.h5"],
      "--moments: the order of the certification; not with --no-certify"),

@@ -244,4 +244,5 @@ def integrate(w, zeta, uc, uo, ud, force, omega, a, b, kc, fs, eta0, vel0, f0, o
             return period, change
     y_h[:, :] = cur_y
     q_h[:, :] = cur_q
-    return -max_periods, change
+    # the periods actually integrated: fewer than max_periods where the state blew up
+    return -period, change
