@@ -71,6 +71,23 @@ def test_aft_multi_harmonic_against_a_dense_time_loop_and_finite_differences():
             assert np.allclose(dF[1::2, m], col.imag, rtol=0, atol=1e-5 * kc)
 
 
+@pytest.mark.parametrize("c, phi", [(-0.114, 0.1486), (-0.114, 0.1731), (-0.115, 0.181),
+                                    (-0.117, np.pi / 16)])
+def test_aft_tells_apart_extrema_closer_than_the_samples(c, phi):
+    """Near an inflection of q (a 3rd harmonic of about -1/9 of the fundamental), q has
+    two extrema within one sample step of the default 32 samples (the last case: one of
+    them on a sample); the small hysteresis loop between them was lost (errors of 2e-5
+    to 1e-3 of fs before)."""
+    orders = aft.harmonic_orders(3)
+    F = np.zeros(2, complex)
+    dF = np.zeros((4, 4))
+    w = np.zeros(aft.work_size(2, 32))
+    Q = np.array([np.exp(-1j * phi), c * np.exp(-3j * phi)])
+    assert aft.jenkins(Q, orders, 1.0, 0.5, 32, F, dF, w) > 0
+    # the dense loop's own kink error is ~1e-10 of fs here
+    assert np.max(abs(F - sampled_jenkins(Q, orders, 1.0, 0.5))) <= 1e-8 * 0.5
+
+
 @pytest.mark.parametrize("name", ["two-beam", "eight-beam"])
 def test_aft_path_with_one_harmonic_equals_closed_form_kernel(name):
     """1000 random points per preset: the AFT kernel at H = 1 against the closed form."""

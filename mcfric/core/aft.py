@@ -52,6 +52,9 @@ _TWO_OVER_PI = 2.0 / math.pi
 #: Event location stops when the Newton step is below this, rad.
 _THETA_TOL = 1e-13
 _EVENT_ITER = 60
+#: Where ``q'`` is 0 on a sample, the rest of the step is searched from this fraction of
+#: a step away from it.
+_EDGE = 1e-7
 #: ``work[0:3]`` tags the sample table that follows: this value, ``n_time``, ``n_h``.
 _TAG = -0.7853981633974483e-300
 _TAG_SIZE = 3
@@ -61,7 +64,7 @@ _TAG_SIZE = 3
 def work_size(n_h, n_time):
     """Length of the float64 scratch array that :func:`jenkins` needs (orders ``2h+1``)."""
     n_half = (n_time + 1) // 2
-    return _TAG_SIZE + (2 * n_h + 4) * n_half + 8 * (4 * n_h - 1) + 8
+    return _TAG_SIZE + (2 * n_h + 5) * n_half + 8 * (4 * n_h - 1) + 8
 
 
 @inline_jit
@@ -117,6 +120,65 @@ def _root(Q, orders, n_h, lo, hi, flo, fhi, level, deriv):
         if hi - lo < _THETA_TOL:
             return th
     return th
+
+
+@jit
+def _zeros_between(Q, orders, n_h, lo, hi, g0, g1, d0, d1):
+    """Zeros of ``q'`` inside ``(lo, hi)`` from its values ``g0``, ``g1`` (nonzero) and
+    ``q''``'s ``d0``, ``d1`` at the ends: one where ``q'`` changes sign; where it keeps
+    its sign but turns between them, the pair of :func:`_close_pair` if it may dip
+    through zero. Returns ``(th1, th2, count)``."""
+    if g0 == 0.0 or g1 == 0.0:
+        return lo, hi, 0                    # a double zero: a loop of zero size
+    if (g0 > 0.0) != (g1 > 0.0):
+        return _root(Q, orders, n_h, lo, hi, g0, g1, 0.0, np.bool_(True)), hi, 1
+    if (d0 > 0.0) != (d1 > 0.0):
+        # its value at the turn, with q'' linear over the step, decides whether to look
+        # (the estimate errs by O(step^3) in q^(4): looked at below half of the ends' values too)
+        est = g0 + 0.5 * d0 * (hi - lo) * d0 / (d0 - d1)
+        if (est > 0.0) != (g0 > 0.0) or abs(est) < 0.5 * min(abs(g0), abs(g1)):
+            return _close_pair(Q, orders, n_h, lo, hi, g0, g1, d0, d1)
+    return lo, hi, 0
+
+
+@jit
+def _close_pair(Q, orders, n_h, lo, hi, g0, g1, d_lo, d_hi):
+    """Zeros of ``q'`` in ``[lo, hi]``, where it has the sign of ``g0`` at both ends and
+    turns between them (``q''``: ``d_lo``, ``d_hi`` at the ends, changes sign): if it
+    changes sign near the turn, a pair of extrema closer than the samples. Returns
+    ``(th1, th2, count)``, count 0 or 2."""
+    # the turn of q' by regula falsi on q'' (Illinois), stopping as soon as a point
+    # with q' of the other sign splits the step in two brackets
+    a = lo
+    b = hi
+    fa = d_lo
+    fb = d_hi
+    side = 0
+    m_prev = lo
+    for _ in range(_EVENT_ITER):
+        m = (a * fb - b * fa) / (fb - fa)
+        if not (a < m < b):
+            m = 0.5 * (a + b)
+        _, gm, dm = _q_derivs(Q, orders, n_h, m)
+        if gm != 0.0 and (gm > 0.0) != (g0 > 0.0):
+            return (_root(Q, orders, n_h, lo, m, g0, gm, 0.0, np.bool_(True)),
+                    _root(Q, orders, n_h, m, hi, gm, g1, 0.0, np.bool_(True)), 2)
+        if dm == 0.0 or abs(m - m_prev) < _THETA_TOL:
+            break
+        m_prev = m
+        if (dm > 0.0) == (fa > 0.0):
+            a = m
+            fa = dm
+            if side == -1:
+                fb *= 0.5
+            side = -1
+        else:
+            b = m
+            fb = dm
+            if side == 1:
+                fa *= 0.5
+            side = 1
+    return lo, hi, 0            # q' keeps its sign through the turn (a touch: no loop)
 
 
 @inline_jit
@@ -254,7 +316,8 @@ def jenkins(Q, orders, kc, fs, n_time, F, dF, work):
     qe = work[o + n_half:o + 2 * n_half]    # q there
     dq = work[o + 2 * n_half:o + 3 * n_half]
     qs = work[o + 3 * n_half:o + 4 * n_half]
-    o += 4 * n_half
+    d2q = work[o + 4 * n_half:o + 5 * n_half]
+    o += 5 * n_half
     pw = p_max + 1
     zr = work[o:o + 3 * pw]                 # powers at three angles
     zi = work[o + 3 * pw:o + 6 * pw]
@@ -278,40 +341,71 @@ def jenkins(Q, orders, kc, fs, n_time, F, dF, work):
     for i in range(n_half):
         dq[i] = 0.0
         qs[i] = 0.0
+        d2q[i] = 0.0
     for h in range(n_h):
         re = Q[h].real
         im = Q[h].imag
         a_c = -orders[h] * im
         a_s = -orders[h] * re
+        n2 = -float(orders[h] * orders[h])
         c = tab[2 * h * n_half:(2 * h + 1) * n_half]
         sn = tab[(2 * h + 1) * n_half:(2 * h + 2) * n_half]
         for i in range(n_half):
             dq[i] += a_c * c[i] + a_s * sn[i]
-            qs[i] += re * c[i] - im * sn[i]
+            v = re * c[i] - im * sn[i]
+            qs[i] += v
+            d2q[i] += n2 * v
     m_ext = 0
     q_max = -math.inf
     i_max = -1
     for i in range(n_half):
-        lo = step * i
         g0 = dq[i]
         g1 = dq[i + 1] if i + 1 < n_half else -dq[0]
-        if g0 == 0.0:
-            th = lo
-        elif (g0 > 0.0) != (g1 > 0.0) and g1 != 0.0:
-            th = _root(Q, orders, n_h, lo, lo + step, g0, g1, 0.0, np.bool_(True))
-        else:
+        if g0 != 0.0 and g1 != 0.0 and (g0 > 0.0) != (g1 > 0.0):
+            # the usual case: one extremum between the samples
+            if m_ext >= n_half:
+                return -1
+            th = _root(Q, orders, n_h, step * i, step * (i + 1), g0, g1, 0.0,
+                       np.bool_(True))
+            ext[m_ext] = th
+            qe[m_ext] = _q_derivs(Q, orders, n_h, th)[0]
+            m_ext += 1
             continue
-        ext[m_ext] = th
-        q = _q_derivs(Q, orders, n_h, th)[0]
-        qe[m_ext] = q
-        # the global maximum over the period: q here or -q half a period on
+        d0 = d2q[i]
+        d1 = d2q[i + 1] if i + 1 < n_half else -d2q[0]
+        if g0 != 0.0 and g1 != 0.0 and (d0 > 0.0) == (d1 > 0.0):
+            continue            # q' keeps its sign and does not turn: no extremum
+        lo = step * i
+        hi = lo + step
+        if g0 == 0.0:
+            # an extremum on the sample itself; the rest of the step is looked at from
+            # just after it (the next step records one on its upper end)
+            if m_ext >= n_half:
+                return -1
+            ext[m_ext] = lo
+            qe[m_ext] = _q_derivs(Q, orders, n_h, lo)[0]
+            m_ext += 1
+            lo += _EDGE * step
+            _, g0, d0 = _q_derivs(Q, orders, n_h, lo)
+        if g1 == 0.0:
+            hi -= _EDGE * step
+            _, g1, d1 = _q_derivs(Q, orders, n_h, hi)
+        th, th2, n_r = _zeros_between(Q, orders, n_h, lo, hi, g0, g1, d0, d1)
+        for r in range(n_r):
+            if m_ext >= n_half:
+                return -1
+            ext[m_ext] = th if r == 0 else th2
+            qe[m_ext] = _q_derivs(Q, orders, n_h, ext[m_ext])[0]
+            m_ext += 1
+    # the global maximum over the period: q at an extremum or -q half a period on
+    for m in range(m_ext):
+        q = qe[m]
         if q > q_max:
             q_max = q
-            i_max = m_ext
+            i_max = m
         if -q > q_max:
             q_max = -q
-            i_max = m_ext + n_half
-        m_ext += 1
+            i_max = m + n_half
     if m_ext == 0:
         # q constant (all Q zero): the element sticks, f = kc (q - c)
         for h in range(n_h):
