@@ -454,6 +454,30 @@ def _check_members(path):
     return outside, total, None if C is None else outside_cert
 
 
+def _kept_bounds_note(cfg, out):
+    """A note where ``out`` (resumed, or complete already) keeps bounds made with other
+    ``[bounds]`` settings than ``cfg``'s (they are not part of a run's identity), else
+    None."""
+    import json
+
+    from .config.configuration import first_difference
+    from .store import read_attrs
+
+    try:
+        stored = json.loads(read_attrs(out)["config_json"]).get("bounds", {})
+    except (KeyError, ValueError, TypeError):
+        return None
+    diff = first_difference(cfg.data["bounds"], stored, "bounds")
+    if diff is None:
+        return None
+    kept = (f"{out} has no bounds (the session that created it had [bounds] enabled = "
+            f"false)" if not stored.get("enabled", True) else
+            f"{out} keeps the bounds of the session that created it, whose [bounds] differ "
+            f"from this configuration's (first difference: {diff})")
+    return (f"note: {kept}; `mcfric bounds` computes this configuration's into a file of "
+            f"their own, --force recomputes the run")
+
+
 def _outside_note(n, H, fault):
     """What ``n`` member points outside the bounds mean in a run balancing ``H``
     harmonics: a ``fault`` to report where ``H = 1``; with ``H > 1`` none, as the bounds
@@ -538,6 +562,10 @@ def _run_one(args, cfg, out, resume_as=None):
         print(f"{out} already holds this run (same configuration and seed): nothing to do; "
               f"--force recomputes it")
     print(summary.text())
+    if summary.complete and not summary.bounds_computed:
+        note = _kept_bounds_note(cfg, out)
+        if note:
+            print(note)
     if summary.complete and (args.no_progress or not summary.bounds_computed):
         # the bounds' summary was printed as they were computed only with progress on,
         # and not at all where they came from an earlier session's file

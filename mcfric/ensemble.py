@@ -371,16 +371,21 @@ def prepare(spec, path, *, resume=False, force=False):
         try:
             attrs = read_attrs(final)
         except StoreError as e:
-            raise RunError(f"{e}; use --force to replace it") from None
-        diff = _same_run(spec, attrs, final)
-        if diff is None and attrs.get("complete") == 1:
+            if not (resume and part.exists()):
+                raise RunError(f"{e}; use --force to replace it") from None
+            attrs = None
+        diff = None if attrs is None else _same_run(spec, attrs, final)
+        if attrs is not None and diff is None and attrs.get("complete") == 1:
             # the same run by other code or libraries: its bits need not be this code's
             _check_fingerprint(attrs, f"{final} holds this run, made by other solver code, "
                                       f"numpy/scipy/numba/llvmlite versions or kind of CPU",
                                "use --force to recompute it, or choose another -o")
             return "complete", attrs
-        raise RunError(f"{final} exists and holds a different run (first difference: "
-                       f"{diff}); use --force to replace it, or choose another -o")
+        if not (resume and part.exists()):
+            raise RunError(f"{final} exists and holds a different run (first difference: "
+                           f"{diff}); use --force to replace it, or choose another -o")
+        # --resume with a partial file: an interrupted run that was to replace FILE
+        # (started with --force); it is checked below and replaces FILE when complete
     if part.exists() and not force:
         try:
             attrs = read_attrs(part)

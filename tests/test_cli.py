@@ -395,3 +395,21 @@ def test_hbm_counts_non_converged_points(tmp_path, monkeypatch, capsys):
     assert f"not converged: {bad} of 300 points" in out
     assert np.all(np.isnan(t[t[:, 10] == 0, 1:10]))
     assert (tmp_path / "mcfric-results" / "hbm-c.png").exists()
+
+
+def test_a_complete_file_says_when_it_keeps_other_bounds(tmp_path, capsys):
+    """[bounds] is not part of a run's identity: a file made without bounds (or with
+    other settings) is 'already complete' for a configuration with them, and the run
+    says that the bounds asked for were not computed."""
+    out = tmp_path / "a.h5"
+    base = ["run", "two-beam", "--samples", "4", "--n-freq", "10", "-o", str(out),
+            "--no-progress", "--no-figure"]
+    assert cli.main(base + ["--no-bounds"]) == 0
+    capsys.readouterr()
+    assert cli.main(base) == 0
+    text = capsys.readouterr().out
+    assert "already holds this run" in text
+    assert f"note: {out} has no bounds (the session that created it had [bounds] " \
+           f"enabled = false); `mcfric bounds` computes" in text
+    assert cli.main(base + ["--no-bounds"]) == 0                  # the same [bounds]: no note
+    assert "note:" not in capsys.readouterr().out

@@ -19,7 +19,6 @@ from mcfric import config, ensemble, hbm
 from mcfric.ensemble import Interrupted, RunError
 from mcfric.store import partial_path
 
-DATASETS = ("response", "metric", "converged", "mu0", "kc", "N0")
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -36,8 +35,11 @@ def run(cfg, path, **kw):
     return ensemble.run(cfg, path, progress=False, **kw)
 
 
-def load(path, names=DATASETS):
+def load(path, names=None):
+    """The file's datasets (every root dataset by default: the peaks, folds and the
+    harmonic indicator are computed on threads too), by name."""
     with h5py.File(path, "r") as h5:
+        names = names or [k for k in h5 if isinstance(h5[k], h5py.Dataset)]
         return {k: h5[k][...] for k in names if k in h5}
 
 
@@ -70,8 +72,8 @@ def test_eight_beam_mistuned_threads_chunks_and_independent_resolve(tmp_path):
     base = config.load(raw)
     run(base.replace("run.threads", 1).replace("run.chunk", 24), tmp_path / "a.h5")
     run(base.replace("run.threads", 2).replace("run.chunk", 5), tmp_path / "b.h5")
-    names = DATASETS + ("modal_freq_hz",)
-    a, b = load(tmp_path / "a.h5", names), load(tmp_path / "b.h5", names)
+    a, b = load(tmp_path / "a.h5"), load(tmp_path / "b.h5")
+    assert {"modal_freq_hz", "peak_metric", "harmonic_indicator"} <= a.keys()
     assert_bitwise(a, b)
     # sample 17 solved on its own, from its stored parameters
     m, f = base.model(), base.frequencies()
@@ -171,9 +173,14 @@ def test_writer_failure_surfaces_and_leaves_only_a_partial(tmp_path, monkeypatch
         raise OSError(28, "No space left on device")
 
     monkeypatch.setattr(store.Store, "write", full)
+    from mcfric.store.lock import lock_path
+
     with pytest.raises(OSError, match="No space"):
         run(two_beam(samples=40, run__chunk=10), tmp_path / "r.h5")
     assert not (tmp_path / "r.h5").exists()
+    # the partial file is kept (the remedy: free space, then --resume) and the lock gone
+    assert partial_path(tmp_path / "r.h5").exists()
+    assert not lock_path(tmp_path / "r.h5").exists()
 
 
 def test_refusals_and_the_already_done_case(tmp_path):
@@ -215,6 +222,46 @@ def test_resume_refuses_other_config_or_other_solver_code(tmp_path, monkeypatch)
         run(cfg, out, resume=True)
     monkeypatch.undo()
     assert run(cfg, out, resume=True).complete
+
+
+def test_an_interrupted_replacement_resumes_and_replaces_the_old_file(tmp_path, monkeypatch):
+    """`--force` into a file holding another run, interrupted: `--resume` continues the
+    partial file (it was refused because the old file differs) and replaces the file."""
+    out = tmp_path / "r.h5"
+    run(two_beam(samples=10, n=10), out)                       # the old run
+    cfg = two_beam(samples=50, n=12, run__chunk=10, run__checkpoint_s=0.0)
+    real = hbm.solve
+    calls = {"n": 0}
+
+    def stop_at_3(*a, **k):
+        calls["n"] += 1
+        if calls["n"] == 3:
+            raise KeyboardInterrupt
+        return real(*a, **k)
+
+    monkeypatch.setattr(ensemble.hbm, "solve", stop_at_3)
+    with pytest.raises(Interrupted):
+        run(cfg, out, force=True)
+    monkeypatch.setattr(ensemble.hbm, "solve", real)
+    assert partial_path(out).exists()
+    with pytest.raises(RunError, match="holds a different run"):      # without --resume
+        run(cfg, out)
+    s = run(cfg, out, resume=True)
+    assert s.complete and s.samples_this_session == 30
+    run(cfg, tmp_path / "straight.h5")
+    assert_bitwise(load(out), load(tmp_path / "straight.h5"))
+
+
+@pytest.mark.parametrize("resume", [False, True])
+def test_a_partial_file_of_another_kind_is_refused_in_one_line(tmp_path, resume):
+    """A valid HDF5 partial without a ``done`` dataset (a bounds file killed before its
+    rename): a one-line refusal, not h5py's KeyError."""
+    out = tmp_path / "z.h5"
+    with h5py.File(partial_path(out), "w") as h5:
+        h5.attrs["x"] = 1
+    with pytest.raises(RunError, match=r"not an mcfric results file \(no 'done' dataset\)"):
+        run(two_beam(samples=5, n=5), out, resume=resume)
+    assert not out.exists()
 
 
 def test_resume_without_a_partial_file_just_runs(tmp_path):

@@ -57,6 +57,10 @@ def iter_records(path, names, block=4096, only_done=True):
     Records not marked done are skipped when ``only_done`` (they may hold garbage).
     """
     with _open_read(path) as h5:
+        missing = [k for k in (DONE, *names) if k not in h5]
+        if missing:
+            raise StoreError(f"{path}: not an mcfric results file (no {missing[0]!r} "
+                             f"dataset)")
         n = h5[DONE].shape[0]
         for a in range(0, n, block):
             b = min(n, a + block)
@@ -73,6 +77,10 @@ def read(path, name, row=None):
     """One whole dataset, or only its record ``row`` (use :func:`iter_records` to go
     through big ones)."""
     with _open_read(path) as h5:
+        if name not in h5:
+            # a file of another kind (a bounds file's partial, say): one line, not a
+            # KeyError from h5py
+            raise StoreError(f"{path}: not an mcfric results file (no {name!r} dataset)")
         return h5[name][...] if row is None else h5[name][row]
 
 
