@@ -25,7 +25,8 @@ import time
 
 #: Seconds to wait for a scheduler to answer.
 CONNECT_TIMEOUT_S = 10.0
-#: Seconds to wait for the first worker of a remote scheduler.
+#: Seconds to wait for the first worker of a remote scheduler, and for any worker when
+#: all have left during a run.
 WORKER_TIMEOUT_S = 60.0
 #: Chunks in flight per worker thread: one solving, one waiting, so none idles while
 #: its last result travels to the client.
@@ -273,20 +274,45 @@ class Cluster:
         todo = iter(chunks)
         live = {}          # key: (future, range) of every chunk submitted, not yet yielded
         running = as_completed(loop=self.client.loop)
-        checked = [-math.inf, self.n_threads]      # when, and the threads seen then
+        # when the threads were counted, the count, and whether the scheduler answered
+        checked = [-math.inf, self.n_threads, True]
 
-        def fill():
+        def next_done():
+            # the next finished chunk (None when all are); with no worker (or no answer
+            # from the scheduler) for WORKER_TIMEOUT_S the chunks would wait forever
+            alone_since = None
+            while not running.has_ready():
+                if running.is_empty():
+                    return None
+                if not threads():
+                    alone_since = alone_since or time.monotonic()
+                    if time.monotonic() - alone_since > WORKER_TIMEOUT_S:
+                        raise ClusterError(
+                            f"the cluster has had no workers for {WORKER_TIMEOUT_S:.0f} s "
+                            f"({_count(len(live), 'chunk')} waiting): start some with "
+                            f"`dask worker {self.address}`")
+                else:
+                    alone_since = None
+                with running.thread_condition:
+                    running.thread_condition.wait(timeout=0.1)
+            return next(running)
+
+        def threads():
             # workers may join or leave during a run: their thread count is asked again
             # at most once a second, so new workers get chunks and the client's memory
-            # stays bounded by the threads there are
+            # stays bounded by the threads there are (None: the scheduler did not answer)
             now = time.monotonic()
             if now - checked[0] >= THREADS_REFRESH_S:
                 try:
                     checked[1] = sum(self.client.nthreads().values())
-                except Exception:      # the scheduler is away: keep the last count
-                    pass
+                    checked[2] = True
+                except Exception:
+                    checked[2] = False
                 checked[0] = now
-            limit = max(2, IN_FLIGHT_PER_THREAD * checked[1])
+            return checked[1] if checked[2] else None
+
+        def fill():
+            limit = max(2, IN_FLIGHT_PER_THREAD * (threads() or checked[1]))
             while len(live) < limit:
                 ab = next(todo, None)
                 if ab is None:
@@ -298,7 +324,7 @@ class Cluster:
 
         try:
             fill()
-            for f in running:
+            while (f := next_done()) is not None:
                 a, b = live.pop(f.key)[1]
                 try:
                     start, arrays, seconds = f.result()

@@ -169,6 +169,33 @@ def test_workers_that_join_mid_run_get_chunks(monkeypatch):
     assert timing["kernel_s"] >= 60 * 0.2
 
 
+def test_a_run_whose_workers_all_left_stops_instead_of_waiting(monkeypatch):
+    """With every worker gone mid-run the chunks would wait forever: after
+    WORKER_TIMEOUT_S without a worker the run stops with a ClusterError (the CLI keeps
+    the finished chunks and says how to resume)."""
+    from distributed import Client, LocalCluster
+
+    from mcfric import distributed
+
+    monkeypatch.setattr(distributed, "_KERNEL_LOCK", contextlib.nullcontext())
+    monkeypatch.setattr(distributed, "WORKER_TIMEOUT_S", 2.0)
+    ACTIVE.update(now=0, peak=0)
+    spec = config.load("two-beam").spec
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
+                      dashboard_address=DASHBOARD) as cluster, Client(cluster) as client:
+        c = distributed.Cluster(client, None, cluster.scheduler_address)
+        c.n_threads = 1
+        source = c.chunks(slow_chunk, spec, [(i, i + 1) for i in range(60)],
+                          {"kernel_s": 0.0})
+        next(source)
+        cluster.scale(0)
+        t = time.monotonic()
+        with pytest.raises(distributed.ClusterError, match="no workers for 2 s"):
+            for _ in source:
+                pass
+        assert time.monotonic() - t < 30
+
+
 def test_a_client_killed_mid_run_resumes_to_the_same_file(reference, tmp_path):
     toml, ref = reference
     out = tmp_path / "cluster.h5"
