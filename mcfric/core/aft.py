@@ -134,7 +134,7 @@ def _zeros_between(Q, orders, n_h, lo, hi, g0, g1, d0, d1):
         return _root(Q, orders, n_h, lo, hi, g0, g1, 0.0, np.bool_(True)), hi, 1
     if (d0 > 0.0) != (d1 > 0.0):
         # its value at the turn, with q'' linear over the step, decides whether to look
-        # (the estimate errs by O(step^3) in q^(4): looked at below half of the ends' values too)
+        # (the estimate errs by O(step^3): looked at below half of the ends' values too)
         est = g0 + 0.5 * d0 * (hi - lo) * d0 / (d0 - d1)
         if (est > 0.0) != (g0 > 0.0) or abs(est) < 0.5 * min(abs(g0), abs(g1)):
             return _close_pair(Q, orders, n_h, lo, hi, g0, g1, d0, d1)
@@ -378,8 +378,8 @@ def jenkins(Q, orders, kc, fs, n_time, F, dF, work):
         lo = step * i
         hi = lo + step
         if g0 == 0.0:
-            # an extremum on the sample itself; the rest of the step is looked at from
-            # just after it (the next step records one on its upper end)
+            # an extremum on the sample itself: recorded, and the rest of the step looked
+            # at from just after it (one on the upper sample is the next step's)
             if m_ext >= n_half:
                 return -1
             ext[m_ext] = lo
