@@ -198,9 +198,8 @@ def test_refusals_and_the_already_done_case(tmp_path):
         run(cfg, tmp_path / "nodir" / "r.h5")
 
 
-def test_resume_refuses_other_config_or_other_solver_code(tmp_path, monkeypatch):
-    cfg = two_beam(samples=50, n=10, run__chunk=10, run__checkpoint_s=0.0)
-    out = tmp_path / "r.h5"
+def interrupt_at_chunk_3(monkeypatch, cfg, out, **kw):
+    """Run ``cfg`` into ``out`` with Ctrl-C while its third chunk is solved."""
     real = hbm.solve
     calls = {"n": 0}
 
@@ -212,8 +211,14 @@ def test_resume_refuses_other_config_or_other_solver_code(tmp_path, monkeypatch)
 
     monkeypatch.setattr(ensemble.hbm, "solve", stop_at_3)
     with pytest.raises(Interrupted):
-        run(cfg, out)
+        run(cfg, out, **kw)
     monkeypatch.setattr(ensemble.hbm, "solve", real)
+
+
+def test_resume_refuses_other_config_or_other_solver_code(tmp_path, monkeypatch):
+    cfg = two_beam(samples=50, n=10, run__chunk=10, run__checkpoint_s=0.0)
+    out = tmp_path / "r.h5"
+    interrupt_at_chunk_3(monkeypatch, cfg, out)
     with pytest.raises(RunError, match="different configuration.*frequency.n"):
         run(cfg.replace("frequency.n", 11), out, resume=True)
     monkeypatch.setattr(ensemble, "fingerprint", lambda: "0000")
@@ -230,19 +235,7 @@ def test_an_interrupted_replacement_resumes_and_replaces_the_old_file(tmp_path, 
     out = tmp_path / "r.h5"
     run(two_beam(samples=10, n=10), out)                       # the old run
     cfg = two_beam(samples=50, n=12, run__chunk=10, run__checkpoint_s=0.0)
-    real = hbm.solve
-    calls = {"n": 0}
-
-    def stop_at_3(*a, **k):
-        calls["n"] += 1
-        if calls["n"] == 3:
-            raise KeyboardInterrupt
-        return real(*a, **k)
-
-    monkeypatch.setattr(ensemble.hbm, "solve", stop_at_3)
-    with pytest.raises(Interrupted):
-        run(cfg, out, force=True)
-    monkeypatch.setattr(ensemble.hbm, "solve", real)
+    interrupt_at_chunk_3(monkeypatch, cfg, out, force=True)
     assert partial_path(out).exists()
     with pytest.raises(RunError, match="holds a different run"):      # without --resume
         run(cfg, out)
