@@ -559,8 +559,8 @@ def _run_one(args, cfg, out, resume_as=None):
               f"`mcfric run ... -o {resume_as or out} --resume`", file=sys.stderr)
         return EXIT_FAIL
     if summary.already_complete:
-        print(f"{out} already holds this run (same configuration and seed): nothing to do; "
-              f"--force recomputes it")
+        print(f"{out} already holds this run (same configuration, [run] and [bounds] "
+              f"aside, and seed): nothing to do; --force recomputes it")
     print(summary.text())
     if summary.complete and not summary.bounds_computed:
         note = _kept_bounds_note(cfg, out)

@@ -413,6 +413,12 @@ def test_sigterm_stops_a_run_resumably(tmp_path):
     assert p.returncode == 130, err
     assert "--resume" in err and (tmp_path / "r.h5.partial").exists()
     assert not out.exists() and not lock_path(out).exists()
+    # the command it prints continues the run to a complete file
+    r = subprocess.run(argv + ["--resume"], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert "samples: 4000 of 4000" in r.stdout and not partial.exists()
+    with h5py.File(out, "r") as h5:
+        assert h5.attrs["complete"] == 1 and h5["done"][...].all()
 
 
 def test_F_lim_none_on_the_command_line_as_in_toml(tmp_path, capsys):
