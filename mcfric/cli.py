@@ -1033,13 +1033,13 @@ def cmd_verify(args):
     from . import plot
     from .verify import time_steps, verify
 
-    for flag, v, lo in (("--harmonics", args.harmonics, 1), ("--max-periods",
-                                                              args.max_periods, 1)):
-        if v < lo:
-            raise UsageError(f"{flag}: expected an integer >= {lo}, got {v}")
-    if args.harmonics % 2 == 0:
-        raise UsageError(f"--harmonics: expected an odd integer (the odd harmonics 1, 3, ..., "
-                         f"H are balanced), got {args.harmonics}")
+    if args.max_periods < 1:
+        raise UsageError(f"--max-periods: expected an integer >= 1, got {args.max_periods}")
+    if args.harmonics < 3 or args.harmonics % 2 == 0:
+        # the single-harmonic solution is compared in any case
+        raise UsageError(f"--harmonics: expected an odd integer >= 3 (the odd harmonics 1, "
+                         f"3, ..., H are balanced beside the single-harmonic solution), got "
+                         f"{args.harmonics}")
     model, (mu0, kc, N0), stem, run = _verify_source(args)
     stored = []
     if stem is not None:

@@ -267,7 +267,8 @@ class Cluster:
         Raises
         ------
         ClusterError
-            A chunk failed on the cluster (also after Dask's retries on other workers).
+            A chunk failed on the cluster (also after Dask's retry), or the cluster had
+            no worker, or its scheduler did not answer, for ``WORKER_TIMEOUT_S``.
         """
         from distributed import as_completed
 
@@ -284,13 +285,16 @@ class Cluster:
             while not running.has_ready():
                 if running.is_empty():
                     return None
-                if not threads():
+                n = threads()
+                if not n:
                     alone_since = alone_since or time.monotonic()
                     if time.monotonic() - alone_since > WORKER_TIMEOUT_S:
+                        why = ("has had no workers" if n == 0 else
+                               "scheduler has not answered")
                         raise ClusterError(
-                            f"the cluster has had no workers for {WORKER_TIMEOUT_S:.0f} s "
-                            f"({_count(len(live), 'chunk')} waiting): start some with "
-                            f"`dask worker {self.address}`")
+                            f"the cluster {why} for {WORKER_TIMEOUT_S:.0f} s "
+                            f"({_count(len(live), 'chunk')} waiting): start workers with "
+                            f"`dask worker {self.address}`, or check the scheduler")
                 else:
                     alone_since = None
                 with running.thread_condition:

@@ -318,14 +318,14 @@ def report_text(report, unit):
 
 
 def _interval(st, key):
-    """`` (lo-hi, 95 % conf.)``: the confidence interval of a statistic as the summary
+    """`` (lo to hi, 95 % conf.)``: the confidence interval of a statistic as the summary
     prints it (``above lo`` where too few members close its upper side; empty where
     there is none)."""
     lo, hi = st.get(key, (np.nan, np.nan))
     pct = f"{100 * st.get('confidence', CONFIDENCE):g} % conf."
     if not np.isfinite(lo):
         return ""
-    return f" ({lo:.4g}-{hi:.4g}, {pct})" if np.isfinite(hi) else f" (above {lo:.4g}, {pct})"
+    return f" ({lo:.4g} to {hi:.4g}, {pct})" if np.isfinite(hi) else f" (above {lo:.4g}, {pct})"
 
 
 def bound_peak_lines(pk, unit, largest_member=None):

@@ -1,13 +1,15 @@
 """Distribution-free confidence intervals of a quantile from a sample.
 
-The number of members below the population's ``p``-quantile ``xi_p`` is binomial,
-``B ~ Bin(n, p)``, whatever the distribution (continuous or not). For order statistics
-``x_(l) <= x_(u)`` (1-based) of the sorted sample,
+The number of members at or below the population's ``p``-quantile ``xi_p`` is
+binomial with a probability of at least ``p``, the number below it with at most ``p``
+(both ``Bin(n, p)`` for a continuous distribution). For order statistics
+``x_(l) <= x_(u)`` (1-based) of the sorted sample, with ``B ~ Bin(n, p)``,
 
-    P(x_(l) <= xi_p <= x_(u)) >= P(l <= B <= u - 1),
+    P(x_(l) > xi_p) <= P(B <= l - 1),    P(x_(u) < xi_p) <= P(B >= u),
 
 so choosing ``l`` and ``u`` with at most ``(1 - confidence) / 2`` of the binomial's mass
-on each side gives an interval that holds ``xi_p`` with at least that confidence. No
+on each side gives an interval that holds ``xi_p`` with at least that confidence, ties
+or not. No
 shape is assumed; the members must be independent draws (each member of an ensemble has
 its own random stream). Where the sample is too small for a side (``l < 1`` or
 ``u > n``), that side is open (``-inf`` or ``inf``).
@@ -25,7 +27,7 @@ def quantile_interval(values, p, confidence=0.95):
     Parameters
     ----------
     values : array_like, shape (n,)
-        Independent draws (NaN are left out), any unit.
+        Independent draws (non-finite values are left out), any unit.
     p : float
         Probability of the quantile, ``0 < p < 1`` (0.95: the 95th percentile).
     confidence : float
@@ -42,7 +44,7 @@ def quantile_interval(values, p, confidence=0.95):
         raise ValueError(f"quantile_interval: expected 0 < p, confidence < 1, got {p!r}, "
                          f"{confidence!r}")
     x = np.sort(np.asarray(values, dtype=float).ravel())
-    x = x[np.isfinite(x)] if x.size else x
+    x = x[np.isfinite(x)]
     n = x.size
     if n == 0:
         return float("nan"), float("nan")

@@ -37,7 +37,8 @@ OMEGA_DT = 0.05
 MAX_STEPS = 10**7
 STARTS = ("single", "rest")
 #: A time-domain harmonic below this fraction of the largest fundamental is not told from
-#: zero (the settling tolerance): no relative difference is formed with it.
+#: zero (the default settling tolerance, ``TOL``): no relative difference is formed with
+#: it.
 NOISE = TOL
 
 

@@ -228,7 +228,7 @@ def test_a_static_offset_depends_on_the_start_and_leaves_the_odd_harmonics():
     (["hbm", "two-beam", "--harmonics", "9", "--n-time", "16", "--n-freq", "5"], "n-time"),
     (["hbm", "eight-beam", "--harmonics", "99", "--n-freq", "2000000"], "GiB"),
     (["verify", "two-beam", "--harmonics", "2", "--f", "20"], "odd"),
-    (["verify", "two-beam", "--harmonics", "1", "--f", "20"], "verify balances H >= 3"),
+    (["verify", "two-beam", "--harmonics", "1", "--f", "20"], "integer >= 3"),
     (["verify", "two-beam", "--f", "-3"], "freq"),
     # argparse's order put SOURCE after --f in the usage line; --f took it as a number
     (["verify", "--f", "20", "two-beam"], "SOURCE goes before --f: mcfric verify two-beam"),

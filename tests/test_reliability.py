@@ -222,6 +222,8 @@ REFUSED_BEFORE_WORK = [
      "ends in .partial"),
     (["verify", "two-beam", "--f", "0.001", "--harmonics", "3"], "--f: at 0.001 Hz"),
     (["verify", "two-beam", "--f", "nan"], "--f:"),
+    (["verify", "two-beam", "--f", "20", "--harmonics", "1"], "--harmonics: expected an "
+     "odd integer >= 3"),
     (["bounds", "eight-beam", "--no-certify", "--moments", "-o", "{dir}/b.h5"],
      "--moments: the order of the certification; not with --no-certify"),
     (["run", "two-beam", *TINY, "--no-certify", "--first-order", "-o", "{dir}/r.h5"],
@@ -414,7 +416,7 @@ def test_sigterm_stops_a_run_resumably(tmp_path):
     assert "--resume" in err and (tmp_path / "r.h5.partial").exists()
     assert not out.exists() and not lock_path(out).exists()
     # the command it prints continues the run to a complete file
-    r = subprocess.run(argv + ["--resume"], capture_output=True, text=True)
+    r = subprocess.run(argv + ["--resume"], capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stderr
     assert "samples: 4000 of 4000" in r.stdout and not partial.exists()
     with h5py.File(out, "r") as h5:

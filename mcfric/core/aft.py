@@ -12,13 +12,15 @@ to ``(Re Q_m, Im Q_m)``.
 Event-located AFT
 -----------------
 ``n_time`` samples per period only *bracket* the events: the extrema of ``q`` (where a slip
-ends and the slider sticks) and the crossings where the spring force reaches ``+-fs``
-(where a stick ends). Each event is then located by a safeguarded Newton iteration on the
-trigonometric polynomial. Between events the force is either constant (slip) or
-``f_a + kc (q - q_a)`` (stick, anchored at the last reversal), so its Fourier integrals are
-evaluated in closed form. The result is exact up to the event tolerance: with one
-harmonic it reproduces the describing function of :mod:`mcfric.core.friction` to rounding,
-where a plain sampled AFT would carry an ``O(n_time^-2)`` error from the kinks of ``f``.
+ends and the slider sticks; sign changes of ``q'``, and pairs of extrema between two
+samples where ``q''`` changes sign and ``q'`` may dip through zero) and the crossings where
+the spring force reaches ``+-fs`` (where a stick ends). Each event is then located by a
+safeguarded Newton iteration on the trigonometric polynomial. Between events the force is
+either constant (slip) or ``f_a + kc (q - q_a)`` (stick, anchored at the last reversal),
+so its Fourier integrals are evaluated in closed form. The result is exact up to the event
+tolerance: with one harmonic it reproduces the describing function of
+:mod:`mcfric.core.friction` to rounding, where a plain sampled AFT would carry an
+``O(n_time^-2)`` error from the kinks of ``f``.
 
 The periodic hysteresis loop needs no settling passes: the walk starts at the global
 maximum of ``q``. If ``kc (q_max - q_min) > 2 fs`` the slider slips on the way up to
@@ -374,7 +376,9 @@ def jenkins(Q, orders, kc, fs, n_time, F, dF, work):
         d0 = d2q[i]
         d1 = d2q[i + 1] if i + 1 < n_half else -d2q[0]
         if g0 != 0.0 and g1 != 0.0 and (d0 > 0.0) == (d1 > 0.0):
-            continue            # q' keeps its sign and does not turn: no extremum
+            # q' and q'' keep their signs: no extremum seen (q'' changing sign twice
+            # between the samples could hide a pair: the docs' harmonics page)
+            continue
         lo = step * i
         hi = lo + step
         if g0 == 0.0:
