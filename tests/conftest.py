@@ -2,6 +2,7 @@ import numpy as np
 import pytest
 
 import mcfric
+from mcfric.model import TABLE_1, Excitation, Model
 
 from . import naive  # noqa: F401  (tests import it as tests.naive)
 
@@ -29,3 +30,17 @@ def two_beam():
 @pytest.fixture(scope="session")
 def eight_beam():
     return mcfric.eight_beam(1.1)
+
+
+def ring(n, mistuned, engine_order=1, F0=0.8):
+    """A ring of ``n`` blades (Table 1 beams, 2 % mistuned in the first two modes if
+    ``mistuned``) under a travelling wave of ``engine_order``, ``F0`` N."""
+    rng = np.random.default_rng(100 + n)
+    if mistuned:
+        beams = tuple(TABLE_1.with_frequency(1, 16.2 * (1 + 0.02 * rng.standard_normal()))
+                      .with_frequency(2, 105.8 * (1 + 0.02 * rng.standard_normal()))
+                      for _ in range(n))
+    else:
+        beams = (TABLE_1,) * n
+    return Model(beams, Excitation("travelling", F0, engine_order=engine_order),
+                 topology="circular")

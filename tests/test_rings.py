@@ -16,21 +16,9 @@ from mcfric.core.receptance import contact_space
 from mcfric.model import TABLE_1, Excitation, Model
 
 from . import naive
-from .conftest import naive_beams, naive_pairs
+from .conftest import naive_beams, naive_pairs, ring
 
 N0 = 0.5
-
-
-def _ring(n, mistuned, engine_order=1, F0=0.8):
-    rng = np.random.default_rng(100 + n)
-    if mistuned:
-        beams = tuple(TABLE_1.with_frequency(1, 16.2 * (1 + 0.02 * rng.standard_normal()))
-                      .with_frequency(2, 105.8 * (1 + 0.02 * rng.standard_normal()))
-                      for _ in range(n))
-    else:
-        beams = (TABLE_1,) * n
-    return Model(beams, Excitation("travelling", F0, engine_order=engine_order),
-                 topology="circular")
 
 
 def contact_arrays(model, f):
@@ -52,7 +40,7 @@ def _solve_dense(monkeypatch, model, *args, **kw):
 @pytest.mark.parametrize("mistuned", [False, True], ids=["tuned", "mistuned"])
 def test_ring_kernel_equals_the_dense_kernel(monkeypatch, n, mistuned):
     """Random friction, warm-started sweeps over the band: every point to 1e-8."""
-    model = _ring(n, mistuned)
+    model = ring(n, mistuned)
     rng = np.random.default_rng(n + 7 * mistuned)
     n_s = 11                                # not a multiple of the lane count
     f = np.linspace(10.0, 150.0, 120)
@@ -74,7 +62,7 @@ def test_ring_kernel_equals_the_dense_kernel(monkeypatch, n, mistuned):
 @pytest.mark.parametrize("n", [3, 4, 8])
 def test_ring_points_match_the_physical_space_reference(n):
     """Cold-started single points against fsolve on the full physical-space equations."""
-    model = _ring(n, mistuned=True)
+    model = ring(n, mistuned=True)
     rng = np.random.default_rng(30 + n)
     for _ in range(12):
         f = rng.uniform(10.0, 150.0)
@@ -94,7 +82,7 @@ def test_ring_points_match_the_physical_space_reference(n):
 @pytest.mark.parametrize("n", [3, 8, 24])
 def test_a_stuck_ring_is_its_linear_solution(n):
     """mu0 -> inf: every damper sticks and the ring is linear with K = kc."""
-    model = _ring(n, mistuned=True)
+    model = ring(n, mistuned=True)
     f = np.linspace(10.0, 150.0, 71)
     kc = np.linspace(1000.0, 14000.0, n)
     r = mcfric.solve(model, f, mu0=1e9, kc=kc, N0=N0)
@@ -111,7 +99,7 @@ def test_a_stuck_ring_is_its_linear_solution(n):
 def test_a_tuned_ring_responds_as_a_travelling_wave(n, engine_order):
     """Equal dampers on a tuned ring, engine order E: equal amplitudes on every blade and
     phase steps of -2 pi E / n from one blade to the next (the drive's own steps)."""
-    model = _ring(n, mistuned=False, engine_order=engine_order)
+    model = ring(n, mistuned=False, engine_order=engine_order)
     f = np.linspace(10.0, 150.0, 141)
     r = mcfric.solve(model, f, mu0=0.3, kc=9000.0, N0=N0)
     assert r.n_not_converged == 0
@@ -130,7 +118,7 @@ def test_turning_a_tuned_ring_turns_its_response():
     the drive's phase step; on a mistuned ring they do not."""
     rng = np.random.default_rng(11)
     for mistuned, holds in ((False, True), (True, False)):
-        model = _ring(6, mistuned, engine_order=2)
+        model = ring(6, mistuned, engine_order=2)
         beams, pairs = naive_beams(model), naive_pairs(model)
         for f in (17.0, 40.0, 95.0):
             K = rng.uniform(0, 15000.0, 6) + 1j * rng.uniform(0, 15000.0, 6)
@@ -147,9 +135,9 @@ def test_a_tuned_ring_has_the_same_upper_bound_on_every_blade():
     once for all blades; the shortcut applies to tuned rings under travelling waves only."""
     from mcfric.bounds import compute_bounds, force_limit, rotation_invariant
 
-    model = _ring(6, mistuned=False, engine_order=2, F0=0.5)
+    model = ring(6, mistuned=False, engine_order=2, F0=0.5)
     assert rotation_invariant(model)
-    assert not rotation_invariant(_ring(6, mistuned=True))
+    assert not rotation_invariant(ring(6, mistuned=True))
     assert not rotation_invariant(mcfric.eight_beam())
     f = np.linspace(14.0, 60.0, 24)
     F_lim = force_limit(1.0, N0)
@@ -280,7 +268,7 @@ def test_bad_ring_input_is_one_line_and_writes_nothing(tmp_path, monkeypatch, ca
         assert err.startswith("mcfric: error: " + message) and err.count("\n") == 1, err
         assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.toml"]
     with pytest.raises(ValueError, match="engine_order"):
-        _ring(6, False, engine_order=6)
+        ring(6, False, engine_order=6)
 
 
 @pytest.mark.parametrize("n", [5, 24, 72])
@@ -387,7 +375,7 @@ def test_tuned_rings_above_seven_dampers_are_certified_by_the_relaxation():
             assert C.lower[k] <= M.min() and M.max() <= C.upper[k], (n, fk)
             assert M.max() <= C.upper_witness[k], (n, fk)
         check_witnesses(model, f, C)
-    mistuned = _ring(8, mistuned=True, F0=1.1)
+    mistuned = ring(8, mistuned=True, F0=1.1)
     C = compute_bounds(mistuned, f, K_MAX, F_lim=F_LIM).certificate
     assert not C.relaxed and np.all(C.lower == 0)
 
@@ -416,7 +404,7 @@ def test_turned_multipliers_prove_the_bound_of_every_blade():
 
 
 @pytest.mark.parametrize("mistuned", [False, True])
-def test_tied_multipliers_give_the_lower_relaxation_of_a_tuned_ring(mistuned):
+def test_tied_multipliers_give_the_lower_relaxation_of_a_tunedring(mistuned):
     """A 12-blade ring, five frequencies: the lower bound's relaxation with every
     damper's multipliers tied (``tied_relaxation``: 7 unknowns) proves what the full
     relaxation (84) proves, to 0.2 %, on a tuned ring, and lies below 3000 random
@@ -429,7 +417,7 @@ def test_tied_multipliers_give_the_lower_relaxation_of_a_tuned_ring(mistuned):
 
     from .test_certified import F_LIM, K_MAX, random_admissible
 
-    model = _ring(12, mistuned=True, F0=1.1) if mistuned else mcfric.disk(12, 1, 1.1)
+    model = ring(12, mistuned=True, F0=1.1) if mistuned else mcfric.disk(12, 1, 1.1)
     f = np.array([14.0, 40.0, 75.0, 104.0, 130.0])
     G, q0, ylin, H = contact_arrays(model, f)
     nd, nb = q0.shape[1], ylin.shape[1]
@@ -565,7 +553,7 @@ def test_the_tied_relaxation_reaches_the_lower_bound_of_72_blades_near_resonance
         assert 0 < tied <= M.min(), fk
 
 
-def test_the_fourier_spectrum_of_a_tied_tuned_ring():
+def test_the_fourier_spectrum_of_a_tied_tunedring():
     """A 12-blade tuned ring at 40 Hz, tied multipliers drawn at random: the Fourier
     eigenvalues ``tied_relaxation`` takes from the first column of ``Z``'s damper block
     are that block's eigenvalues (``numpy.linalg.eigvalsh`` of the dense ``Z``), the
@@ -578,7 +566,7 @@ def test_the_fourier_spectrum_of_a_tied_tuned_ring():
 
     rng = np.random.default_rng(3)
     for mistuned in (False, True):
-        model = _ring(12, mistuned=True, F0=1.1) if mistuned else mcfric.disk(12, 1, 1.1)
+        model = ring(12, mistuned=True, F0=1.1) if mistuned else mcfric.disk(12, 1, 1.1)
         G, q0, ylin, H = (x[0] for x in contact_arrays(model, np.array([40.0])))
         nd = len(q0)
         lo, hi = np.zeros(nd, complex), np.full(nd, K_MAX * (1 + 1j))
@@ -703,7 +691,7 @@ def test_partly_tied_multipliers_bound_a_tuned_ring_from_above():
     n_f = len(f)
     got = {}
     for name, model in (("tuned", mcfric.disk(16, 2, 1.1)),
-                        ("mistuned", _ring(16, mistuned=True, engine_order=2, F0=1.1))):
+                        ("mistuned", ring(16, mistuned=True, engine_order=2, F0=1.1))):
         arrays = contact_arrays(model, f)
         for near in ((0, 2, 6) if name == "tuned" else (6,)):
             out = np.empty(n_f)
