@@ -189,10 +189,13 @@ class Cluster:
         try:
             if address.startswith("local:"):
                 n = int(address.split(":", 1)[1])
+                # CRITICAL: a worker that dies makes the scheduler log ERROR lines
+                # ("Couldn't gather keys") for chunks that Dask then recomputes; a chunk
+                # that really fails is reported by chunks(), in one line
                 with _workers_ignore_ctrl_c():
                     local = distributed.LocalCluster(
                         n_workers=n, threads_per_worker=1, processes=True,
-                        dashboard_address=DASHBOARD, silence_logs=logging.ERROR)
+                        dashboard_address=DASHBOARD, silence_logs=logging.CRITICAL)
                 client = distributed.Client(local, timeout=CONNECT_TIMEOUT_S)
             else:
                 client = distributed.Client(address, timeout=CONNECT_TIMEOUT_S)

@@ -115,7 +115,12 @@ def test_a_worker_killed_mid_run_loses_nothing(reference, tmp_path):
                              text=True)
         try:
             wait_for_progress(p, out, 100)
-            victim = sorted(pids.values())[0]
+            # a worker computing a chunk (an idle one would lose nothing)
+            deadline = time.monotonic() + 60
+            while not (busy := [w for w, keys in client.processing().items() if keys]):
+                assert time.monotonic() < deadline, "no worker is computing a chunk"
+                time.sleep(0.01)
+            victim = pids[busy[0]]
             os.kill(victim, signal.SIGKILL)
             stdout, stderr = p.communicate(timeout=300)
         finally:
