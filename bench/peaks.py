@@ -23,6 +23,18 @@ import mcfric
 from mcfric.peaks import PeakSettings, statistics
 
 
+def strict(x):
+    """``x`` with every non-finite float (an open end of an interval) as None: strict JSON
+    has no Infinity or NaN."""
+    if isinstance(x, dict):
+        return {k: strict(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [strict(v) for v in x]
+    if isinstance(x, (float, np.floating)):
+        return float(x) if np.isfinite(x) else None
+    return x
+
+
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--members", type=int, default=2000)
@@ -81,7 +93,7 @@ def main(argv=None):
     print(f"members with a fold: {folds} of {args.members}")
     out = pathlib.Path(__file__).parent / "out"
     out.mkdir(exist_ok=True)
-    (out / "peaks.json").write_text(json.dumps(res, indent=2))
+    (out / "peaks.json").write_text(json.dumps(strict(res), indent=2, allow_nan=False))
     print(f"saved {out / 'peaks.json'}")
     if args.figures:
         figures(pathlib.Path(args.figures), model, f, mu0, kc, r)
