@@ -64,9 +64,14 @@ def test_full_protocol_and_readers(tmp_path):
     np.testing.assert_array_equal(ds["sample"].values, np.arange(50))
     np.testing.assert_array_equal(ds["y"].values[48:], records(48, 50)["y"])
     assert ds.frequency.attrs["units"] == "Hz" and ds.attrs["seed"] == 3
+    # the other readers work while the Dataset is open (one locking flag for all)
+    assert store.read_attrs(path)["count"] == 4 and "y" in store.dataset_names(path)
     ds.close()
     with xr.open_dataset(path, engine="h5netcdf") as ds2:
         assert set(ds2.dims) == {"sample", "frequency", "beam"}
+        # a handle with locking on (h5py's default) is named, not called unreadable
+        with pytest.raises(StoreError, match="open elsewhere in this process"):
+            store.read_attrs(path)
 
 
 def test_writing_records_never_touches_metadata(tmp_path):

@@ -20,6 +20,10 @@ def _open_read(path):
     except FileNotFoundError:
         raise StoreError(f"{path}: no such file") from None
     except OSError as e:
+        if "locking flag" in str(e):
+            raise StoreError(f"{path}: open elsewhere in this process with HDF5 file locking "
+                             f"(h5py.File's default): close it, or open it with "
+                             f"locking=False as mcfric does") from None
         raise StoreError(f"{path}: not a readable HDF5 file ({e})") from None
 
 
@@ -110,7 +114,9 @@ def open_results(path, allow_incomplete=False):
     if attrs.get("complete") != 1 and not allow_incomplete:
         raise StoreError(f"{path}: incomplete run (complete = 0); continue it with "
                          f"`mcfric run ... --resume`, or pass allow_incomplete=True")
-    return xr.open_dataset(path, engine="h5netcdf")
+    # the same locking flag as every other reader here: HDF5 refuses a second handle on a
+    # file with another flag, so read_bounds and the like failed while a Dataset was open
+    return xr.open_dataset(path, engine="h5netcdf", driver_kwds={"locking": False})
 
 
 def read_group(path, name):
