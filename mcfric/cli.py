@@ -115,8 +115,10 @@ def _parser():
 
     c = sub.add_parser("config", help="print a complete, commented configuration",
                        description="Print the complete, commented TOML configuration of a "
-                       "preset (or the validated, complete form of a configuration file).")
-    c.add_argument("source", nargs="?", help=_source_help() + " (default: eight-beam)")
+                       "preset (or the validated, complete form of a configuration file), "
+                       "or the configuration a results file was run with.")
+    c.add_argument("source", nargs="?", help=_source_help() + ", or a results file "
+                   "(FILE or FILE.partial) (default: eight-beam)")
 
     i = sub.add_parser("info", help="summarise a results file")
     i.add_argument("file", help="results file (FILE or FILE.partial)")
@@ -318,7 +320,7 @@ def _load(args, fixed=None):
         cfg = config.load(args.source, overrides)
     except config.ConfigError as e:
         raise UsageError(str(e)) from None
-    if cfg.data["excitation"]["engine_orders"] and args.command != "run":
+    if cfg.data["excitation"]["engine_orders"] and args.command not in ("run", "config"):
         raise UsageError(f"excitation.engine_orders: a sweep of engine orders is for "
                          f"mcfric run; mcfric {args.command} takes one engine_order")
     return cfg
@@ -341,8 +343,8 @@ def _output_path(args, suffix, prefix="", figure=False):
 
     ``figure``: the command also writes ``FILE.png`` next to it; the two must differ.
     Neither may replace an HDF5 file unless the command writes HDF5 itself (``suffix``
-    ``.h5``, whose own checks decide), nor the command's own input, nor be a directory
-    (found now, not after the work).
+    ``.h5``, whose own checks decide), nor the command's own input, nor be a directory,
+    nor end in the other format's suffix (found now, not after the work).
     """
     if args.output is not None:
         if not str(args.output).strip():
@@ -371,6 +373,13 @@ def _output_path(args, suffix, prefix="", figure=False):
             raise UsageError(f"-o: the figure {png} is a directory; choose another -o")
         _not_replacing_hdf5(png, "figure")
         _not_replacing_input(args, png, "figure")
+    # a name that promises the other format (the reader would then fail on it)
+    other = {".h5": (".csv", ".png", ".txt", ".toml"),
+             ".csv": (".h5", ".hdf5", ".hdf", ".nc", ".png", ".toml")}[suffix]
+    if out.suffix.lower() in other:
+        fmt = "an HDF5 results file" if suffix == ".h5" else "CSV"
+        raise UsageError(f"-o: {out.name}: this command writes {fmt}; give a name ending "
+                         f"in {suffix}")
     return out
 
 
@@ -761,10 +770,32 @@ def _print_inside(path, measured, quantity):
 
 
 def cmd_config(args):
-    """``mcfric config``: the complete, commented configuration on stdout."""
+    """``mcfric config``: the complete, commented configuration on stdout; of a results
+    file (complete or partial), the configuration it was run with."""
+    from .store import partial_path
+
+    path = Path(args.source) if args.source is not None else None
+    if path is not None and not path.exists() and partial_path(path).exists():
+        path = partial_path(path)
+    if path is not None and path.is_file() and _is_hdf5(path):
+        a, _ = _checked_file(path)
+        out = str(path).removesuffix(".partial")
+        sys.stdout.write(f"# the configuration of the run in {path}\n"
+                         f"# (mcfric run THIS.toml -o {out} --resume continues an "
+                         f"interrupted one)\n\n{a['config']}")
+        return EXIT_OK
     cfg = _load(args)
     sys.stdout.write(cfg.toml())
     return EXIT_OK
+
+
+def _is_hdf5(path):
+    import h5py
+
+    try:
+        return h5py.is_hdf5(path)
+    except OSError:
+        return False
 
 
 def cmd_info(args):
@@ -798,8 +829,9 @@ def cmd_info(args):
     m, ex, fr, sa = cfg["model"], cfg["excitation"], cfg["frequency"], cfg["sampling"]
     nd = m["n_beams"] - (1 if m["topology"] == "linear" else 0)
     state = ("complete" if a.get("complete") == 1 else
-             f"INCOMPLETE: {done} of {n} samples done; continue it with "
-             f"`mcfric run CONFIG -o {str(path).removesuffix('.partial')} --resume`")
+             f"INCOMPLETE: {done} of {n} samples done; continue it with the command "
+             f"that started it and --resume, or with `mcfric config {path} > run.toml` "
+             f"and `mcfric run run.toml -o {str(path).removesuffix('.partial')} --resume`")
 
     def dist(t):
         from .sampling import DISTRIBUTIONS
@@ -981,8 +1013,9 @@ GRID_MATCH = 1e-3
 
 def _stored_points(path, member, freqs, quantity):
     """What a results file holds for ``member`` at each verified frequency: verify solves
-    its harmonic balance afresh (the run's tolerance and iterations, each frequency from a
-    cold start), so the lines say what that is compared with, or that there is nothing.
+    its harmonic balance afresh (the run's tolerance and iterations, a short sweep over the
+    frequencies given, each started from the one before), so the lines say what that is
+    compared with, or that there is nothing.
 
     Returns the frequencies to verify (a typed one within ``GRID_MATCH`` of a grid
     frequency, and nearer to it than to its neighbours, becomes that grid frequency) and
@@ -997,8 +1030,9 @@ def _stored_points(path, member, freqs, quantity):
     conv = read(path, "converged", member)
     metric = read(path, "metric", member)
     lines = [f"file: member {member}'s harmonic balance here is solved afresh (the run's "
-             f"tolerance and iterations, a cold start at each frequency: near a fold it may "
-             f"reach another branch than the run's upward sweep)"]
+             f"tolerance and iterations, a short sweep over the frequencies given, each "
+             f"started from the one before: near a fold it may reach another branch than "
+             f"the run's sweep over its grid)"]
     out = []
     for fk in freqs:
         if not (math.isfinite(fk) and fk > 0):

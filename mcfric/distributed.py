@@ -36,7 +36,8 @@ THREADS_REFRESH_S = 1.0
 #: Dashboard address of a ``local:N`` cluster: any free port on this machine. (None is
 #: not "no dashboard" in distributed: it falls back to 8787, and warns when that is taken.)
 DASHBOARD = "127.0.0.1:0"
-INSTALL_HINT = 'needs Dask, an optional extra: pip install "mcfric[dask]"'
+INSTALL_HINT = ('needs Dask, an optional extra: pip install ".[dask]" in the clone '
+                '("mcfric[dask]" where mcfric comes from a package index)')
 
 # one kernel at a time per worker process: numba's default (workqueue) threading layer
 # must not be entered from two threads at once

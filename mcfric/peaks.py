@@ -308,8 +308,8 @@ def report_text(report, unit):
              f"{_interval(st, 'p95_ci')}, max {st['max']:.4g} {unit} "
              f"({st['members']} members; {share})"
              + (f"; {k} of these {'is a lower estimate' if k == 1 else 'are lower estimates'}"
-                f": a peak of the member was not refined (a solver failed near it) and may "
-                f"lie higher" if k else ""),
+                f": a peak of the member was not refined (a solver failed near it, or the "
+                f"grid is too coarse to search) and may lie higher" if k else ""),
              f"folds:       {report['folds']} of {report['members']} members have more than "
              f"one steady state near a peak"
              + (f" ({report['unchecked']} could not be checked)" if report["unchecked"]

@@ -17,7 +17,8 @@ from datetime import datetime
 from pathlib import Path
 
 UFF_SUFFIXES = (".uff", ".unv", ".uf")
-PYUFF_HINT = 'UFF files need the optional package pyuff: pip install "mcfric[uff]"'
+PYUFF_HINT = ('UFF files need the optional package pyuff: pip install ".[uff]" in the '
+              'clone ("mcfric[uff]" where mcfric comes from a package index)')
 #: Direction codes of UFF node values.
 DIRECTIONS = {1: "X", 2: "Y", 3: "Z", 4: "RX", 5: "RY", 6: "RZ"}
 #: UFF specific data types of the ordinate (record 9) for each quantity.

@@ -243,7 +243,7 @@ def test_without_dask_the_flag_names_the_extra(tmp_path, capsys, monkeypatch):
                    "--scheduler", "local:2", "--no-progress"])
     err = capsys.readouterr().err
     assert rc == 2 and err.count("\n") == 1
-    assert 'pip install "mcfric[dask]"' in err, err
+    assert 'pip install ".[dask]" in the clone' in err, err
     assert list(tmp_path.iterdir()) == []
 
 

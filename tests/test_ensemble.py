@@ -215,6 +215,41 @@ def interrupt_at_chunk_3(monkeypatch, cfg, out, **kw):
     monkeypatch.setattr(ensemble.hbm, "solve", real)
 
 
+def test_a_run_with_overrides_resumes_from_its_own_configuration(tmp_path, monkeypatch,
+                                                                   capsys):
+    """`mcfric config FILE.partial` prints the configuration the run was made with
+    (command-line overrides included); that file resumes it to the file a straight run
+    writes."""
+    from mcfric import cli
+
+    argv = ["run", "two-beam", "--samples", "50", "--n-freq", "10", "--chunk", "10",
+            "--no-bounds", "--no-figure", "--no-progress"]
+    real = hbm.solve
+    calls = {"n": 0}
+
+    def stop_at_3(*a, **k):
+        calls["n"] += 1
+        if calls["n"] == 3:
+            raise KeyboardInterrupt
+        return real(*a, **k)
+
+    out = tmp_path / "r.h5"
+    monkeypatch.setattr(ensemble.hbm, "solve", stop_at_3)
+    assert cli.main(argv + ["-o", str(out)]) == cli.EXIT_INTERRUPTED
+    monkeypatch.setattr(ensemble.hbm, "solve", real)
+    capsys.readouterr()
+    # the preset alone is another run: refused
+    assert cli.main(["run", "two-beam", "-o", str(out), "--resume", "--no-figure"]) == 2
+    assert "different configuration" in capsys.readouterr().err
+    assert cli.main(["config", str(partial_path(out))]) == 0
+    toml = tmp_path / "run.toml"
+    toml.write_text(capsys.readouterr().out)
+    assert cli.main(["run", str(toml), "-o", str(out), "--resume", "--no-figure",
+                     "--no-progress"]) == 0
+    assert cli.main(argv + ["-o", str(tmp_path / "straight.h5")]) == 0
+    assert_bitwise(load(out), load(tmp_path / "straight.h5"))
+
+
 def test_resume_refuses_other_config_or_other_solver_code(tmp_path, monkeypatch):
     cfg = two_beam(samples=50, n=10, run__chunk=10, run__checkpoint_s=0.0)
     out = tmp_path / "r.h5"

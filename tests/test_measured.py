@@ -285,7 +285,7 @@ def test_missing_pyuff_gives_install_hint(tmp_path, monkeypatch):
     monkeypatch.setitem(sys.modules, "pyuff", None)
     with pytest.raises(ImportError) as e:
         read_measured(tmp_path / "x.uff", nodes=NODES)
-    one_line(e, 'pip install "mcfric[uff]"')
+    one_line(e, 'pip install ".[uff]" in the clone')
     with pytest.raises(ImportError):
         export_uff58(tmp_path / "x.uff", FREQ, np.ones((FREQ.size, 2)), force_n=1.0)
 

@@ -355,7 +355,7 @@ def test_missing_pyuff_gives_install_hint(tmp_path, monkeypatch):
     monkeypatch.setitem(sys.modules, "pyuff", None)
     with pytest.raises(ImportError) as e:
         read_modal_table(tmp_path / "x.uff")
-    one_line(e, 'pip install "mcfric[uff]"')
+    one_line(e, 'pip install ".[uff]" in the clone')
     with pytest.raises(ImportError):
         write_modal_table_uff55(tmp_path / "x.uff", TABLE_1)
 

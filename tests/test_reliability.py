@@ -220,6 +220,10 @@ REFUSED_BEFORE_WORK = [
      "would replace the input"),
     (["run", "two-beam", "--samples", "4", *TINY, "-o", "{dir}/r.h5.partial"],
      "ends in .partial"),
+    # a name promising the other format (`mcfric info x.h5` then failed on the CSV)
+    (["hbm", "two-beam", "--n-freq", "5", "-o", "{dir}/x.h5"], "this command writes CSV"),
+    (["run", "two-beam", "--samples", "4", *TINY, "-o", "{dir}/r.csv"],
+     "writes an HDF5 results file; give a name ending in .h5"),
     (["verify", "two-beam", "--f", "0.001", "--harmonics", "3"], "--f: at 0.001 Hz"),
     (["verify", "two-beam", "--f", "nan"], "--f:"),
     (["verify", "two-beam", "--f", "20", "--harmonics", "1"], "--harmonics: expected an "

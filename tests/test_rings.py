@@ -222,6 +222,9 @@ def test_an_engine_order_sweep_is_one_run_per_order(tmp_path, capsys):
     assert cli.main(["bounds", str(tmp_path / "sweep.toml"), "-o",
                      str(tmp_path / "b.h5")]) == 2
     assert "engine_orders" in capsys.readouterr().err
+    # `mcfric config` prints the sweep, the list kept
+    assert cli.main(["config", str(tmp_path / "sweep.toml")]) == 0
+    assert "engine_orders = [1, 2]" in capsys.readouterr().out
 
 
 @pytest.mark.parametrize("F0", [0.25, 1.1])
