@@ -209,6 +209,24 @@ def test_multi_harmonic_agrees_with_time_integration(name, mu0, kc, freqs):
             assert np.all(v.even <= 1e-8 * a1), v.table()
 
 
+def test_newton_passes_a_kink_of_the_friction_force():
+    """A member of eight beams at 17.04 Hz, H = 5: between the start and the solution one
+    damper's loop gains a second slip phase, the residual has a kink there, and the
+    halving line search crawled (steps of 1/64) until it ran out of iterations. The
+    watchdog's undamped steps pass it; the point agrees with time integration."""
+    model = mcfric.preset("eight-beam")
+    rng = np.random.default_rng(1)
+    mu0 = rng.uniform(0, 1, (40, model.n_dampers))[6]
+    kc = rng.uniform(0, 15000.0, (40, model.n_dampers))[6]
+    f = np.linspace(10.0, 150.0, 200)[:11]           # the sweep up to 17.035 Hz
+    res = hbm.solve(model, f, mu0[None], kc[None], 0.5, harmonics=5)
+    assert res.converged.all(), res.status
+    v = verify(model, f[-1], mu0, kc, 0.5, harmonics=5)[0]
+    assert v.periodic
+    a1 = abs(v.harmonics[0])
+    assert np.all(abs(res.response[0, -1] - v.harmonics[0]) <= 2e-3 * a1.max())
+
+
 def test_a_static_offset_depends_on_the_start_and_leaves_the_odd_harmonics():
     """Eight beams at 21 Hz: the integration settles with a mean offset of every beam
     that depends on where it started; the odd harmonics do not, and match the balance."""

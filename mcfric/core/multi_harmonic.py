@@ -9,7 +9,11 @@ damper ``j``. The contact-space reduction holds per harmonic, at ``n_h omega``::
 with ``F_lh`` the harmonics of damper ``l``'s force from :func:`mcfric.core.aft.jenkins` and
 ``q0`` nonzero only at the fundamental (the drive is a pure harmonic). Newton works on
 the real and imaginary parts (the force is not complex-analytic in ``Q``) with the exact
-AFT Jacobian, a dense LU of size ``2 nd n_h``, and a halving line search.
+AFT Jacobian, a dense LU of size ``2 nd n_h``, and a halving line search. The residual is
+only piecewise smooth (a Jenkins loop gains or loses a slip phase as ``Q`` moves), and
+across such a kink the line search can crawl at steps of 1/64; after two short steps in a
+row a rejected full step is followed by a few undamped Newton steps (a watchdog), kept if
+they reach a smaller sum of squares than the iteration's start.
 
 Each sample sweeps the frequencies in order. A point starts from a prediction out of the
 previous frequencies: the higher harmonics extrapolated linearly from the last two
@@ -59,6 +63,14 @@ from .receptance import D21, D23
 from .sweep import _dense_G, _q0
 
 _MAX_HALVINGS = 10
+#: Watchdog: after ``_CRAWL_ITERS`` iterations in a row whose accepted step was at most
+#: ``_CRAWL_STEP``, a rejected full step is followed by up to ``_WATCHDOG_STEPS`` undamped
+#: Newton steps, kept at the first whose sum of squares is below the start's; at most
+#: ``_WATCHDOG_TRIES`` times per call.
+_CRAWL_STEP = 0.125
+_CRAWL_ITERS = 2
+_WATCHDOG_STEPS = 5
+_WATCHDOG_TRIES = 2
 
 
 @jit
@@ -367,29 +379,43 @@ def _chain_step(G, dF, W, piv, x, nd, n_h):
 
 
 @jit
-def _newton(Q, orders, G, q0, kc, fs, n_time, tol, max_iter, F, dF, R, J, piv, dx, Qt,
-            work, nd, n_h, chain):
-    """Newton from ``Q`` (updated in place); returns ``(converged, iterations, err)``."""
+def _newton_step(G, dF, R, J, piv, dx, nd, n_h, chain):
+    """``dx`` = the Newton step ``-(I + G dF)^-1 R``; False on a singular system."""
     n = 2 * nd * n_h
+    for j in range(nd):
+        for h in range(n_h):
+            dx[2 * (j * n_h + h)] = -R[j, h].real
+            dx[2 * (j * n_h + h) + 1] = -R[j, h].imag
+    if chain:
+        return _chain_step(G, dF, J, piv, dx, nd, n_h)
+    _assemble(G, dF, J, nd, n_h)
+    if lu_factor(J, piv, n) != 0:
+        return False
+    lu_solve(J, piv, dx, n)
+    return True
+
+
+@jit
+def _newton(Q, orders, G, q0, kc, fs, n_time, tol, max_iter, F, dF, R, J, piv, dx, dw, Qt,
+            work, nd, n_h, chain):
+    """Newton from ``Q`` (updated in place); returns ``(converged, iterations, err)``.
+
+    A halving line search on the sum of squares. Where it crawls (the residual is only
+    piecewise smooth: a Jenkins loop gains or loses a slip phase between ``Q`` and the
+    solution, and the Jacobian jumps there), a watchdog: undamped steps from the full
+    step (``dw`` is their scratch, like ``dx``); the iterations count them."""
     err, ss, ok = _evaluate(Q, orders, G, q0, kc, fs, n_time, F, dF, R, work, nd, n_h)
     if not ok:
         return False, 0, math.inf
     rel = err / _scale(Q, q0, nd)
+    extra = 0                        # undamped steps of the watchdog
+    tries = 0
+    crawl = 0                        # iterations in a row with a short accepted step
     for it in range(1, max_iter + 1):
         if rel <= 0.1 * tol:
-            return True, it - 1, rel
-        for j in range(nd):
-            for h in range(n_h):
-                dx[2 * (j * n_h + h)] = -R[j, h].real
-                dx[2 * (j * n_h + h) + 1] = -R[j, h].imag
-        if chain:
-            if not _chain_step(G, dF, J, piv, dx, nd, n_h):
-                return False, it, rel
-        else:
-            _assemble(G, dF, J, nd, n_h)
-            if lu_factor(J, piv, n) != 0:
-                return False, it, rel
-            lu_solve(J, piv, dx, n)
+            return True, it - 1 + extra, rel
+        if not _newton_step(G, dF, R, J, piv, dx, nd, n_h, chain):
+            return False, it + extra, rel
         step = 1.0
         accepted = False
         for _ in range(_MAX_HALVINGS):
@@ -403,18 +429,40 @@ def _newton(Q, orders, G, q0, kc, fs, n_time, tol, max_iter, F, dF, R, J, piv, d
             if ok and ss_t < (1.0 - 1e-4 * step) * ss:
                 accepted = True
                 break
+            if ok and step == 1.0 and crawl >= _CRAWL_ITERS and tries < _WATCHDOG_TRIES:
+                # undamped steps from the full step (F, dF, R are Qt's), kept at the
+                # first whose sum of squares is below the start's
+                tries += 1
+                for _w in range(_WATCHDOG_STEPS):
+                    if not _newton_step(G, dF, R, J, piv, dw, nd, n_h, chain):
+                        break
+                    extra += 1
+                    for j in range(nd):
+                        for h in range(n_h):
+                            i0 = 2 * (j * n_h + h)
+                            Qt[j, h] += complex(dw[i0], dw[i0 + 1])
+                    err_t, ss_t, ok = _evaluate(Qt, orders, G, q0, kc, fs, n_time, F, dF, R,
+                                                work, nd, n_h)
+                    if not ok:
+                        break
+                    if ss_t < (1.0 - 1e-4) * ss:
+                        accepted = True
+                        break
+                if accepted:
+                    break
             step *= 0.5
         if not accepted:
             # no decrease: at the rounding floor if already within tol, else stuck
             _evaluate(Q, orders, G, q0, kc, fs, n_time, F, dF, R, work, nd, n_h)
-            return rel <= tol, it, rel
+            return rel <= tol, it + extra, rel
+        crawl = crawl + 1 if step <= _CRAWL_STEP else 0
         for j in range(nd):
             for h in range(n_h):
                 Q[j, h] = Qt[j, h]
         err = err_t
         ss = ss_t
         rel = err / _scale(Q, q0, nd)
-    return rel <= tol, max_iter, rel
+    return rel <= tol, max_iter + extra, rel
 
 
 @jit
@@ -486,7 +534,7 @@ _LAMBDA_MIN_STEP = 1.0 / 64.0
 
 @jit
 def _continuation(Q, Qc, orders, G, Gs, q0, kc, fs, n_time, tol, max_iter, F, dF, R, J, piv,
-                  dx, Qt, work, nd, n_h, chain):
+                  dx, dw, Qt, work, nd, n_h, chain):
     """Last resort from the single-harmonic start ``Q``: follow the solution while the
     higher harmonics' receptances are scaled up from 0 (where ``Q`` solves the equations
     exactly) to 1, by natural continuation with step halving. Returns like
@@ -510,7 +558,7 @@ def _continuation(Q, Qc, orders, G, Gs, q0, kc, fs, n_time, tol, max_iter, F, dF
             for h in range(n_h):
                 Q[j, h] = Qc[j, h]
         ok, it, rel = _newton(Q, orders, Gs, q0, kc, fs, n_time, tol, max_iter, F, dF, R, J,
-                              piv, dx, Qt, work, nd, n_h, chain)
+                              piv, dx, dw, Qt, work, nd, n_h, chain)
         total += it
         if ok:
             lam = target
@@ -566,6 +614,7 @@ def _sample(i, rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, tol, m
     T = np.zeros((nd, nd), dtype=np.complex128)
     piv = np.zeros(n, dtype=np.int64)
     dx = np.zeros(n)
+    dw = np.zeros(n)
     work = np.zeros(aft.work_size(n_h, n_time))
     yh = np.zeros((n_h, n_beams), dtype=np.complex128)
     kci = kc[i]
@@ -606,14 +655,14 @@ def _sample(i, rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, tol, m
                     else:
                         Q[j, h] = Qp[j, h]
             ok, it, rel = _newton(Q, orders, G, q0, kci, fs, n_time, tol, max_iter, F, dF,
-                                  R, J, piv, dx, Qt, work, nd, n_h, chain)
+                                  R, J, piv, dx, dw, Qt, work, nd, n_h, chain)
             its += it
         if have_prev and not ok:
             for j in range(nd):
                 for h in range(n_h):
                     Q[j, h] = Qp[j, h]
             ok, it, rel = _newton(Q, orders, G, q0, kci, fs, n_time, tol, max_iter, F, dF,
-                                  R, J, piv, dx, Qt, work, nd, n_h, chain)
+                                  R, J, piv, dx, dw, Qt, work, nd, n_h, chain)
             its += it
         sh_prev = sh
         for j in range(nd):
@@ -627,7 +676,7 @@ def _sample(i, rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, tol, m
                     for h in range(n_h):
                         Q[j, h] = Qsh[j, h]
                 ok, it, rel = _newton(Q, orders, G, q0, kci, fs, n_time, tol, max_iter, F,
-                                      dF, R, J, piv, dx, Qt, work, nd, n_h, chain)
+                                      dF, R, J, piv, dx, dw, Qt, work, nd, n_h, chain)
                 its += it
         if not ok and sh:
             st = 2
@@ -635,7 +684,7 @@ def _sample(i, rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, tol, m
                 for h in range(n_h):
                     Q[j, h] = Qsh[j, h]
             ok, it, rel = _continuation(Q, Qc, orders, G, Gs, q0, kci, fs, n_time, tol,
-                                        max_iter, F, dF, R, J, piv, dx, Qt, work, nd, n_h,
+                                        max_iter, F, dF, R, J, piv, dx, dw, Qt, work, nd, n_h,
                                         chain)
             its += it
         iterations[i, k] = min(its, 32767)
