@@ -172,7 +172,7 @@ def _parser():
                     help="plotted quantity (default: the stored one)")
     pl.add_argument("--f-min", type=float, metavar="HZ", help="lower end of the window, Hz")
     pl.add_argument("--f-max", type=float, metavar="HZ", help="upper end of the window, Hz")
-    pl.add_argument("--member", type=int, default=0, metavar="I",
+    pl.add_argument("--member", type=int, default=None, metavar="I",
                     help="ensemble member drawn in black (default 0; -1: none)")
     pl.add_argument("--measured", nargs="+", metavar="DATA", default=[],
                     help="measured responses (CSV, or UFF dataset 58 with --nodes)")
@@ -653,9 +653,13 @@ def cmd_bounds(args):
 def cmd_plot(args):
     """``mcfric plot``: the figure of a results or bounds file, measured data on top."""
     from . import plot
+    from .store import partial_path
 
     path = Path(args.file)
     if not path.exists():
+        if partial_path(path).exists():
+            raise UsageError(f"{path}: the run is not complete ({partial_path(path).name} "
+                             f"holds it; continue it with --resume)")
         raise UsageError(f"{path}: no such file")
     attrs = _checked_file(path)[0]
     if attrs.get("complete") != 1:
@@ -684,6 +688,9 @@ def cmd_plot(args):
             raise UsageError(f"{flag}: expected f-min < f-max, got {window[0]:g} and "
                              f"{window[1]:g} Hz")
     n = int(attrs.get("samples", 0))
+    if not n and args.member is not None and args.member >= 0:
+        raise UsageError(f"--member: {path} holds no members (a bounds file)")
+    args.member = 0 if args.member is None else args.member
     if n and not -1 <= args.member < n:
         raise UsageError(f"--member: expected -1 (none) or a member in 0..{n - 1}, "
                          f"got {args.member}")
@@ -701,7 +708,9 @@ def cmd_plot(args):
           + (f"; {gaps:,} points not converged, left as gaps" if gaps else "")
           + (f"; {grid} member peaks not refined, drawn as circles" if grid else "") + ")")
     if measured and drawn["has_bounds"]:
-        _print_inside(path, measured, args.quantity)
+        _print_inside(path, measured, args.quantity, window)
+    elif measured:
+        print("measured data drawn; not compared (the file has no bounds)")
     return EXIT_OK
 
 
@@ -722,7 +731,13 @@ def _read_measured(args, attrs):
     F0 = cfg.get("excitation", {}).get("F0")
     n_beams = cfg.get("model", {}).get("n_beams")
     out = []
+    seen = set()
     for data in args.measured:
+        key = Path(data).resolve()
+        if key in seen:
+            raise UsageError(f"--measured: {data} is given twice (its points would count "
+                             f"twice)")
+        seen.add(key)
         try:
             ms_list = ms.read_measured(data, nodes=nodes, quantity=args.measured_quantity)
         except (ValueError, ImportError) as e:
@@ -737,36 +752,99 @@ def _read_measured(args, attrs):
                     raise UsageError(f"--normalise: {data} gives no force level (force_n)")
                 m, report = ms.normalise(m, F0)
                 print(report.text())
+            elif m.force_n is not None and F0 and abs(m.force_n - F0) > 1e-6 * F0:
+                raise UsageError(f"--measured: {data} was measured at {m.force_n:g} N, the "
+                                 f"file is for F0 = {F0:g} N: pass --normalise to rescale "
+                                 f"it (docs: measured data)")
             out.append(m)
     return out
 
 
-def _print_inside(path, measured, quantity):
-    """Fraction of measured points inside the bounds: the upper bound per beam, both
-    bounds for the measured metric (the lower bound of M bounds the largest beam only).
-    The certified bounds where the file has them (the band the figure draws), else the
-    searched ones; the first line says which."""
+def _print_inside(path, measured, quantity, window=None):
+    """Fraction of measured points inside the bounds (within the plot's window): each of
+    the metric's beams against the upper bound, the measured metric against both bounds
+    where every beam of the metric is measured (the lower bound of M bounds the largest
+    beam only), else against the upper one. The certified bounds where the file has them
+    (the band the figure draws), else the searched ones; the first line says which, and
+    that between grid frequencies the bounds are interpolated."""
+    from dataclasses import replace
+
+    import numpy as np
+
     from . import measured as ms
     from .bounds import read_bounds
     from .metric import omega_power
+    from .store import read_attrs
 
     B = read_bounds(path)
     q = quantity or B.quantity
     scale = omega_power(B.freq_hz, q, B.quantity)
     C = B.certificate
     lo, up = (C.lower, C.upper) if C is not None else (B.lower, B.upper)
-    lo, up = lo * scale, up * scale
+    lo, up, g = lo * scale, up * scale, B.freq_hz
+    if window is not None:
+        keep = (g >= window[0]) & (g <= window[1])
+        if np.count_nonzero(keep) < 2:
+            print("measured data drawn; not compared (fewer than two grid frequencies of "
+                  "the bounds in the window)")
+            return
+        lo, up, g = lo[keep], up[keep], g[keep]
+    n_beams = json.loads(read_attrs(path)["config_json"])["model"]["n_beams"]
+    beams = tuple(b + 1 for b in B.beams) or tuple(range(1, n_beams + 1))
+    step = float(np.median(np.diff(g)))
     print("measured data against the " + ("certified bounds (lower_certified, "
                                           "upper_certified)" if C is not None else
-                                          "searched bounds (the file has no certified ones)"))
-    per_beam = ms.fraction_inside(measured, B.freq_hz, lo, up, quantity=q, check_lower=False)
-    metric = [m.to_quantity(q).metric() for m in measured]
-    overall = ms.fraction_inside(metric, B.freq_hz, lo, up, quantity=q)
-    print("each beam against the upper bound only (the lower bound of M bounds the "
-          "largest beam, not every beam):")
-    print(per_beam.text())
-    print("the measured metric M (max over the beams) against both bounds:")
-    print(overall.text())
+                                          "searched bounds (the file has no certified ones)")
+          + f", which hold at the {g.size} grid frequencies ({step:.3g} Hz apart) and are "
+          f"interpolated between them" + (f", {window[0]:g}-{window[1]:g} Hz"
+                                          if window is not None else ""))
+    cols = [m for m in measured if any(b in beams for b in m.beams)]
+    if not cols:
+        print(f"measured data drawn; not compared (no measured beam is one of the metric's "
+              f"beams {', '.join(map(str, beams))})")
+        return
+    full, part = [], []
+    for m in cols:
+        m = m.to_quantity(q)
+        if m.beams == (ms.METRIC,):
+            full.append(m)                   # a record of M itself (an export)
+            continue
+        j = [i for i, b in enumerate(m.beams) if b in beams]
+        sub = replace(m, response=m.response[:, j], beams=tuple(m.beams[i] for i in j))
+        (full if set(beams) <= set(sub.beams) else part).append(sub.metric())
+    single = [m for m in cols if m.beams != (ms.METRIC,)]
+    if single:
+        per_beam = ms.fraction_inside(single, g, lo, up, beams=None, quantity=q,
+                                      check_lower=False)
+        skipped = sorted({b for m in single for b in m.beams if b not in beams})
+        print("each beam against the upper bound only (the lower bound of M bounds the "
+              "largest beam, not every beam)"
+              + (f"; beam{'s' if len(skipped) > 1 else ''} "
+                 f"{', '.join(map(str, skipped))} {'are' if len(skipped) > 1 else 'is'} "
+                 f"not in the metric and not compared" if skipped else "") + ":")
+        print(_inside_or_none(per_beam, beams))
+    if full:
+        print("the measured metric M (max over the beams) against both bounds:")
+        print(_inside_or_none(ms.fraction_inside(full, g, lo, up, quantity=q)))
+    if part:
+        print(f"the largest measured beam against the upper bound only (the metric's beams "
+              f"{', '.join(map(str, beams))} are not all measured: M could be larger):")
+        print(_inside_or_none(ms.fraction_inside(part, g, lo, up, quantity=q,
+                                                 check_lower=False)))
+
+
+def _inside_or_none(inside, beams=None):
+    """The line of an :class:`~mcfric.measured.Inside` (only ``beams`` when given), or
+    a plain statement that no point was compared."""
+    if beams is not None:
+        keep = [b for b in inside.beams if b in beams]
+        inside = type(inside)(tuple(keep), *({b: c[b] for b in keep} for c in (
+            inside.inside, inside.below, inside.above, inside.outside_range, inside.missing,
+            inside.off_grid)))
+    if not inside.compared():
+        return ("no measured point compared (all outside the bounds' frequencies or "
+                "without a value)")
+    return inside.text()
 
 
 def cmd_config(args):

@@ -129,11 +129,11 @@ def _table(path, freq, zeta, shapes, labels):
 def _check_modes(path, numbers, freq, zeta, mass, shapes, labels):
     for n, f, z, m, u in zip(numbers, freq, zeta, mass, shapes):
         if not (math.isfinite(f) and f > 0):
-            raise ValueError(f"{path}: mode {n}: frequency must be > 0 Hz, got {f!r}")
+            raise ValueError(f"{path}: mode {n}: frequency must be > 0 Hz, got {float(f):g}")
         if not (math.isfinite(z) and z >= 0):
-            raise ValueError(f"{path}: mode {n}: damping ratio must be >= 0, got {z!r}")
+            raise ValueError(f"{path}: mode {n}: damping ratio must be >= 0, got {float(z):g}")
         if not (math.isfinite(m) and m >= 0):
-            raise ValueError(f"{path}: mode {n}: modal mass must be >= 0, got {m!r}")
+            raise ValueError(f"{path}: mode {n}: modal mass must be >= 0, got {float(m):g}")
         if not np.all(np.isfinite(u)):
             raise ValueError(f"{path}: mode {n}: shape values must be finite")
         if not np.any(u != 0):

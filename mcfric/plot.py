@@ -115,7 +115,8 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
         segs, dots, highlight = [], [], None
         fields = ["metric", "sample", "converged"] + (["harmonic_indicator"] if mark else [])
         for _, arr in iter_records(path, fields):
-            m = arr["metric"][:, win] * scale[win]
+            # a point not converged is a gap, whatever value the file holds there
+            m = np.where(arr["converged"][:, win], arr["metric"][:, win] * scale[win], np.nan)
             n_failed += int(np.count_nonzero(~arr["converged"][:, win]))
             for idx in np.flatnonzero(arr["sample"] % step == 0):
                 y = np.where(m[idx] > 0, m[idx], np.nan)

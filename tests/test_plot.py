@@ -188,6 +188,89 @@ def test_measured_points_are_judged_against_the_certified_band(results, tmp_path
     assert _fractions(out)[1] == (0.0, 0, k.size), out      # was 100 % (the searched bounds)
 
 
+def _beam2_csv(results, path, member, scale=1.0, force_n=None, freqs=None):
+    """CSV of beam 2's |response| only (optionally with a force_n column), at the grid
+    frequencies or at ``freqs`` (interpolated in log amplitude)."""
+    with h5py.File(results, "r") as h5:
+        f = h5["frequency"][()]
+        y = np.abs(h5["response"][member][:, 1]) * scale
+    if freqs is not None:
+        y, f = np.exp(np.interp(freqs, f, np.log(y))), np.asarray(freqs)
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["frequency_hz", "beam2", "kind"] + (["force_n"] if force_n else []))
+        for fi, yi in zip(f, y):
+            w.writerow([repr(float(fi)), repr(float(yi)), "sweep"]
+                       + ([repr(force_n)] if force_n else []))
+    return len(f)
+
+
+def test_a_measured_subset_of_the_beams_is_held_to_the_upper_bound_only(results, tmp_path,
+                                                                       capsys):
+    """Beam 2 alone (the metric is over beams 1 and 2): its maximum is no measured M and
+    may lie below the lower bound of M; it counted as outside there before."""
+    data = tmp_path / "b2.csv"
+    n_f = _beam2_csv(results, data, member=3, scale=0.3)
+    rc, out, err = call(["plot", results, "-o", tmp_path / "m.png", "--measured", data],
+                        capsys)
+    assert rc == 0, err
+    assert "are not all measured: M could be larger" in out, out
+    assert "against both bounds" not in out
+    assert _fractions(out) == [(100.0, n_f, n_f), (100.0, n_f, n_f)], out
+
+
+def test_measured_data_at_another_force_needs_normalise(results, tmp_path, capsys):
+    data = tmp_path / "loud.csv"
+    _beam2_csv(results, data, member=3, force_n=0.44)
+    rc, out, err = call(["plot", results, "-o", tmp_path / "m.png", "--measured", data],
+                        capsys)
+    assert rc == 2 and "measured at 0.44 N, the file is for F0 = 0.22 N" in err, err
+    assert not (tmp_path / "m.png").exists()
+    rc, out, err = call(["plot", results, "-o", tmp_path / "m.png", "--measured", data,
+                         "--normalise"], capsys)
+    assert rc == 0 and "normalised to F0 = 0.22 N" in out, err
+
+
+def test_points_outside_between_grid_frequencies_are_named(results, tmp_path, capsys):
+    """The bounds hold at their grid; between grid frequencies they are interpolated,
+    which is not a bound: outside points there are counted apart, and the header says
+    how far apart the grid frequencies are."""
+    with h5py.File(results, "r") as h5:
+        f = h5["frequency"][()]
+    mid = 0.5 * (f[:-1] + f[1:])
+    data = tmp_path / "mid.csv"
+    n = _beam2_csv(results, data, member=3, scale=100.0, freqs=mid)   # all above
+    rc, out, err = call(["plot", results, "-o", tmp_path / "m.png", "--measured", data],
+                        capsys)
+    assert rc == 0, err
+    assert "hold at the 60 grid frequencies" in out and "interpolated between them" in out
+    assert f"{n} of the points outside lie between grid frequencies" in out, out
+
+
+def test_measured_options_that_cannot_apply_are_refused_or_said(results, tmp_path, capsys):
+    data = tmp_path / "b2.csv"
+    _beam2_csv(results, data, member=3)
+    rc, _, err = call(["plot", results, "-o", tmp_path / "m.png", "--measured", data, data],
+                      capsys)
+    assert rc == 2 and "given twice" in err, err
+    nb = tmp_path / "nb.h5"
+    assert cli.main(["run", "two-beam", "--samples", "2", "--n-freq", "10", "--no-bounds",
+                     "--no-progress", "--no-figure", "-o", str(nb)]) == 0
+    capsys.readouterr()
+    rc, out, err = call(["plot", nb, "-o", tmp_path / "n.png", "--measured", data], capsys)
+    assert rc == 0 and "not compared (the file has no bounds)" in out, out
+    bf = tmp_path / "b.h5"
+    assert cli.main(["bounds", "two-beam", "--n-freq", "10", "--no-certify", "--no-figure",
+                     "-o", str(bf)]) == 0
+    capsys.readouterr()
+    rc, _, err = call(["plot", bf, "-o", tmp_path / "b.png", "--member", "3"], capsys)
+    assert rc == 2 and "holds no members" in err, err
+    part = tmp_path / "p.h5"
+    part.with_name("p.h5.partial").write_bytes(b"")
+    rc, _, err = call(["plot", part, "-o", tmp_path / "p.png"], capsys)
+    assert rc == 2 and "the run is not complete" in err, err
+
+
 def test_failed_points_and_unrefined_peaks_are_shown_as_such(tmp_path, capsys):
     """One Newton iteration per attempt: some points fail and some peaks stay grid
     values. The figure says how many points are gaps and draws the unrefined peaks apart

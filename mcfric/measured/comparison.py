@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -24,6 +24,10 @@ class Inside:
         Points at frequencies outside the bounds' grid: excluded.
     missing : dict {beam: int}
         Points without a value (NaN data or NaN bound): excluded.
+    off_grid : dict {beam: int}
+        Of the points below or above, those between the bounds' grid frequencies, where
+        the bounds are interpolated: the interpolation is not itself a bound (a resonance
+        narrower than the grid step may rise above it).
     """
 
     beams: tuple
@@ -32,6 +36,7 @@ class Inside:
     above: dict
     outside_range: dict
     missing: dict
+    off_grid: dict = field(default_factory=dict)
 
     def compared(self, beam=None):
         """Points compared (inside + below + above), one beam or all."""
@@ -62,6 +67,10 @@ class Inside:
         miss = sum(self.missing.values())
         s = (f"measured points inside the bounds: {_percent(self.overall)} % "
              f"({sum(self.inside.values())}/{self.compared()}); " + ", ".join(parts))
+        off = sum(self.off_grid.values())
+        if off:
+            s += (f"; {off} of the points outside lie between grid frequencies, where the "
+                  f"bounds are interpolated (not a bound there)")
         if excl:
             s += f"; {excl} outside the bounds' frequency range (excluded)"
         if miss:
@@ -103,6 +112,15 @@ def interpolate_log(freq_hz, values, at_hz):
     return np.where(t == 0, v0, np.where(t == 1, v1, out))
 
 
+def _on_grid(g, f):
+    """Whether each frequency ``f`` is one of the grid's ``g`` (to 1e-9 relative)."""
+    if not f.size:
+        return np.zeros(0, bool)
+    i = np.clip(np.searchsorted(g, f), 1, len(g) - 1)
+    near = np.minimum(abs(f - g[i - 1]), abs(f - g[i]))
+    return near <= 1e-9 * np.abs(f)
+
+
 def _percent(x):
     """One decimal, rounded down: 9999 of 10000 must not read 100.0 %."""
     return "nan" if math.isnan(x) else f"{math.floor(1000 * x) / 10:.1f}"
@@ -114,7 +132,10 @@ def fraction_inside(measurement, freq_hz, lower, upper, beams=None, *,
 
     The bounds are interpolated log-linearly (log amplitude linear in frequency) to the
     measured frequencies; points outside the bounds' frequency range are excluded and
-    counted in ``outside_range``; NaN values (no data, failed bound) in ``missing``.
+    counted in ``outside_range``; NaN values (no data, failed bound) in ``missing``. The
+    bounds hold at their grid frequencies; points found outside between them are also
+    counted in ``off_grid`` (an interpolated value is not a bound near a narrow
+    resonance: compute the bounds at the measured frequencies to decide).
 
     Parameters
     ----------
@@ -164,7 +185,8 @@ def fraction_inside(measurement, freq_hz, lower, upper, beams=None, *,
         k = np.argwhere(lo > up)[0]
         raise ValueError(f"lower, upper: lower above upper at index {tuple(int(i) for i in k)}")
     wanted = None if beams is None else tuple(int(b) for b in beams)
-    counts = {k: {} for k in ("inside", "below", "above", "outside_range", "missing")}
+    counts = {k: {} for k in ("inside", "below", "above", "outside_range", "missing",
+                              "off_grid")}
     order = []
     for m in ms:
         m = m.to_quantity(quantity)
@@ -195,6 +217,8 @@ def fraction_inside(measurement, freq_hz, lower, upper, beams=None, *,
             a, L, U = a[ok], L[ok], U[ok]
             below = (a < L * (1 - rtol)) if check_lower else np.zeros(a.shape, bool)
             above = a > U * (1 + rtol)
+            counts["off_grid"][b] += int(np.count_nonzero((below | above)
+                                                          & ~_on_grid(g, f[in_range][ok])))
             counts["below"][b] += int(np.count_nonzero(below))
             counts["above"][b] += int(np.count_nonzero(above))
             counts["inside"][b] += int(np.count_nonzero(~below & ~above))
