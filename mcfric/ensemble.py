@@ -34,6 +34,8 @@ import numpy as np
 from . import hbm
 from .config import first_difference, identity
 from .indicator import file_report as indicator_report
+from .memory import available as available_memory
+from .memory import human
 from .metric import METRIC_UNITS
 from .peaks import file_report as peak_report
 from .peaks import report_text
@@ -509,13 +511,6 @@ def output_bytes(spec):
     return int(total)
 
 
-def _human(n):
-    for unit in ("bytes", "kB", "MB", "GB", "TB", "PB"):
-        if n < 1000 or unit == "PB":
-            return f"{n:.3g} {unit}" if unit != "bytes" else f"{n:.0f} bytes"
-        n /= 1000.0
-
-
 def peak_memory_bytes(spec):
     """A rough upper estimate of a run's peak memory, bytes: three chunks of output (in
     the kernel, in the queue, in the writer), the receptances, and the bounds' dense
@@ -531,18 +526,6 @@ def peak_memory_bytes(spec):
     return int(est)
 
 
-def _available_memory():
-    """MemAvailable of /proc/meminfo, bytes (None where there is no such file)."""
-    try:
-        with open("/proc/meminfo") as fh:
-            for line in fh:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except (OSError, ValueError, IndexError):
-        pass
-    return None
-
-
 def check_space(spec, final, resume):
     """Refuse a run that cannot fit on disk or in memory (before any work).
 
@@ -551,9 +534,9 @@ def check_space(spec, final, resume):
     estimate is :func:`peak_memory_bytes` against the available memory.
     """
     mem = peak_memory_bytes(spec)
-    avail = _available_memory()
+    avail = available_memory()
     if avail is not None and mem > avail:
-        raise RunError(f"the run needs about {_human(mem)} of memory but {_human(avail)} is "
+        raise RunError(f"the run needs about {human(mem)} of memory but {human(avail)} is "
                        f"available: use fewer beams or frequencies, a smaller [run] chunk, "
                        f"or --skip-space-check if the estimate is wrong")
     need = output_bytes(spec)
@@ -563,8 +546,8 @@ def check_space(spec, final, resume):
     free = shutil.disk_usage(final.parent).free
     # 1 % and 1 MB of headroom for the metadata and the figure
     if need + need // 100 + (1 << 20) > free:
-        raise RunError(f"the results file needs {_human(need)} but {final.parent} has "
-                       f"{_human(free)} free: use fewer samples or frequencies, "
+        raise RunError(f"the results file needs {human(need)} but {final.parent} has "
+                       f"{human(free)} free: use fewer samples or frequencies, "
                        f"[output] keep_response = false (metric only), another -o, or "
                        f"--skip-space-check if the estimate is wrong")
 
@@ -664,7 +647,8 @@ def solve_chunk(spec, d):
                      max_iter=spec.solver.max_iter, n_threads=spec.execution.threads,
                      peaks=spec.peaks, harmonics=spec.solver.harmonics,
                      n_time=spec.solver.n_time,
-                     store_harmonics=spec.keep_harmonics and spec.keep_response,
+                     store_harmonics=(spec.keep_harmonics and spec.keep_response
+                                      and spec.solver.harmonics > 1),
                      indicator=spec.solver.harmonics == 1)
 
 

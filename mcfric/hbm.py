@@ -19,6 +19,7 @@ from .core import sweep as _sweep
 from .core.aft import harmonic_orders
 from .core.newton import NOT_CONVERGED
 from .core.receptance import D21
+from .memory import check_fits
 from .metric import check_beams, response_metric
 from .model import CONTACT_LAWS, Model
 from .peaks import Peaks, PeakSettings, refine
@@ -130,7 +131,8 @@ class HBMResult:
 def solve(model, freq_hz, mu0, kc, N0=0.5, *, modal_freq_hz=None, tol=TOL,
           max_iter=MAX_ITER, n_threads=None, peaks=None, harmonics=1, n_time=None,
           aft=False, store_harmonics=False, indicator=False):
-    """Single-harmonic balance of a friction-coupled array for many parameter sets.
+    """Harmonic balance of a friction-coupled array for many parameter sets: single-harmonic
+    (the describing function), or multi-harmonic with ``harmonics`` > 1.
 
     Each sample sweeps the frequencies in the order given (upward for a sorted grid),
     warm-starting every point from the previous ones: like a slow stepped sine, so on a
@@ -213,11 +215,20 @@ def solve(model, freq_hz, mu0, kc, N0=0.5, *, modal_freq_hz=None, tol=TOL,
                          f"indicator are for the coulomb law only")
     if peaks is not None and (harmonics > 1 or aft):
         raise ValueError("peaks: refinement is single-harmonic only (harmonics = 1)")
+    if indicator and (harmonics > 1 or aft):
+        # it estimates what a single-harmonic solve leaves out; here nothing is left out
+        raise ValueError("indicator: for single-harmonic solves (harmonics = 1, aft = "
+                         "False); a multi-harmonic solve balances those harmonics itself")
+    if store_harmonics and harmonics == 1:
+        raise ValueError("store_harmonics: for multi-harmonic solves (harmonics >= 3); "
+                         "with harmonics = 1 the response is the only harmonic")
     with threads(n_threads):
         if harmonics > 1 or aft:
             # inside: the Newton workspaces are per thread, so the need depends on it
             check_harmonic_memory(model, harmonics, n_time, len(f),
                                   1 if modal_freq_hz is None else n_s)
+        check_output_memory(model, n_s, len(f), harmonics, store_harmonics,
+                            1 if modal_freq_hz is None else n_s)
         rec = model.receptances(omega, modal_freq_hz)
         out = allocate(n_s, len(f), model.n_beams, nd, numba.get_num_threads())
         args = run_kernel(model, rec, omega, p["mu0"], p["N0"], p["kc"], tol, max_iter, *out)
@@ -268,6 +279,20 @@ def check_harmonic_memory(model, harmonics, n_time, n_f, n_r):
         raise ValueError(f"harmonics: H = {harmonics} needs {need / 2**30:.3g} GiB for "
                          f"this model and grid (limit {MAX_HARMONIC_BYTES / 2**30:.0f} GiB); "
                          "use fewer harmonics, frequencies or samples per call")
+
+
+def check_output_memory(model, n_s, n_f, harmonics, store_harmonics, n_r):
+    """Refuse a solve whose results (and receptances) would not fit in the memory
+    available: numpy's allocation error names no argument, and a request just below the
+    machine's memory would end in the system killing the process."""
+    nb, nd = model.n_beams, model.n_dampers
+    n_h = (harmonics + 1) // 2
+    per_point = 16 * nb + 8 * nd + 1 + 2 + 8 + 8          # outputs, the indicator
+    if harmonics > 1:
+        per_point += 8 * nb + 8 * nd + 16 * nb * (n_h if store_harmonics else 1)
+    need = float(n_s) * n_f * per_point + 16.0 * n_r * n_f * 4 * nb
+    check_fits(need, f"the solve of {n_s:,} samples x {n_f:,} frequencies",
+               "solve fewer samples or frequencies per call")
 
 
 def harmonic_indicator(model, result, omega, modal_freq_hz, params):

@@ -10,20 +10,22 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numba
 
-from .validators import is_int
+from .validators import InputError, is_int
 
 
 @contextlib.contextmanager
 def threads(n):
-    """Run numba parallel kernels with ``n`` threads (None: leave as is)."""
+    """Run numba parallel kernels with ``n`` threads (None: leave as is); a bad ``n`` is
+    an :class:`~mcfric.validators.InputError` naming ``n_threads``, the API's argument."""
     if n is None:
         yield
         return
     if not is_int(n):                   # 1.5 is not 1
-        raise ValueError(f"threads: expected an integer, got {n!r}")
+        raise InputError("n_threads", f"expected an integer, got {n!r}")
     n = int(n)
     if not 1 <= n <= numba.config.NUMBA_NUM_THREADS:
-        raise ValueError(f"threads: expected 1..{numba.config.NUMBA_NUM_THREADS}, got {n}")
+        raise InputError("n_threads", f"expected 1..{numba.config.NUMBA_NUM_THREADS}, "
+                         f"got {n}")
     old = numba.get_num_threads()
     numba.set_num_threads(n)
     try:

@@ -366,12 +366,18 @@ def frequencies(freq_hz, name="freq_hz"):
     return f
 
 
+#: Stiffest contact accepted, N/m (``kc``, and the bounds' ``k_max``): far stiffer than
+#: any real contact (a stuck damper). Far beyond it (~1e155) the slip ratio overflows and
+#: a stuck damper came back as a free one, marked converged.
+KC_MAX = 1e12
+
+
 def per_damper(nd, **params):
     """Broadcast per-damper parameters to a common (n_s, nd) float array each.
 
     Each parameter may be a scalar (all samples and dampers), shape (nd,) (one sample),
     shape (n_s, 1) (same for every damper of a sample) or (n_s, nd). Values must be
-    finite and >= 0.
+    finite and >= 0; ``kc`` at most :data:`KC_MAX`.
     """
     out = {}
     n_s = 1
@@ -394,6 +400,9 @@ def per_damper(nd, **params):
             raise InputError(name, "values must be finite (no NaN or inf)")
         if np.any(arr < 0):
             raise InputError(name, "values must be >= 0")
+        if name == "kc" and np.any(arr > KC_MAX):
+            raise InputError(name, f"expected at most {KC_MAX:g} N/m (a stuck contact), got "
+                             f"{float(arr.max()):g}")
         if arr.shape[0] != 1:
             if n_s not in (1, arr.shape[0]):
                 raise InputError(name, f"{arr.shape[0]} samples do not match the "

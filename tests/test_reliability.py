@@ -444,6 +444,8 @@ def test_measured_beams_beyond_the_model_are_refused(tmp_path, capsys):
     assert rc == 2 and "beam 99 is measured, but the model has 2 beams" in err
 
 
+ZERO_DAMPING = __import__("mcfric").model.ModalTable([20.0], [0.0], [[1.0, 1.0, 1.0]])
+
 API_CASES = [
     (lambda m: __import__("mcfric").solve(m, [20.0], "0.3", 5000.0), "mu0: expected real"),
     (lambda m: __import__("mcfric").solve(m, [20.0], True, 5000.0), "got booleans"),
@@ -452,6 +454,24 @@ API_CASES = [
     (lambda m: __import__("mcfric").bounds.force_limit(-1, 0.5), "mu_max"),
     (lambda m: __import__("mcfric").solve(m, [20.0], 0.3, 5e3).metric(beams=[2]),
      "0-based beam indices in 0..1"),
+    # 1e160 came back as the free answer (the slip ratio overflowed), marked converged
+    (lambda m: __import__("mcfric").solve(m, [20.0], 0.5, 1e160), "kc: expected at most"),
+    (lambda m: __import__("mcfric").solve(m, [20.0], 0.5, 5e3, n_threads=0),
+     "^n_threads: expected 1.."),
+    (lambda m: __import__("mcfric").solve(m, [20.0], 0.5, 5e3, harmonics=3, indicator=True),
+     "indicator: for single-harmonic solves"),
+    (lambda m: __import__("mcfric").solve(m, [20.0], 0.5, 5e3, store_harmonics=True),
+     "store_harmonics: for multi-harmonic solves"),
+    # numpy's "Unable to allocate 298. GiB" named nothing
+    (lambda m: __import__("mcfric").solve(m, __import__("numpy").linspace(10, 150, 1000),
+                                          __import__("numpy").broadcast_to(0.5, (10**7, 1)),
+                                          5e3), "needs about .* of memory"),
+    # a numba ZeroDivisionError from the search
+    (lambda m: __import__("mcfric").bounds.compute_bounds(
+        __import__("mcfric").model.Model((ZERO_DAMPING,) * 2), [21.0], 15e3, certified=False),
+     "beam 1 has a mode without damping"),
+    (lambda m: __import__("mcfric.verify").verify.verify(m, 1.0, 0.3, 1e12),
+     "^kc: 1e.12 N/m makes a period at 1 Hz need"),
 ]
 
 

@@ -41,14 +41,14 @@ from ..core.receptance import contact_space
 from ..metric import QUANTITIES, check_beams, check_quantity
 from ..model import Model
 from ..threads import threads
+from ..validators import KC_MAX, integer, is_bool, real
 from ..validators import frequencies as check_frequencies
-from ..validators import integer, is_bool, real
 from .certified import Certificate, certify, resolve_moments, within
 from .search import box_extreme, starts
 
 #: Largest k_max (and k_max_im) the bounds accept, N/m: far stiffer than any contact
-#: (a stuck damper); beyond it the search's arithmetic overflows.
-K_MAX_LIMIT = 1e12
+#: (a stuck damper); beyond it the search's arithmetic overflows. The solvers' limit.
+K_MAX_LIMIT = KC_MAX
 
 #: ``limited_by`` codes: which constraint sets the upper bound.
 LIMITED_BY = ("box", "force")
@@ -272,6 +272,13 @@ def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity
         raise ValueError(f"certified: expected True or False, got {certified!r}")
     if progress is not None and not is_bool(progress):
         raise ValueError(f"progress: expected True, False or None, got {progress!r}")
+    for i, t in enumerate(model.beams):
+        if np.any(t.zeta == 0):
+            # the box holds free dampers (K = 0): the bounds would be infinite at that
+            # mode's resonance, and the search divides by the damping
+            raise ValueError(f"model: beam {i + 1} has a mode without damping (zeta = 0); "
+                             f"the bounds need every mode damped (zeta > 0): an undamped "
+                             f"mode has an unbounded resonance")
     if model.contact_law != "coulomb":
         # the box of describing functions and the force limit are Coulomb friction's
         raise ValueError(f"model: the bounds are for Coulomb friction contacts, got "

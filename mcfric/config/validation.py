@@ -252,6 +252,11 @@ def _cross_checks(c):
             if not 1 <= b <= nb:
                 raise InputError("metric.beams", f"expected beam numbers in 1..{nb} "
                                  f"(n_beams), got {show(beams)}")
+    kc = c["sampling"]["kc"]
+    if _dist_max(kc) > K_MAX_LIMIT and math.isfinite(_dist_max(kc)):
+        key = "sampling.kc." + ("value" if kc["dist"] == "fixed" else "high")
+        raise InputError(key, f"expected at most {K_MAX_LIMIT:g} N/m (a stuck contact), got "
+                         f"{_dist_max(kc):g}")
     if c["bounds"]["enabled"]:
         bounds_limits(c)      # unbounded distributions need explicit limits
     sv = c["solver"]

@@ -24,7 +24,9 @@ def _open_read(path):
             raise StoreError(f"{path}: open elsewhere in this process with HDF5 file locking "
                              f"(h5py.File's default): close it, or open it with "
                              f"locking=False as mcfric does") from None
-        raise StoreError(f"{path}: not a readable HDF5 file ({e})") from None
+        # h5py's text may run over several lines (a directory's does)
+        first = (str(e).strip().splitlines() or [""])[0].rstrip(" ,")
+        raise StoreError(f"{path}: not a readable HDF5 file ({first})") from None
 
 
 def read_attrs(path):
