@@ -8,7 +8,7 @@
                [--peak-rtol X] [--no-peaks] [--F0 N] [--f-min HZ] [--f-max HZ] [--n-freq N]
                [--no-certify] [--no-bounds] [--moments | --first-order] [--no-progress]
                [--no-figure] [--skip-space-check]
-    mcfric config [PRESET|CONFIG.toml]       # complete, commented TOML on stdout
+    mcfric config [PRESET|CONFIG.toml|FILE.h5]  # complete TOML on stdout (of a file: its run)
     mcfric info FILE                         # summary of a results file
     mcfric hbm [PRESET|CONFIG.toml] [--mu0 X] [--kc N_PER_M] [--N0 N] [--F0 N]
                [--f-min HZ] [--f-max HZ] [--n-freq N] [-o OUT.csv] [--no-figure]
@@ -16,7 +16,9 @@
                [--n-freq N] [--k-max N_PER_M] [--F-lim N] [--threads T] [--no-certify]
                [--moments | --first-order] [--no-progress] [--no-figure]
     mcfric plot FILE [-o FIG.png|pdf] [--quantity Q] [--f-min HZ] [--f-max HZ]
-               [--member I] [--measured DATA ...] [--nodes N1,N2,...] [--no-indicator]
+               [--member I] [--measured DATA ...] [--nodes N1,N2,...] [--normalise]
+               [--measured-quantity Q] [--measured-force N] [--measured-direction D]
+               [--no-indicator]
     mcfric verify [PRESET|CONFIG.toml] --f HZ [HZ ...] [--mu0 X] [--kc N_PER_M] [--N0 N]
                [--F0 N] [--harmonics H] [--start single|rest] [-o OUT.csv] [--no-figure]
                [--no-progress]
@@ -181,6 +183,12 @@ def _parser():
     pl.add_argument("--measured-quantity", choices=("displacement", "velocity",
                                                     "acceleration"),
                     help="what the measured values are, when the file does not say")
+    pl.add_argument("--measured-force", type=float, metavar="N",
+                    help="force level of the measured run, N, when the file does not give "
+                         "one (UFF FRFs need it)")
+    pl.add_argument("--measured-direction", type=int, choices=(1, 2, 3), metavar="D",
+                    help="UFF: keep the records of response direction D (1 X, 2 Y, 3 Z), "
+                         "for files with several per node")
     pl.add_argument("--normalise", action="store_true",
                     help="rescale measured data taken at force F_meas to the file's F0 "
                          "(Eq. 11-12; needs the force level in the data)")
@@ -717,8 +725,24 @@ def cmd_plot(args):
 def _read_measured(args, attrs):
     """Measurements of ``--measured`` (normalised to the file's F0 with --normalise)."""
     if not args.measured:
+        given = [flag for flag, v in (("--nodes", args.nodes), ("--normalise", args.normalise),
+                                      ("--measured-quantity", args.measured_quantity),
+                                      ("--measured-force", args.measured_force),
+                                      ("--measured-direction", args.measured_direction))
+                 if v]
+        if given:
+            raise UsageError(f"{given[0]}: applies to --measured data, and none is given")
         return []
     from . import measured as ms
+
+    if args.nodes and not any(Path(d).suffix.lower() in (".uff", ".unv", ".uf")
+                              for d in args.measured):
+        raise UsageError("--nodes: maps UFF response nodes to beams; no --measured file is "
+                         "UFF (CSV columns name their beams)")
+    if args.measured_force is not None and not (math.isfinite(args.measured_force)
+                                                and args.measured_force > 0):
+        raise UsageError(f"--measured-force: expected a force > 0 N, got "
+                         f"{args.measured_force:g}")
 
     nodes = None
     if args.nodes:
@@ -739,7 +763,9 @@ def _read_measured(args, attrs):
                              f"twice)")
         seen.add(key)
         try:
-            ms_list = ms.read_measured(data, nodes=nodes, quantity=args.measured_quantity)
+            ms_list = ms.read_measured(data, nodes=nodes, quantity=args.measured_quantity,
+                                       force_n=args.measured_force,
+                                       direction=args.measured_direction)
         except (ValueError, ImportError) as e:
             raise UsageError(str(e).splitlines()[0]) from None
         for m in ms_list:

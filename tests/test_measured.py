@@ -281,6 +281,25 @@ def test_truncated_and_wrong_uff_files(tmp_path):
     one_line(e, str(modal), "no dataset 58", "found dataset types: 55, 164")
 
 
+@pytest.mark.parametrize("kwargs, message", [
+    ({"nodes": [10**12, 5]}, "distinct node numbers in 0..2147483647"),  # field overflow
+    ({"nodes": {1: 5, 2: 5}}, "distinct node numbers"),       # one node for two beams
+    ({"nodes": NODES, "force_n": True}, "force_n: expected a force > 0 N"),
+    ({"nodes": NODES, "ref_node": "abc"}, "ref_node"),
+    ({"nodes": NODES, "name": "e.csv"}, "expected a UFF file name"),
+])
+def test_export_refuses_what_would_not_read_back(tmp_path, kwargs, message):
+    """Files that were written but did not read back (a node number cut to its field, two
+    beams on one node, UFF text under a .csv name) are refused, nothing written."""
+    kwargs = dict(kwargs)
+    path = tmp_path / kwargs.pop("name", "x.uff")
+    kwargs.setdefault("force_n", 1.0)
+    with pytest.raises(ValueError) as e:
+        export_uff58(path, FREQ, np.ones((FREQ.size, 2)), **kwargs)
+    one_line(e, message)
+    assert not any(tmp_path.iterdir())
+
+
 def test_missing_pyuff_gives_install_hint(tmp_path, monkeypatch):
     monkeypatch.setitem(sys.modules, "pyuff", None)
     with pytest.raises(ImportError) as e:

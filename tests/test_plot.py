@@ -247,9 +247,54 @@ def test_points_outside_between_grid_frequencies_are_named(results, tmp_path, ca
     assert f"{n} of the points outside lie between grid frequencies" in out, out
 
 
+def test_the_measured_force_can_be_given_on_the_command_line(results, tmp_path, capsys):
+    """A file without a force level takes --measured-force (UFF FRFs need one); it is
+    then held to the file's F0 like a force given in the file."""
+    data = tmp_path / "b2.csv"
+    _beam2_csv(results, data, member=3)
+    png = tmp_path / "m.png"
+    rc, _, err = call(["plot", results, "-o", png, "--measured", data, "--measured-force",
+                       "0.44"], capsys)
+    assert rc == 2 and "measured at 0.44 N" in err, err
+    rc, out, err = call(["plot", results, "-o", png, "--measured", data, "--measured-force",
+                         "0.44", "--normalise"], capsys)
+    assert rc == 0 and "c = F0/F_meas = 0.22/0.44" in out, err
+
+
+def test_a_triaxial_uff_file_takes_the_measured_direction(results, tmp_path, capsys):
+    """X records far above the bounds, Z records of a member: without a direction the
+    file is refused (two records per node); --measured-direction picks one."""
+    pytest.importorskip("pyuff")
+    from mcfric.measured import export_uff58
+
+    with h5py.File(results, "r") as h5:
+        f, y = h5["frequency"][()], np.abs(h5["response"][3])
+    parts = []
+    for d, scale in ((1, 100.0), (3, 1.0)):
+        export_uff58(tmp_path / f"d{d}.uff", f, y * scale, force_n=0.22, nodes=[102, 202],
+                     direction=d)
+        parts.append((tmp_path / f"d{d}.uff").read_text())
+    tri = tmp_path / "tri.uff"
+    tri.write_text("".join(parts))
+    base = ["plot", results, "-o", tmp_path / "m.png", "--measured", tri, "--nodes",
+            "102,202"]
+    rc, _, err = call(base, capsys)
+    assert rc == 2 and "--measured-direction" in err, err
+    rc, out, err = call(base + ["--measured-direction", "3"], capsys)
+    assert rc == 0 and all(p == 100.0 for p, _, _ in _fractions(out)), out
+    rc, out, err = call(base + ["--measured-direction", "1"], capsys)
+    assert rc == 0 and all(p < 100.0 for p, _, _ in _fractions(out)), out
+
+
 def test_measured_options_that_cannot_apply_are_refused_or_said(results, tmp_path, capsys):
     data = tmp_path / "b2.csv"
     _beam2_csv(results, data, member=3)
+    for argv, message in ((["--normalise"], "--normalise: applies to --measured data"),
+                          (["--measured", data, "--nodes", "1,2"], "--nodes: maps UFF"),
+                          (["--measured", data, "--measured-force", "-1"],
+                           "--measured-force: expected a force > 0 N")):
+        rc, _, err = call(["plot", results, "-o", tmp_path / "m.png", *argv], capsys)
+        assert rc == 2 and message in err, err
     rc, _, err = call(["plot", results, "-o", tmp_path / "m.png", "--measured", data, data],
                       capsys)
     assert rc == 2 and "given twice" in err, err

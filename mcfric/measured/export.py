@@ -11,8 +11,12 @@ import numpy as np
 from ..metric import METRIC_UNITS as UNITS
 from ..metric import QUANTITIES
 from ..parsing import as_int
-from ..uff import FRF, GENERAL, SPEC_TYPE, id_date, si_units_dataset, write_atomic
+from ..uff import FRF, GENERAL, SPEC_TYPE, UFF_SUFFIXES, id_date, si_units_dataset, write_atomic
+from ..validators import is_bool, is_num
 from .measurement import KINDS, METRIC
+
+#: Largest node number: UFF 58 writes it in a 10-character integer field.
+MAX_NODE = 2**31 - 1
 
 
 def export_uff58(path, freq_hz, data, *, force_n, beams=None, nodes=None, percentiles=None,
@@ -76,9 +80,14 @@ def export_uff58(path, freq_hz, data, *, force_n, beams=None, nodes=None, percen
         ``{"records": int, "points": int, "dropped": int}`` (dropped: non-finite points).
     """
     path = Path(path)
+    if path.suffix.lower() not in UFF_SUFFIXES:
+        # read_measured tells the format by the suffix: another would not read back
+        raise ValueError(f"{path}: expected a UFF file name ({', '.join(UFF_SUFFIXES)})")
     f = np.asarray(freq_hz, dtype=float)
     if f.ndim != 1 or f.size < 2 or not np.all(np.isfinite(f) & (f > 0)):
         raise ValueError(f"{path}: freq_hz: expected at least 2 finite frequencies > 0 Hz")
+    if is_bool(force_n) or not is_num(force_n):
+        raise ValueError(f"{path}: force_n: expected a force > 0 N, got {force_n!r}")
     F = float(force_n)
     if not (math.isfinite(F) and F > 0):
         raise ValueError(f"{path}: force_n: expected a force > 0 N, got {force_n!r}")
@@ -135,6 +144,16 @@ def export_uff58(path, freq_hz, data, *, force_n, beams=None, nodes=None, percen
     absent = [b for b in beams if b not in node_of]
     if absent:
         raise ValueError(f"{path}: nodes: no node for beam {absent[0]}")
+    used = [node_of[b] for b in beams]
+    # UFF 58 writes node numbers in 10-character fields; two beams on one node would not
+    # read back apart
+    if any(not 0 <= n <= MAX_NODE for n in used) or len(set(used)) != len(used):
+        raise ValueError(f"{path}: nodes: expected distinct node numbers in 0..{MAX_NODE}, "
+                         f"got {used}")
+    ref_node = as_int(ref_node, "ref_node", path)
+    if not 0 <= ref_node <= MAX_NODE:
+        raise ValueError(f"{path}: ref_node: expected a node number in 0..{MAX_NODE}, got "
+                         f"{ref_node}")
     cplx = np.iscomplexobj(y)
     frf = function == "frf" or (function == "auto" and cplx)
     if not cplx and np.any(y[np.isfinite(y)] < 0):

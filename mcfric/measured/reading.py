@@ -163,11 +163,13 @@ def _read_uff58(path, nodes, direction, quantity, force_n, kind, scale):
         g = groups.setdefault(key, {"quantity": q, "beams": {}})
         if g["quantity"] != q:
             raise ValueError(f"{path}: {where} is {q}, other records of the same run are "
-                             f"{g['quantity']}: pass quantity= or split the file")
+                             f"{g['quantity']}: pass quantity= (mcfric plot: "
+                             f"--measured-quantity) or split the file")
         beam = node_of[node]
         if beam in g["beams"]:
             raise ValueError(f"{path}: two records for beam {beam} (node {node}) in the same "
-                             f"run: pass direction= or split the file")
+                             f"run: pass direction= (mcfric plot: --measured-direction) "
+                             f"or split the file")
         g["beams"][beam] = (x, y)
     if not groups:
         raise ValueError(f"{path}: no dataset 58 record at the mapped nodes "
@@ -216,7 +218,8 @@ def _uff58_record(path, where, d, quantity, force_n, kind, Lf, Ff):
     q = _merge(path, where, q, quantity, "quantity")
     if q is None:
         raise ValueError(f"{path}: {where}: the ordinate's type is not given "
-                         f"(specific data type {spec}): pass quantity=")
+                         f"(specific data type {spec}): pass quantity= (mcfric plot: "
+                         f"--measured-quantity)")
     tags = _tags(d)
     try:
         F_file = float(tags["force_n"]) if "force_n" in tags else None
@@ -235,7 +238,8 @@ def _uff58_record(path, where, d, quantity, force_n, kind, Lf, Ff):
                              f"(13)")
         if F is None:
             raise ValueError(f"{path}: {where} is an FRF (response/force): pass force_n= "
-                             f"(the force level of the run, N) to get the response")
+                             f"(mcfric plot: --measured-force), the force level of the run "
+                             f"in N, to get the response")
         y = y * Ff * F  # X = H F, force in N
     elif not np.iscomplexobj(y) and np.any(y < 0):
         raise ValueError(f"{path}: {where}: negative amplitudes in a real-valued record")
