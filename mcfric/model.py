@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .core.receptance import beam_receptances
-from .validators import choice, finite_array, integer, number
+from .validators import choice, finite_array, integer, number, real
 
 TOPOLOGIES = ("linear", "circular")
 #: Contact laws: Coulomb friction in series with a stiffness (the paper's), and a
@@ -91,7 +91,7 @@ class ModalTable:
         """A copy with mode ``mode`` (1-based) moved to ``freq_hz`` (e.g. Fig. 10b's 108 Hz)."""
         f = np.array(self.freq_hz)
         integer(1, len(f))(mode, "mode")
-        f[mode - 1] = freq_hz
+        f[mode - 1] = real("freq_hz", freq_hz, lo=0, lo_open=True)   # not "108" or [108]
         return dataclasses.replace(self, freq_hz=f)
 
 
@@ -182,6 +182,10 @@ class Model:
     contact_law: str = "coulomb"
 
     def __post_init__(self):
+        if isinstance(self.beams, (ModalTable, str, bytes)) or not hasattr(self.beams,
+                                                                            "__iter__"):
+            raise ValueError(f"beams: expected a sequence of ModalTable objects (one per "
+                             f"beam), got {type(self.beams).__name__}")
         beams = tuple(self.beams)
         if len(beams) < 2:
             raise ValueError(f"n_beams: expected at least 2 beams, got {len(beams)}")

@@ -53,6 +53,6 @@ def preset(name, F0=None):
     """A preset model by name (one of ``PRESETS``), optionally with its F0 in N."""
     makers = {"two-beam": two_beam, "eight-beam": eight_beam, "disk-24": disk_24,
               "disk-72": disk_72}
-    if name not in makers:
+    if not isinstance(name, str) or name not in makers:
         raise ValueError(f"preset: expected one of {PRESETS}, got {name!r}")
     return makers[name]() if F0 is None else makers[name](F0)

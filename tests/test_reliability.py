@@ -472,6 +472,14 @@ API_CASES = [
      "beam 1 has a mode without damping"),
     (lambda m: __import__("mcfric.verify").verify.verify(m, 1.0, 0.3, 1e12),
      "^kc: 1e.12 N/m makes a period at 1 Hz need"),
+    # numpy parsed the string; a list gave "setting an array element with a sequence"
+    (lambda m: __import__("mcfric").model.TABLE_1.with_frequency(2, "108"), "^freq_hz:"),
+    (lambda m: __import__("mcfric").model.TABLE_1.with_frequency(2, [108, 1]), "^freq_hz:"),
+    (lambda m: __import__("mcfric").model.Model(3), "^beams: expected a sequence"),
+    (lambda m: __import__("mcfric").preset(["two-beam"]), "^preset: expected one of"),
+    (lambda m: __import__("mcfric").bounds.compute_bounds(m, [20.0, 30.0], 15e3,
+                                                          certified=False).contains([1.0]),
+     r"^metric: expected shape \(\.\.\., 2\)"),
 ]
 
 

@@ -74,6 +74,25 @@ def test_full_protocol_and_readers(tmp_path):
             store.read_attrs(path)
 
 
+def test_readers_refuse_arguments_they_cannot_use(tmp_path):
+    """A name for a list read letter by letter, a block of -1 yielding nothing, h5py's
+    IndexError or AttributeError: one line each, naming the argument."""
+    path = tmp_path / "r.h5"
+    s = make(path)
+    s.write(0, records(0, 50))
+    s.commit([(0, 50)])
+    s.finish({})
+    cases = [(lambda: list(store.iter_records(path, "y")), "^names: expected a list"),
+             (lambda: list(store.iter_records(path, ["y"], block=-1)), "^block: expected"),
+             (lambda: store.read(path, "y", row=50), r"^row: expected a record in 0\.\.49"),
+             (lambda: store.read(path, "y", row=1.5), "^row:"),
+             (lambda: store.open_results(path, allow_incomplete="no"), "^allow_incomplete")]
+    for call, message in cases:
+        with pytest.raises(StoreError, match=message):
+            call()
+    assert store.read(path, "y", row=49).shape == (7, 3)
+
+
 def test_writing_records_never_touches_metadata(tmp_path):
     """The premise of crash safety: after creation only raw chunk bytes change."""
     path = tmp_path / "r.h5"

@@ -127,8 +127,22 @@ class Bounds:
         return text
 
     def contains(self, metric, rtol=1e-9):
-        """Boolean mask ``lower (1 - rtol) <= metric <= upper (1 + rtol)`` (NaN -> False)."""
-        return within(metric, self.lower, self.upper, rtol)
+        """Boolean mask ``lower (1 - rtol) <= metric <= upper (1 + rtol)`` (NaN -> False).
+
+        ``metric`` is real, shape ``(..., n_f)`` (frequencies last, as ``metric()``
+        returns them); ``rtol`` in [0, 0.5).
+        """
+        m = np.asarray(metric)
+        if not (np.issubdtype(m.dtype, np.floating) or np.issubdtype(m.dtype, np.integer)) \
+                or m.dtype == bool:
+            raise ValueError(f"metric: expected real numbers, got dtype {m.dtype}")
+        if m.ndim == 0 or m.shape[-1] != len(self.freq_hz):
+            raise ValueError(f"metric: expected shape (..., {len(self.freq_hz)}) (the bounds' "
+                             f"frequencies last), got {m.shape}")
+        rtol = real("rtol", rtol, lo=0)
+        if not rtol < 0.5:
+            raise ValueError(f"rtol: expected a number in [0, 0.5), got {rtol!r}")
+        return within(m, self.lower, self.upper, rtol)
 
 
 def force_limit(mu_max, N0_max):

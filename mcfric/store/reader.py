@@ -10,6 +10,16 @@ import numpy as np
 from .files import DONE, StoreError
 
 
+def is_bool(v):
+    """True for Python's and numpy's booleans (the store imports nothing above it)."""
+    return isinstance(v, (bool, np.bool_))
+
+
+def is_int(v):
+    """True for an integer that is not a boolean."""
+    return isinstance(v, (int, np.integer)) and not is_bool(v)
+
+
 def _open_read(path):
     if not (isinstance(path, (str, bytes, os.PathLike)) or hasattr(path, "read")):
         # h5py's TypeError names no input (a file-like object h5py takes stays allowed)
@@ -62,6 +72,12 @@ def iter_records(path, names, block=4096, only_done=True):
 
     Records not marked done are skipped when ``only_done`` (they may hold garbage).
     """
+    if isinstance(names, (str, bytes)):       # "metric" would be read letter by letter
+        raise StoreError(f"names: expected a list of dataset names, got {names!r}")
+    if is_bool(block) or not is_int(block) or block < 1:
+        raise StoreError(f"block: expected an integer >= 1, got {block!r}")
+    if not is_bool(only_done):
+        raise StoreError(f"only_done: expected True or False, got {only_done!r}")
     with _open_read(path) as h5:
         missing = [k for k in (DONE, *names) if k not in h5]
         if missing:
@@ -87,7 +103,14 @@ def read(path, name, row=None):
             # a file of another kind (a bounds file's partial, say): one line, not a
             # KeyError from h5py
             raise StoreError(f"{path}: not an mcfric results file (no {name!r} dataset)")
-        return h5[name][...] if row is None else h5[name][row]
+        ds = h5[name]
+        if not isinstance(ds, h5py.Dataset):
+            raise StoreError(f"{path}: {name!r} is a group, not a dataset (read_group)")
+        if row is None:
+            return ds[...]
+        if is_bool(row) or not is_int(row) or not -ds.shape[0] <= row < ds.shape[0]:
+            raise StoreError(f"row: expected a record in 0..{ds.shape[0] - 1}, got {row!r}")
+        return ds[row]
 
 
 def open_results(path, allow_incomplete=False):
@@ -113,6 +136,9 @@ def open_results(path, allow_incomplete=False):
     attrs = read_attrs(path)
     if attrs.get("layout_version") is None:
         raise StoreError(f"{path}: not an mcfric results file (no layout_version)")
+    if not is_bool(allow_incomplete):         # "no" would be true
+        raise StoreError(f"allow_incomplete: expected True or False, got "
+                         f"{allow_incomplete!r}")
     if attrs.get("complete") != 1 and not allow_incomplete:
         raise StoreError(f"{path}: incomplete run (complete = 0); continue it with "
                          f"`mcfric run ... --resume`, or pass allow_incomplete=True")
@@ -134,6 +160,8 @@ def read_group(path, name):
         if name not in h5:
             return None
         g = h5[name]
+        if not isinstance(g, h5py.Group):
+            raise StoreError(f"{path}: {name!r} is a dataset, not a group (read)")
         return ({k: v[()] for k, v in g.items() if isinstance(v, h5py.Dataset)},
                 {k: _plain(v) for k, v in g.attrs.items()})
 
