@@ -194,6 +194,10 @@ def solve(model, freq_hz, mu0, kc, N0=0.5, *, modal_freq_hz=None, tol=TOL,
     omega = 2 * np.pi * f
     if modal_freq_hz is not None:
         mf = np.array(real_array("modal_freq_hz", modal_freq_hz), dtype=float)
+        if n_s == 1 and mf.ndim == 3 and mf.shape[0] > 1:
+            # scalar friction parameters apply to every mistuned sample
+            n_s = mf.shape[0]
+            p = {k: np.ascontiguousarray(np.broadcast_to(v, (n_s, nd))) for k, v in p.items()}
         expect = (n_s, model.n_beams, max(t.n_modes for t in model.beams))
         if mf.shape != expect:
             raise ValueError(f"modal_freq_hz: expected shape {expect}, got {mf.shape}")

@@ -294,3 +294,16 @@ def test_a_point_that_fails_never_reports_a_passing_residual(name, law):
     assert np.all(status[failed] == -1) and np.all(status[~failed] >= 0)
     assert np.all(residual[failed] == np.inf)
     assert np.all(residual[~failed] <= 1e-10)
+
+
+def test_scalar_friction_parameters_apply_to_every_mistuned_sample():
+    """modal_freq_hz for 3 samples with scalar mu0, kc, N0: 3 samples, each as if the
+    parameters had been given per sample (it was refused: shape (1, 2, 2) expected)."""
+    model = mcfric.two_beam()
+    mf = np.tile([16.2, 105.8], (3, 2, 1)) * np.array([1.0, 1.01, 1.02])[:, None, None]
+    a = mcfric.solve(model, [20.0, 30.0], 0.5, 5e3, modal_freq_hz=mf)
+    b = mcfric.solve(model, [20.0, 30.0], np.full((3, 1), 0.5), np.full((3, 1), 5e3),
+                     np.full((3, 1), 0.5), modal_freq_hz=mf)
+    assert a.response.shape == (3, 2, 2) and a.converged.all()
+    assert a.response.tobytes() == b.response.tobytes()
+    assert len(set(np.abs(a.response[:, 0, 0]))) == 3        # the mistuning shows

@@ -452,6 +452,8 @@ API_CASES = [
     (lambda m: __import__("mcfric").solve(m, [20.0], 0.3, 5000.0 + 1j), "got complex"),
     (lambda m: __import__("mcfric").solve(m, ["20"], 0.3, 5000.0), "freq_hz: expected real"),
     (lambda m: __import__("mcfric").bounds.force_limit(-1, 0.5), "mu_max"),
+    # 0 was returned, and compute_bounds then refused F_lim = 0
+    (lambda m: __import__("mcfric").bounds.force_limit(0, 0.5), "^mu_max: expected"),
     (lambda m: __import__("mcfric").solve(m, [20.0], 0.3, 5e3).metric(beams=[2]),
      "0-based beam indices in 0..1"),
     # 1e160 came back as the free answer (the slip ratio overflowed), marked converged

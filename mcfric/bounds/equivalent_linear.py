@@ -148,10 +148,11 @@ class Bounds:
 def force_limit(mu_max, N0_max):
     """``F_lim = (4/pi) mu_max N0_max``: first harmonic of a saturated Coulomb force, N.
 
-    ``mu_max`` (-) and ``N0_max`` (N) must be finite and >= 0.
+    ``mu_max`` (-) and ``N0_max`` (N) must be finite and > 0 (0 would leave every damper
+    free, a limit :func:`compute_bounds` does not take: ``F_lim > 0``).
     """
-    mu = real("mu_max", mu_max, lo=0)
-    n0 = real("N0_max", N0_max, lo=0)
+    mu = real("mu_max", mu_max, lo=0, lo_open=True)
+    n0 = real("N0_max", N0_max, lo=0, lo_open=True)
     return 4.0 / np.pi * mu * n0
 
 
