@@ -179,7 +179,9 @@ def _parser():
     pl.add_argument("--measured", nargs="+", metavar="DATA", default=[],
                     help="measured responses (CSV, or UFF dataset 58 with --nodes)")
     pl.add_argument("--nodes", metavar="N1,N2,...",
-                    help="UFF response node of beam 1, 2, ... (for --measured UFF files)")
+                    help="UFF response node of beam 1, 2, ... (for --measured UFF files), "
+                         "or NODE:BEAM pairs, BEAM 0 for the metric M (an exported "
+                         "percentile record)")
     pl.add_argument("--measured-quantity", choices=("displacement", "velocity",
                                                     "acceleration"),
                     help="what the measured values are, when the file does not say")
@@ -747,9 +749,15 @@ def _read_measured(args, attrs):
     nodes = None
     if args.nodes:
         try:
-            nodes = [int(x) for x in args.nodes.split(",")]
+            parts = args.nodes.split(",")
+            if any(":" in x for x in parts):
+                # NODE:BEAM pairs; beam 0 is the metric M (an exported percentile record)
+                nodes = {int(n): int(b) for n, b in (x.split(":") for x in parts)}
+            else:
+                nodes = [int(x) for x in parts]
         except ValueError:
-            raise UsageError(f"--nodes: expected comma-separated node numbers, got "
+            raise UsageError(f"--nodes: expected comma-separated node numbers (beam 1, 2, "
+                             f"...) or NODE:BEAM pairs (BEAM 0: the metric M), got "
                              f"{args.nodes!r}") from None
     cfg = json.loads(attrs.get("config_json", "{}"))
     F0 = cfg.get("excitation", {}).get("F0")
@@ -824,7 +832,7 @@ def _print_inside(path, measured, quantity, window=None):
           + f", which hold at the {g.size} grid frequencies ({step:.3g} Hz apart) and are "
           f"interpolated between them" + (f", {window[0]:g}-{window[1]:g} Hz"
                                           if window is not None else ""))
-    cols = [m for m in measured if any(b in beams for b in m.beams)]
+    cols = [m for m in measured if m.beams == (ms.METRIC,) or any(b in beams for b in m.beams)]
     if not cols:
         print(f"measured data drawn; not compared (no measured beam is one of the metric's "
               f"beams {', '.join(map(str, beams))})")

@@ -231,8 +231,9 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
         mf = g.frequency_hz
         y = g.metric().response[:, 0].real
         keep = (mf >= lo_f) & (mf <= hi_f)
-        lab = f"measured {mm.kind}" + (f" ({mm.force_n:g} N)" if mm.force_n else "")
-        if mm.kind == "stepped":
+        lab = (f"measured {mm.kind}" + (f" ({mm.force_n:g} N)" if mm.force_n else "")
+               + (f", {mm.percentile:g}th percentile" if mm.percentile is not None else ""))
+        if mm.kind == "stepped" or np.count_nonzero(keep) == 1:   # one point draws no line
             ax.plot(mf[keep], y[keep], "x", color="tab:green", ms=4, mew=1.0, label=lab)
         else:
             ax.plot(mf[keep], y[keep], color="tab:green", lw=1.0, label=lab)

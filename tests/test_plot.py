@@ -286,6 +286,24 @@ def test_a_triaxial_uff_file_takes_the_measured_direction(results, tmp_path, cap
     assert rc == 0 and all(p < 100.0 for p, _, _ in _fractions(out)), out
 
 
+def test_exported_percentiles_of_m_read_back_as_the_metric(results, tmp_path, capsys):
+    """An exported M record (node 900) maps to beam 0, the metric, with --nodes 900:0 and
+    is held to both bounds; it was read as beam 1."""
+    pytest.importorskip("pyuff")
+    from mcfric.measured import export_uff58
+
+    with h5py.File(results, "r") as h5:
+        f, m = h5["frequency"][()], h5["metric"][()]
+    pct = export_uff58(tmp_path / "p.uff", f, np.percentile(m, [5, 50, 95], axis=0),
+                       percentiles=[5, 50, 95], force_n=0.22, nodes=[900])
+    assert pct["records"] == 3
+    rc, out, err = call(["plot", results, "-o", tmp_path / "p.png", "--measured",
+                         tmp_path / "p.uff", "--nodes", "900:0"], capsys)
+    assert rc == 0, err
+    assert "the measured metric M (max over the beams) against both bounds" in out, out
+    assert _fractions(out) == [(100.0, 3 * f.size, 3 * f.size)], out    # on the grid
+
+
 def test_measured_options_that_cannot_apply_are_refused_or_said(results, tmp_path, capsys):
     data = tmp_path / "b2.csv"
     _beam2_csv(results, data, member=3)

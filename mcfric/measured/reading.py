@@ -129,7 +129,8 @@ def _node_map(path, nodes, found):
                          f"(beam 1, 2, ...), got {nodes!r}")
     beams = list(pairs.values())
     if len(set(beams)) != len(beams) or any(b < 0 for b in beams):
-        raise ValueError(f"{path}: nodes: beams must be distinct numbers >= 1, got {beams}")
+        raise ValueError(f"{path}: nodes: beams must be distinct numbers >= 0 (0: the "
+                         f"metric M), got {beams}")
     return pairs
 
 
