@@ -1,6 +1,7 @@
 """The ensemble driver: identical results for any threads / chunking / interruption,
 stored values equal to independent re-solves, honest non-convergence counts, refusals."""
 
+import contextlib
 import json
 import os
 import signal
@@ -198,8 +199,9 @@ def test_refusals_and_the_already_done_case(tmp_path):
         run(cfg, tmp_path / "nodir" / "r.h5")
 
 
-def interrupt_at_chunk_3(monkeypatch, cfg, out, **kw):
-    """Run ``cfg`` into ``out`` with Ctrl-C while its third chunk is solved."""
+@contextlib.contextmanager
+def ctrl_c_at_chunk_3(monkeypatch):
+    """Within the block, Ctrl-C while the third chunk of a run is solved."""
     real = hbm.solve
     calls = {"n": 0}
 
@@ -210,9 +212,16 @@ def interrupt_at_chunk_3(monkeypatch, cfg, out, **kw):
         return real(*a, **k)
 
     monkeypatch.setattr(ensemble.hbm, "solve", stop_at_3)
-    with pytest.raises(Interrupted):
+    try:
+        yield
+    finally:
+        monkeypatch.setattr(ensemble.hbm, "solve", real)
+
+
+def interrupt_at_chunk_3(monkeypatch, cfg, out, **kw):
+    """Run ``cfg`` into ``out`` with Ctrl-C while its third chunk is solved."""
+    with ctrl_c_at_chunk_3(monkeypatch), pytest.raises(Interrupted):
         run(cfg, out, **kw)
-    monkeypatch.setattr(ensemble.hbm, "solve", real)
 
 
 def test_a_run_with_overrides_resumes_from_its_own_configuration(tmp_path, monkeypatch,
@@ -224,19 +233,9 @@ def test_a_run_with_overrides_resumes_from_its_own_configuration(tmp_path, monke
 
     argv = ["run", "two-beam", "--samples", "50", "--n-freq", "10", "--chunk", "10",
             "--no-bounds", "--no-figure", "--no-progress"]
-    real = hbm.solve
-    calls = {"n": 0}
-
-    def stop_at_3(*a, **k):
-        calls["n"] += 1
-        if calls["n"] == 3:
-            raise KeyboardInterrupt
-        return real(*a, **k)
-
     out = tmp_path / "r.h5"
-    monkeypatch.setattr(ensemble.hbm, "solve", stop_at_3)
-    assert cli.main(argv + ["-o", str(out)]) == cli.EXIT_INTERRUPTED
-    monkeypatch.setattr(ensemble.hbm, "solve", real)
+    with ctrl_c_at_chunk_3(monkeypatch):
+        assert cli.main(argv + ["-o", str(out)]) == cli.EXIT_INTERRUPTED
     capsys.readouterr()
     # the preset alone is another run: refused
     assert cli.main(["run", "two-beam", "-o", str(out), "--resume", "--no-figure"]) == 2
