@@ -175,7 +175,8 @@ def _parser():
     pl.add_argument("--f-min", type=float, metavar="HZ", help="lower end of the window, Hz")
     pl.add_argument("--f-max", type=float, metavar="HZ", help="upper end of the window, Hz")
     pl.add_argument("--member", type=int, default=None, metavar="I",
-                    help="ensemble member drawn in black (default 0; -1: none)")
+                    help="ensemble member drawn in black (default 0; -1: none; a bounds "
+                         "file has none)")
     pl.add_argument("--measured", nargs="+", metavar="DATA", default=[],
                     help="measured responses (CSV, or UFF dataset 58 with --nodes)")
     pl.add_argument("--nodes", metavar="N1,N2,...",
@@ -801,8 +802,6 @@ def _print_inside(path, measured, quantity, window=None):
     beam only), else against the upper one. The certified bounds where the file has them
     (the band the figure draws), else the searched ones; the first line says which, and
     that between grid frequencies the bounds are interpolated."""
-    from dataclasses import replace
-
     import numpy as np
 
     from . import measured as ms
@@ -817,12 +816,11 @@ def _print_inside(path, measured, quantity, window=None):
     lo, up = (C.lower, C.upper) if C is not None else (B.lower, B.upper)
     lo, up, g = lo * scale, up * scale, B.freq_hz
     if window is not None:
-        keep = (g >= window[0]) & (g <= window[1])
-        if np.count_nonzero(keep) < 2:
-            print("measured data drawn; not compared (fewer than two grid frequencies of "
-                  "the bounds in the window)")
-            return
-        lo, up, g = lo[keep], up[keep], g[keep]
+        # the grid inside the window and one frequency beyond each edge, so that every
+        # measured point in the window lies between grid frequencies
+        i0 = max(int(np.searchsorted(g, window[0], "right")) - 1, 0)
+        i1 = min(int(np.searchsorted(g, window[1], "left")), len(g) - 1)
+        lo, up, g = lo[i0:i1 + 1], up[i0:i1 + 1], g[i0:i1 + 1]
     n_beams = json.loads(read_attrs(path)["config_json"])["model"]["n_beams"]
     beams = tuple(b + 1 for b in B.beams) or tuple(range(1, n_beams + 1))
     step = float(np.median(np.diff(g)))
@@ -832,39 +830,49 @@ def _print_inside(path, measured, quantity, window=None):
           + f", which hold at the {g.size} grid frequencies ({step:.3g} Hz apart) and are "
           f"interpolated between them" + (f", {window[0]:g}-{window[1]:g} Hz"
                                           if window is not None else ""))
-    cols = [m for m in measured if m.beams == (ms.METRIC,) or any(b in beams for b in m.beams)]
-    if not cols:
+    if window is not None:
+        kept = [_in_window(m, window) for m in measured]
+        out = sum(n for _, n in kept)
+        measured = [m for m, _ in kept if m is not None]
+        if out:
+            print(f"{out} measured points outside {window[0]:g}-{window[1]:g} Hz (not "
+                  f"compared)")
+    parts = ms.metric_parts([m.to_quantity(q) for m in measured], beams)
+    if not (parts.single or parts.full):
         print(f"measured data drawn; not compared (no measured beam is one of the metric's "
               f"beams {', '.join(map(str, beams))})")
         return
-    full, part = [], []
-    for m in cols:
-        m = m.to_quantity(q)
-        if m.beams == (ms.METRIC,):
-            full.append(m)                   # a record of M itself (an export)
-            continue
-        j = [i for i, b in enumerate(m.beams) if b in beams]
-        sub = replace(m, response=m.response[:, j], beams=tuple(m.beams[i] for i in j))
-        (full if set(beams) <= set(sub.beams) else part).append(sub.metric())
-    single = [m for m in cols if m.beams != (ms.METRIC,)]
-    if single:
-        per_beam = ms.fraction_inside(single, g, lo, up, beams=None, quantity=q,
-                                      check_lower=False)
-        skipped = sorted({b for m in single for b in m.beams if b not in beams})
+    if parts.single:
+        sk = parts.skipped
         print("each beam against the upper bound only (the lower bound of M bounds the "
               "largest beam, not every beam)"
-              + (f"; beam{'s' if len(skipped) > 1 else ''} "
-                 f"{', '.join(map(str, skipped))} {'are' if len(skipped) > 1 else 'is'} "
-                 f"not in the metric and not compared" if skipped else "") + ":")
-        print(_inside_or_none(per_beam, beams))
-    if full:
-        print("the measured metric M (max over the beams) against both bounds:")
-        print(_inside_or_none(ms.fraction_inside(full, g, lo, up, quantity=q)))
-    if part:
-        print(f"the largest measured beam against the upper bound only (the metric's beams "
-              f"{', '.join(map(str, beams))} are not all measured: M could be larger):")
-        print(_inside_or_none(ms.fraction_inside(part, g, lo, up, quantity=q,
+              + (f"; beam{'s' if len(sk) > 1 else ''} {', '.join(map(str, sk))} "
+                 f"{'are' if len(sk) > 1 else 'is'} not in the metric and not compared"
+                 if sk else "") + ":")
+        print(_inside_or_none(ms.fraction_inside(parts.single, g, lo, up, quantity=q,
                                                  check_lower=False)))
+    if parts.full:
+        print("the measured metric M (max over the beams) against both bounds:")
+        print(_inside_or_none(ms.fraction_inside(parts.full, g, lo, up, quantity=q)))
+    if parts.part:
+        print(f"the largest measured beam against the upper bound only (the metric's beams "
+              f"{', '.join(map(str, beams))} are not all measured: M could be larger; "
+              f"'M' below is that largest beam):")
+        print(_inside_or_none(ms.fraction_inside(parts.part, g, lo, up, quantity=q,
+                                                 check_lower=False)))
+
+
+def _in_window(m, window):
+    """``m`` with only its points inside ``window`` (Hz), or None, and how many were cut."""
+    from dataclasses import replace
+
+    import numpy as np
+
+    keep = (m.frequency_hz >= window[0]) & (m.frequency_hz <= window[1])
+    cut = int(np.count_nonzero(~keep & ~np.all(np.isnan(np.abs(m.response)), axis=1)))
+    if not keep.any():
+        return None, cut
+    return replace(m, frequency_hz=m.frequency_hz[keep], response=m.response[keep]), cut
 
 
 def _inside_or_none(inside, beams=None):
@@ -892,9 +900,11 @@ def cmd_config(args):
     if path is not None and path.is_file() and _is_hdf5(path):
         a, _ = _checked_file(path)
         out = str(path).removesuffix(".partial")
-        sys.stdout.write(f"# the configuration of the run in {path}\n"
-                         f"# (mcfric run THIS.toml -o {out} --resume continues an "
-                         f"interrupted one)\n\n{a['config']}")
+        how = (f"mcfric run THIS.toml -o {out} --resume continues an interrupted one"
+               if int(a.get("samples", 0)) else
+               "a bounds file: mcfric bounds THIS.toml computes it again")
+        sys.stdout.write(f"# the configuration of the run in {path}\n# ({how})\n\n"
+                         f"{a['config']}")
         return EXIT_OK
     cfg = _load(args)
     sys.stdout.write(cfg.toml())

@@ -146,13 +146,16 @@ def solve(model, freq_hz, mu0, kc, N0=0.5, *, modal_freq_hz=None, tol=TOL,
         Excitation frequencies, Hz (> 0, finite).
     mu0, kc, N0 : array_like
         Friction coefficient (-), tangential stiffness (N/m) and normal preload (N) per
-        damper: scalar, (nd,), (n_s, 1) or (n_s, nd); all >= 0.
+        damper: scalar, (nd,), (n_s, 1) or (n_s, nd); all >= 0, ``kc`` at most 1e12 N/m
+        (:data:`mcfric.validators.KC_MAX`, a stuck contact).
     modal_freq_hz : array_like, shape (n_s, n_beams, n_modes), optional
-        Per-sample modal frequencies in Hz (mistuned rigs); default the model's.
+        Per-sample modal frequencies in Hz (mistuned rigs); default the model's. Friction
+        parameters given for one sample apply to all ``n_s``.
     tol : float
         Accepted relative residual, default 1e-10 (iterations aim 10x lower).
     max_iter : int
-        Newton iterations per attempt (default 50).
+        Newton iterations per attempt (default 50); a multi-harmonic attempt may add up
+        to 10 undamped steps where its line search crawls (docs: harmonics).
     n_threads : int, optional
         numba threads for this call.
     peaks : PeakSettings or int, optional
@@ -178,6 +181,14 @@ def solve(model, freq_hz, mu0, kc, N0=0.5, *, modal_freq_hz=None, tol=TOL,
     Returns
     -------
     HBMResult
+
+    Raises
+    ------
+    ValueError
+        An input it cannot use, one line naming it: a value out of range, shapes that do
+        not match, ``peaks`` or ``indicator`` with ``harmonics > 1`` or ``aft``,
+        ``store_harmonics`` with the closed-form kernel, or results larger than the memory
+        available.
     """
     if not isinstance(model, Model):
         raise ValueError(f"model: expected a mcfric Model, got {type(model).__name__}")
@@ -223,7 +234,7 @@ def solve(model, freq_hz, mu0, kc, N0=0.5, *, modal_freq_hz=None, tol=TOL,
         # it estimates what a single-harmonic solve leaves out; here nothing is left out
         raise ValueError("indicator: for single-harmonic solves (harmonics = 1, aft = "
                          "False); a multi-harmonic solve balances those harmonics itself")
-    if store_harmonics and harmonics == 1:
+    if store_harmonics and harmonics == 1 and not aft:
         raise ValueError("store_harmonics: for multi-harmonic solves (harmonics >= 3); "
                          "with harmonics = 1 the response is the only harmonic")
     with threads(n_threads):
@@ -288,7 +299,25 @@ def check_harmonic_memory(model, harmonics, n_time, n_f, n_r):
 def check_output_memory(model, n_s, n_f, harmonics, store_harmonics, n_r):
     """Refuse a solve whose results (and receptances) would not fit in the memory
     available: numpy's allocation error names no argument, and a request just below the
-    machine's memory would end in the system killing the process."""
+    machine's memory would end in the system killing the process.
+
+    Parameters
+    ----------
+    model : Model
+    n_s, n_f : int
+        Samples and frequencies of the solve.
+    harmonics : int
+        Highest odd harmonic balanced (1: single-harmonic).
+    store_harmonics : bool
+        Every output harmonic kept.
+    n_r : int
+        Receptance sets (1, or ``n_s`` for per-sample modal frequencies).
+
+    Raises
+    ------
+    ValueError
+        The estimate, in bytes, exceeds the memory available (one line).
+    """
     nb, nd = model.n_beams, model.n_dampers
     n_h = (harmonics + 1) // 2
     per_point = 16 * nb + 8 * nd + 1 + 2 + 8 + 8          # outputs, the indicator

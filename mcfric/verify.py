@@ -182,7 +182,8 @@ def time_steps(model, freq_hz, kc, steps=None):
     ------
     ValueError
         A frequency that is not finite and positive, or one so low that a period needs
-        more than ``MAX_STEPS`` steps (one line, naming it).
+        more than ``MAX_STEPS`` steps; or a ``kc`` so stiff that it does (one line, naming
+        which).
     """
     f = check_frequencies(np.atleast_1d(freq_hz))
     if steps is not None and (isinstance(steps, bool) or not isinstance(steps, (int, np.integer))

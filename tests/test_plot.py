@@ -238,13 +238,18 @@ def test_points_outside_between_grid_frequencies_are_named(results, tmp_path, ca
     with h5py.File(results, "r") as h5:
         f = h5["frequency"][()]
     mid = 0.5 * (f[:-1] + f[1:])
+    on = np.round(f[1:-1], 4)                # on the grid, as a file prints them
     data = tmp_path / "mid.csv"
-    n = _beam2_csv(results, data, member=3, scale=100.0, freqs=mid)   # all above
+    n = _beam2_csv(results, data, member=3, scale=100.0,
+                   freqs=np.sort(np.r_[mid, on]))                     # all above
+    assert n == mid.size + on.size
     rc, out, err = call(["plot", results, "-o", tmp_path / "m.png", "--measured", data],
                         capsys)
     assert rc == 0, err
     assert "hold at the 60 grid frequencies" in out and "interpolated between them" in out
-    assert f"{n} of the points outside lie between grid frequencies" in out, out
+    # every point is outside; only those between grid frequencies are named so
+    assert f"{mid.size} of the points outside lie between grid frequencies" in out, out
+    assert _fractions(out)[0] == (0.0, 0, n), out
 
 
 def test_the_measured_force_can_be_given_on_the_command_line(results, tmp_path, capsys):
@@ -302,6 +307,24 @@ def test_exported_percentiles_of_m_read_back_as_the_metric(results, tmp_path, ca
     assert rc == 0, err
     assert "the measured metric M (max over the beams) against both bounds" in out, out
     assert _fractions(out) == [(100.0, 3 * f.size, 3 * f.size)], out    # on the grid
+
+
+def test_a_window_compares_exactly_its_measured_points(results, tmp_path, capsys):
+    """--f-min/--f-max: every measured point in the window is compared (one near the
+    edge, beyond the last grid frequency inside it, was excluded), the others are
+    counted apart."""
+    with h5py.File(results, "r") as h5:
+        f = h5["frequency"][()]
+    pts = np.r_[np.linspace(12.0, 39.9, 30), 39.99, np.linspace(41.0, 140.0, 20)]
+    data = tmp_path / "w.csv"
+    _beam2_csv(results, data, member=3, freqs=pts)
+    assert f[f <= 40.0].max() < 39.9                  # the edge point lies past the grid
+    rc, out, err = call(["plot", results, "-o", tmp_path / "w.png", "--measured", data,
+                         "--f-min", "20", "--f-max", "40"], capsys)
+    assert rc == 0, err
+    inside = int(np.count_nonzero((pts >= 20) & (pts <= 40)))
+    assert f"{pts.size - inside} measured points outside 20-40 Hz (not compared)" in out, out
+    assert _fractions(out)[0][2] == inside, out
 
 
 def test_measured_options_that_cannot_apply_are_refused_or_said(results, tmp_path, capsys):

@@ -407,7 +407,7 @@ def test_turned_multipliers_prove_the_bound_of_every_blade():
 
 
 @pytest.mark.parametrize("mistuned", [False, True])
-def test_tied_multipliers_give_the_lower_relaxation_of_a_tunedring(mistuned):
+def test_tied_multipliers_give_the_lower_relaxation_of_a_tuned_ring(mistuned):
     """A 12-blade ring, five frequencies: the lower bound's relaxation with every
     damper's multipliers tied (``tied_relaxation``: 7 unknowns) proves what the full
     relaxation (84) proves, to 0.2 %, on a tuned ring, and lies below 3000 random
@@ -556,7 +556,7 @@ def test_the_tied_relaxation_reaches_the_lower_bound_of_72_blades_near_resonance
         assert 0 < tied <= M.min(), fk
 
 
-def test_the_fourier_spectrum_of_a_tied_tunedring():
+def test_the_fourier_spectrum_of_a_tied_tuned_ring():
     """A 12-blade tuned ring at 40 Hz, tied multipliers drawn at random: the Fourier
     eigenvalues ``tied_relaxation`` takes from the first column of ``Z``'s damper block
     are that block's eigenvalues (``numpy.linalg.eigvalsh`` of the dense ``Z``), the

@@ -173,7 +173,8 @@ SPEC = {
     "solver": {
         "tol": (number(lo=0, hi=0.1, lo_open=True),
                 "accepted relative friction-force residual"),
-        "max_iter": (integer(1, 10000), "Newton iterations per attempt"),
+        "max_iter": (integer(1, 10000), "Newton iterations per attempt (multi-harmonic: "
+                                         "plus up to 10 undamped steps where it crawls)"),
         "harmonics": (odd_integer(1, 99), "highest odd harmonic balanced (1: the "
                                           "single-harmonic describing function; 3, 5, ...: "
                                           "multi-harmonic balance of the odd harmonics)"),

@@ -403,7 +403,10 @@ def _newton(Q, orders, G, q0, kc, fs, n_time, tol, max_iter, F, dF, R, J, piv, d
     A halving line search on the sum of squares. Where it crawls (the residual is only
     piecewise smooth: a Jenkins loop gains or loses a slip phase between ``Q`` and the
     solution, and the Jacobian jumps there), a watchdog: undamped steps from the full
-    step (``dw`` is their scratch, like ``dx``); the iterations count them."""
+    step (``dw`` is their scratch, like ``dx``). They come on top of the ``max_iter``
+    iterations (at most ``_WATCHDOG_TRIES * _WATCHDOG_STEPS``: counting them against it
+    left 16 of 8,000 bench points unconverged instead of 10) and are counted in the
+    iterations returned."""
     err, ss, ok = _evaluate(Q, orders, G, q0, kc, fs, n_time, F, dF, R, work, nd, n_h)
     if not ok:
         return False, 0, math.inf

@@ -17,11 +17,12 @@ in ID lines 1-5 are read (and written by :func:`export_uff58`); arguments fill i
 file does not say and must agree with what it does.
 """
 
-from .comparison import Inside, fraction_inside, interpolate_log
+from .comparison import Inside, MetricParts, fraction_inside, interpolate_log, metric_parts
 from .export import export_uff58
 from .measurement import KINDS, METRIC, Measurement
 from .normalisation import Normalisation, normalise
 from .reading import read_measured
 
-__all__ = ["Inside", "fraction_inside", "interpolate_log", "export_uff58", "KINDS", "METRIC",
-           "Measurement", "Normalisation", "normalise", "read_measured"]
+__all__ = ["Inside", "MetricParts", "fraction_inside", "interpolate_log", "metric_parts",
+           "export_uff58", "KINDS", "METRIC", "Measurement", "Normalisation", "normalise",
+           "read_measured"]

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -69,8 +69,8 @@ class Inside:
              f"({sum(self.inside.values())}/{self.compared()}); " + ", ".join(parts))
         off = sum(self.off_grid.values())
         if off:
-            s += (f"; {off} of the points outside lie between grid frequencies, where the "
-                  f"bounds are interpolated (not a bound there)")
+            s += (f"; {off} of the points outside {'lies' if off == 1 else 'lie'} between "
+                  f"grid frequencies, where the bounds are interpolated (not a bound there)")
         if excl:
             s += f"; {excl} outside the bounds' frequency range (excluded)"
         if miss:
@@ -113,12 +113,13 @@ def interpolate_log(freq_hz, values, at_hz):
 
 
 def _on_grid(g, f):
-    """Whether each frequency ``f`` is one of the grid's ``g`` (to 1e-9 relative)."""
+    """Whether each frequency ``f`` is one of the grid's ``g``: within 1e-4 of the grid
+    step (a file's frequencies are often printed to 6 digits)."""
     if not f.size:
         return np.zeros(0, bool)
     i = np.clip(np.searchsorted(g, f), 1, len(g) - 1)
     near = np.minimum(abs(f - g[i - 1]), abs(f - g[i]))
-    return near <= 1e-9 * np.abs(f)
+    return near <= 1e-4 * (g[i] - g[i - 1])
 
 
 def _percent(x):
@@ -227,3 +228,59 @@ def fraction_inside(measurement, freq_hz, lower, upper, beams=None, *,
         if absent:
             raise ValueError(f"beams: beam {absent[0]} is not in the measurement")
     return Inside(beams=tuple(order), **counts)
+
+
+@dataclass(frozen=True)
+class MetricParts:
+    """Measurements sorted for bounds of the metric ``M`` over some beams.
+
+    Attributes
+    ----------
+    single : list of Measurement
+        The measurements of single beams (to hold to the upper bound of M only).
+    full : list of Measurement
+        The measured M (column :data:`METRIC`): of measurements of every beam of the
+        metric, and records of M itself (an export). Held to both bounds.
+    part : list of Measurement
+        The largest of the measured beams where some beam of the metric is not measured:
+        the true M could be larger, so only the upper bound applies.
+    skipped : tuple of int
+        Measured beams outside the metric (no bound of M applies to them).
+    """
+
+    single: list
+    full: list
+    part: list
+    skipped: tuple
+
+
+def metric_parts(measured, beams):
+    """Sort ``measured`` for a comparison with bounds of the metric over ``beams``.
+
+    Parameters
+    ----------
+    measured : sequence of Measurement
+    beams : sequence of int
+        The metric's beams, 1-based (every beam of the model by default).
+
+    Returns
+    -------
+    MetricParts
+        ``m.metric()`` of a measurement missing a beam of the metric is no measured M: it
+        may lie below the lower bound of M legitimately, so it goes to ``part``.
+    """
+    beams = tuple(int(b) for b in beams)
+    single, full, part, skipped = [], [], [], set()
+    for m in measured:
+        if m.beams == (METRIC,):
+            full.append(m)
+            continue
+        j = [i for i, b in enumerate(m.beams) if b in beams]
+        skipped.update(b for b in m.beams if b not in beams)
+        if not j:
+            continue
+        sub = replace(m, response=m.response[:, j], beams=tuple(m.beams[i] for i in j))
+        single.append(sub)
+        (full if set(beams) <= set(sub.beams) else part).append(sub.metric())
+    return MetricParts(single, full, part, tuple(sorted(skipped)))
+

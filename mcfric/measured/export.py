@@ -15,7 +15,8 @@ from ..uff import FRF, GENERAL, SPEC_TYPE, UFF_SUFFIXES, id_date, si_units_datas
 from ..validators import is_bool, is_num
 from .measurement import KINDS, METRIC
 
-#: Largest node number: UFF 58 writes it in a 10-character integer field.
+#: Largest node number: a 32-bit integer, as UFF readers take the 10-character field
+#: (10**12 was written cut to 1000000000).
 MAX_NODE = 2**31 - 1
 
 
