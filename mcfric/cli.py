@@ -875,14 +875,9 @@ def _in_window(m, window):
     return replace(m, frequency_hz=m.frequency_hz[keep], response=m.response[keep]), cut
 
 
-def _inside_or_none(inside, beams=None):
-    """The line of an :class:`~mcfric.measured.Inside` (only ``beams`` when given), or
-    a plain statement that no point was compared."""
-    if beams is not None:
-        keep = [b for b in inside.beams if b in beams]
-        inside = type(inside)(tuple(keep), *({b: c[b] for b in keep} for c in (
-            inside.inside, inside.below, inside.above, inside.outside_range, inside.missing,
-            inside.off_grid)))
+def _inside_or_none(inside):
+    """The line of an :class:`~mcfric.measured.Inside`, or a plain statement that no
+    point was compared."""
     if not inside.compared():
         return ("no measured point compared (all outside the bounds' frequencies or "
                 "without a value)")
