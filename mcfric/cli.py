@@ -365,6 +365,9 @@ def _output_path(args, suffix, prefix="", figure=False):
             raise UsageError(f"-o: directory {out.parent} does not exist")
         if out.is_dir():
             raise UsageError(f"-o: {out} is a directory")
+        if out.exists() and not out.is_file():
+            # --force would replace a device (/dev/null) with a results file; a pipe hangs
+            raise UsageError(f"-o: {out} is not a regular file (a device or a pipe)")
     else:
         out = _default_output(args, suffix, prefix)
         out.parent.mkdir(parents=True, exist_ok=True)
@@ -498,11 +501,15 @@ def _kept_bounds_note(cfg, out):
             f"their own, --force recomputes the run")
 
 
-def _outside_note(n, H, fault):
+def _outside_note(n, H, fault, mistuned=False):
     """What ``n`` member points outside the bounds mean in a run balancing ``H``
     harmonics: a ``fault`` to report where ``H = 1``; with ``H > 1`` none, as the bounds
     rest on the describing function's constraints (the single-harmonic model) and a
-    multi-harmonic fundamental need not keep to them."""
+    multi-harmonic fundamental need not keep to them; with random mistuning none, as the
+    bounds are the nominal rig's."""
+    if mistuned:
+        return (" (the bounds are the nominal rig's, the members mistuned: not a fault)"
+                if n else "")
     if H > 1:
         return (f" (the bounds are the single-harmonic model's, these points the "
                 f"fundamentals of H = {H}: not a fault)")
@@ -520,6 +527,9 @@ def cmd_run(args):
     from . import ensemble
     from .store.lock import LockError, OutputLock
 
+    if args.resume and args.force:
+        # --force won silently and threw a resumable partial away
+        raise UsageError("--force: discards FILE.partial, --resume continues it; give one")
     cfg = _load(args)
     out = _output_path(args, ".h5", figure=not args.no_figure)
     orders = cfg.data["excitation"]["engine_orders"]
@@ -601,13 +611,14 @@ def _run_one(args, cfg, out, resume_as=None):
             from .store import read_attrs
 
             H = int(read_attrs(out).get("harmonics", 1))
+            mis = cfg.data["sampling"]["mistuning"] > 0
             print(f"searched bounds check: {outside} of {total:,} converged member points "
                   f"outside [lower, upper]"
-                  + _outside_note(outside, H, "the bounds search missed them"))
+                  + _outside_note(outside, H, "the bounds search missed them", mis))
             if outside_cert is not None:
                 print(f"certified bounds check: {outside_cert} outside [lower_certified, "
                       f"upper_certified]" + _outside_note(outside_cert, H,
-                                                          "a broken certificate"))
+                                                          "a broken certificate", mis))
     if summary.complete and not args.no_figure:
         png = out.with_suffix(".png")
         plot.results_figure(out, png)
@@ -1083,7 +1094,9 @@ def _verify_source(args):
     from .validators import InputError, number
 
     src = args.source
-    if src is not None and src.endswith((".h5", ".h5.partial")):
+    # by content: run writes any -o name (out.H5, x)
+    if src is not None and (src.endswith((".h5", ".h5.partial"))
+                            or (Path(src).is_file() and _is_hdf5(src))):
         from .store import read
         if args.member is None:
             raise UsageError("--member: a results file needs --member I (0-based)")

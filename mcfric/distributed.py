@@ -200,7 +200,9 @@ class Cluster:
                 client = distributed.Client(local, timeout=CONNECT_TIMEOUT_S)
             else:
                 client = distributed.Client(address, timeout=CONNECT_TIMEOUT_S)
-        except (OSError, TimeoutError, ValueError) as e:
+        except Exception as e:
+            # OSError, TimeoutError, ValueError; a tls:// or ucx:// address without its
+            # security settings or package is a TypeError or ImportError deep in distributed
             if local is not None:
                 local.close()
             raise ClusterError(f"cannot reach the Dask scheduler at {address}: "

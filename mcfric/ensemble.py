@@ -750,12 +750,21 @@ def _drive(spec, store, done, not_conv_before, progress, t_start, cluster=None):
     err = []
     stats = {"not_converged": 0, "written": 0}
 
+    stop = threading.Event()
+
     def writer():
         pending = []
         last = time.monotonic()
         try:
             while True:
-                item = q.get()
+                try:
+                    item = q.get(timeout=0.2)
+                except queue.Empty:
+                    # the main thread stopped feeding (an interrupt can cut its last put
+                    # short): what is written is committed, nothing is waited for
+                    if stop.is_set():
+                        break
+                    continue
                 if item is None:
                     break
                 start, make_arrays = item
@@ -794,6 +803,7 @@ def _drive(spec, store, done, not_conv_before, progress, t_start, cluster=None):
         interrupted = True
     finally:
         source.close()
+        stop.set()
         if w.is_alive():
             try:
                 _put(q, None, w, err)

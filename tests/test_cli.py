@@ -413,3 +413,30 @@ def test_a_complete_file_says_when_it_keeps_other_bounds(tmp_path, capsys):
            f"enabled = false); `mcfric bounds` computes" in text
     assert cli.main(base + ["--no-bounds"]) == 0                  # the same [bounds]: no note
     assert "note:" not in capsys.readouterr().out
+
+
+def test_a_mistuned_run_does_not_call_members_outside_the_bounds_a_fault(tmp_path, capsys):
+    """The bounds are the nominal rig's: mistuned members outside them are expected
+    ('please report' before)."""
+    toml = tmp_path / "m.toml"
+    toml.write_text('[model]\npreset = "two-beam"\n[sampling]\nsamples = 20\n'
+                    'mistuning = 0.1\n[frequency]\nn = 40\n')
+    out = tmp_path / "m.h5"
+    assert cli.main(["run", str(toml), "-o", str(out), "--no-certify", "--no-progress",
+                     "--no-figure"]) == 0
+    text = capsys.readouterr().out
+    line = next(x for x in text.splitlines() if x.startswith("searched bounds check"))
+    n = int(line.split(": ")[1].split(" of ")[0])
+    assert n > 0, line                                   # mistuned members do leave
+    assert "the members mistuned: not a fault" in line and "please report" not in text
+
+
+def test_verify_knows_a_results_file_by_its_content(tmp_path, capsys):
+    """run writes any -o name; verify took only *.h5 as a results file."""
+    out = tmp_path / "out.H5"
+    assert cli.main(["run", "two-beam", "--samples", "2", "--n-freq", "10", "--no-bounds",
+                     "--no-progress", "--no-figure", "-o", str(out)]) == 0
+    capsys.readouterr()
+    rc = cli.main(["verify", str(out), "--member", "0", "--f", "35", "--harmonics", "3",
+                   "--no-figure", "--no-progress", "-o", str(tmp_path / "v.csv")])
+    assert rc == 0, capsys.readouterr().err

@@ -222,16 +222,19 @@ def test_a_client_killed_mid_run_resumes_to_the_same_file(reference, tmp_path):
     assert_same_file(out, ref)
 
 
-def test_an_unreachable_scheduler_gives_one_line_and_no_file(tmp_path, capsys, monkeypatch):
+@pytest.mark.parametrize("address", ["tcp://127.0.0.1:1",
+                                     "tls://127.0.0.1:1"])   # a TypeError traceback before
+def test_an_unreachable_scheduler_gives_one_line_and_no_file(tmp_path, capsys, monkeypatch,
+                                                             address):
     from mcfric import distributed
 
     monkeypatch.setattr(distributed, "CONNECT_TIMEOUT_S", 2.0)
     out = tmp_path / "r.h5"
     rc = cli.main(["run", "two-beam", "--samples", "4", "--n-freq", "10", "-o", str(out),
-                   "--scheduler", "tcp://127.0.0.1:1", "--no-progress"])
+                   "--scheduler", address, "--no-progress"])
     err = capsys.readouterr().err
     assert rc == 2
-    assert err.count("\n") == 1 and "cannot reach the Dask scheduler at tcp://127.0.0.1:1" \
+    assert err.count("\n") == 1 and f"cannot reach the Dask scheduler at {address}" \
         in err, err
     assert list(tmp_path.iterdir()) == []
 

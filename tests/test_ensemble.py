@@ -7,6 +7,7 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 import time
 import tomllib
 import tracemalloc
@@ -222,6 +223,34 @@ def interrupt_at_chunk_3(monkeypatch, cfg, out, **kw):
     """Run ``cfg`` into ``out`` with Ctrl-C while its third chunk is solved."""
     with ctrl_c_at_chunk_3(monkeypatch), pytest.raises(Interrupted):
         run(cfg, out, **kw)
+
+
+def test_an_interrupt_that_cuts_the_last_put_short_neither_hangs_nor_loses(tmp_path,
+                                                                              monkeypatch):
+    """Ctrl-C can land while the main thread hands the writer its stop marker; the
+    writer then waited for it forever and the run hung with its chunks uncommitted
+    (`checkpoint_s > 0`, 3 of 14 tries). The writer now also stops when told to by an
+    event, and commits what it wrote."""
+    cfg = two_beam(samples=50, n=10, run__chunk=10, run__checkpoint_s=1000.0)
+    out = tmp_path / "r.h5"
+    real_put = ensemble._put
+
+    def lost_marker(q, item, writer, err):
+        if item is None:
+            raise KeyboardInterrupt          # the signal lands inside this put
+        return real_put(q, item, writer, err)
+
+    monkeypatch.setattr(ensemble, "_put", lost_marker)
+    done = []
+    with ctrl_c_at_chunk_3(monkeypatch):
+        t = threading.Thread(target=lambda: done.append(
+            pytest.raises(Interrupted, run, cfg, out)), daemon=True)
+        t.start()
+        t.join(timeout=120)
+    assert not t.is_alive(), "the run hung after the interrupt"
+    assert len(done) == 1                          # it stopped as interrupted
+    with h5py.File(partial_path(out), "r") as h5:
+        assert int(h5["done"][()].sum()) == 20            # the two chunks written before
 
 
 def test_a_run_with_overrides_resumes_from_its_own_configuration(tmp_path, monkeypatch,

@@ -224,6 +224,14 @@ REFUSED_BEFORE_WORK = [
     (["hbm", "two-beam", "--n-freq", "5", "-o", "{dir}/x.h5"], "this command writes CSV"),
     (["run", "two-beam", "--samples", "4", *TINY, "-o", "{dir}/r.csv"],
      "writes an HDF5 results file; give a name ending in .h5"),
+    # --force replaced a device with a results file (as root, /dev/null); a pipe hung
+    (["run", "two-beam", "--samples", "4", *TINY, "-o", "{dir}/fifo.h5", "--force"],
+     "is not a regular file"),
+    # --force won silently and threw a resumable partial away
+    (["run", "two-beam", "--samples", "4", *TINY, "-o", "{dir}/r.h5", "--resume",
+      "--force"], "--force: discards FILE.partial, --resume continues it"),
+    # an empty file read as an empty TOML ran the default ensemble
+    (["run", "{dir}/c.toml.h5", "--samples", "4", *TINY], "an empty file, not a TOML"),
     (["verify", "two-beam", "--f", "0.001", "--harmonics", "3"], "--f: at 0.001 Hz"),
     (["verify", "two-beam", "--f", "nan"], "--f:"),
     (["verify", "two-beam", "--f", "20", "--harmonics", "1"], "--harmonics: expected an "
@@ -258,12 +266,17 @@ def test_outputs_that_cannot_be_made_are_refused_before_the_work(tmp_path, capsy
     (tmp_path / "fig.png").mkdir()
     assert cli.main(["config", "two-beam"]) == 0
     (tmp_path / "c.toml").write_text(capsys.readouterr().out)
+    if "c.toml.h5" in " ".join(argv):
+        (tmp_path / "c.toml.h5").write_bytes(b"")
+    if "fifo.h5" in " ".join(argv):
+        os.mkfifo(tmp_path / "fifo.h5")
     before = snapshot(tmp_path)
     rc = cli.main([a.format(dir=tmp_path) for a in argv])
     err = capsys.readouterr().err.strip()
     assert rc == 2 and message in err and len(err.splitlines()) == 1, err
     assert snapshot(tmp_path) == before
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["c.toml", "fig.png"]
+    assert sorted(p.name for p in tmp_path.iterdir()
+                  if p.name not in ("c.toml.h5", "fifo.h5")) == ["c.toml", "fig.png"]
 
 
 def test_bounds_replaces_its_own_bounds_file(tmp_path, capsys):

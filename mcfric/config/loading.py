@@ -55,6 +55,10 @@ def read_toml(path):
         data = p.read_bytes()
         if data.startswith(b"\x89HDF"):
             raise InputError(str(path), "an HDF5 file (results?), not a TOML configuration")
+        if p.suffix.lower() in (".h5", ".hdf5", ".partial") and not data.strip():
+            # an empty file read as an empty TOML ran the default ensemble
+            raise InputError(str(path), "an empty file, not a TOML configuration (nor a "
+                             "results file)")
         text = data.decode("utf-8")
     except FileNotFoundError:
         raise InputError(str(path), "no such file (and not a preset: "
