@@ -1216,11 +1216,9 @@ def cmd_verify(args):
         time_steps(model, args.f, kc)           # before any output is made
     except ValueError as e:
         raise usage(e) from None
-    if stem is not None and not args.output:
-        out = DEFAULT_DIR / f"verify-{stem}.csv"
-        out.parent.mkdir(parents=True, exist_ok=True)
-    else:
-        out = _output_path(args, ".csv", prefix="verify-", figure=not args.no_figure)
+    # the default name of a file's member too goes through the checks (an HDF5 file at
+    # mcfric-results/verify-NAME.csv was overwritten)
+    out = _output_path(args, ".csv", prefix="verify-", figure=not args.no_figure)
     try:
         # a file's member: its harmonic balance with the run's tolerance and iterations
         vs = verify(model, args.f, mu0, kc, N0, harmonics=args.harmonics, start=args.start,

@@ -440,3 +440,21 @@ def test_verify_knows_a_results_file_by_its_content(tmp_path, capsys):
     rc = cli.main(["verify", str(out), "--member", "0", "--f", "35", "--harmonics", "3",
                    "--no-figure", "--no-progress", "-o", str(tmp_path / "v.csv")])
     assert rc == 0, capsys.readouterr().err
+
+
+def test_verify_of_a_file_checks_its_default_output_too(tmp_path, capsys, monkeypatch):
+    """`verify FILE` without -o wrote mcfric-results/verify-NAME.csv unchecked: an HDF5
+    file there was overwritten."""
+    monkeypatch.chdir(tmp_path)
+    res = tmp_path / "good.h5"
+    assert cli.main(["run", "two-beam", "--samples", "2", "--n-freq", "10", "--no-bounds",
+                     "--no-progress", "--no-figure", "-o", str(res)]) == 0
+    (tmp_path / "mcfric-results").mkdir()
+    clash = tmp_path / "mcfric-results" / "verify-good.csv"
+    clash.write_bytes(res.read_bytes())
+    capsys.readouterr()
+    rc = cli.main(["verify", str(res), "--member", "0", "--f", "35", "--harmonics", "3",
+                   "--no-figure", "--no-progress"])
+    err = capsys.readouterr().err
+    assert rc == 2 and "is an HDF5 file" in err, err
+    assert clash.read_bytes() == res.read_bytes()
