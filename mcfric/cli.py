@@ -406,9 +406,7 @@ def _not_replacing_input(args, path, what):
 
 def _not_replacing_hdf5(path, what):
     """No CSV or figure silently replaces a results file (HDF5)."""
-    import h5py
-
-    if path.is_file() and h5py.is_hdf5(path):
+    if path.is_file() and _is_hdf5(path):
         raise UsageError(f"{path} is an HDF5 file (results?); the {what} would replace it: "
                          f"choose another -o")
 
@@ -748,8 +746,9 @@ def _read_measured(args, attrs):
             raise UsageError(f"{given[0]}: applies to --measured data, and none is given")
         return []
     from . import measured as ms
+    from .uff import UFF_SUFFIXES
 
-    if args.nodes and not any(Path(d).suffix.lower() in (".uff", ".unv", ".uf")
+    if args.nodes and not any(Path(d).suffix.lower() in UFF_SUFFIXES
                               for d in args.measured):
         raise UsageError("--nodes: maps UFF response nodes to beams; no --measured file is "
                          "UFF (CSV columns name their beams)")
