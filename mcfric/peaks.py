@@ -357,7 +357,7 @@ def certified_peak_line(cp, unit):
             "; the grid's largest certified value anywhere: "
             + ("unbounded" if np.isinf(cp["grid"]) else
                f"{cp['grid']:.4g} {unit} at {cp['grid_frequency']:.6g} Hz"))
-    return (f"             certified: at the frequencies of a sub-grid "
+    return (f"             certified: at its frequency and a sub-grid "
             f"{cp['peak_sub_grid_step']:.2g} Hz apart around it (only there), the worst case "
             f"is at least {low} and at most {up}{grid}")
 

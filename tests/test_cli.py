@@ -220,7 +220,7 @@ def test_certified_bound_near_the_peak_is_printed_stored_and_drawn(tmp_path, cap
         a = dict(h["bounds"].attrs)
         grid_max = float(np.max(h["bounds/upper_certified"][...]))
     assert a["peak_upper_witness"] <= a["peak_upper_certified"]
-    assert line.startswith("             certified: at the frequencies of a sub-grid ")
+    assert line.startswith("             certified: at its frequency and a sub-grid ")
     assert (f"(only there), the worst case is at least {a['peak_upper_witness']:.4g} m "
             f"(attained by a witness at {a['peak_upper_witness_frequency']:.6g} Hz) and at "
             f"most {a['peak_upper_certified']:.4g} m (certified)") in line

@@ -10,8 +10,8 @@ the force limit takes over from the box beside the best sub-grid point (a kink, 
 misleads the parabolic steps), a golden-section search of the bracket is kept where it
 finds more. Like the bound itself, the refined peak is the result of a search.
 
-Where the bounds were certified, the sub-grid is certified too
-(:func:`certified_near_peak`): the largest certified upper bound on it and the largest
+Where the bounds were certified, the sub-grid and the refined peak's frequency are
+certified too (:func:`certified_near_peak`): the largest certified upper bound on it and the largest
 witness (attained by an admissible set of describing functions) bracket the worst case
 near the peak, as far as the sub-grid samples it; the grid alone can miss much of it
 (measured: the docs' peaks page).
@@ -167,8 +167,9 @@ def peak_attrs(model, B, rtol=1e-4):
         ``peak_upper`` (the metric's unit), ``peak_upper_frequency`` (Hz) and
         ``peak_upper_refined`` (1 if the refinement converged), as
         :func:`refine_upper_peak` gives them; where ``B`` is certified, the largest
-        certified upper bound on the refinement's sub-grid ``peak_upper_certified`` (the
-        metric's unit; inf where a sub-grid frequency was not certified) at
+        certified upper bound on the refinement's sub-grid and at the refined peak's
+        frequency ``peak_upper_certified`` (the metric's unit; inf where one of these
+        frequencies was not certified) at
         ``peak_upper_certified_frequency`` (Hz), the largest witness there
         ``peak_upper_witness`` at ``peak_upper_witness_frequency`` (both NaN where no
         sub-grid frequency has a witness), and the sub-grid's spacing
@@ -178,11 +179,14 @@ def peak_attrs(model, B, rtol=1e-4):
     out = {"peak_upper": np.float64(up_pk), "peak_upper_frequency": np.float64(f_pk),
            "peak_upper_refined": np.int8(ok)}
     if sub_f is not None and B.certificate is not None:
-        for name, v in zip(("certified", "witness"), certified_near_peak(model, B, sub_f)):
+        # the refined peak's frequency joins the sub-grid: between sub-grid points the
+        # certified values alone could fall below the searched peak they should bracket
+        cert_f = np.union1d(sub_f, [f_pk]) if np.isfinite(f_pk) else sub_f
+        for name, v in zip(("certified", "witness"), certified_near_peak(model, B, cert_f)):
             i = int(np.argmax(np.nan_to_num(v, nan=-np.inf)))
             out[f"peak_upper_{name}"] = np.float64(v[i])
             # no witness at all: no frequency either
-            out[f"peak_upper_{name}_frequency"] = np.float64(sub_f[i] if not np.isnan(v[i])
+            out[f"peak_upper_{name}_frequency"] = np.float64(cert_f[i] if not np.isnan(v[i])
                                                              else np.nan)
         out["peak_sub_grid_step"] = np.float64(sub_f[1] - sub_f[0])
     return out
