@@ -1020,20 +1020,29 @@ def cmd_info(args):
     return EXIT_OK
 
 
+def _check_friction_flag(name, v):
+    """``--mu0``, ``--kc`` or ``--N0`` (``name`` without dashes): finite and >= 0, ``kc``
+    at most :data:`mcfric.validators.KC_MAX`; a UsageError naming the flag otherwise."""
+    from .validators import KC_MAX, InputError, number
+
+    try:
+        number(lo=0)(v, f"--{name}")
+    except InputError as e:
+        raise UsageError(str(e)) from None
+    if name == "kc" and v > KC_MAX:
+        raise UsageError(f"--kc: expected at most {KC_MAX:g} N/m (a stuck contact), got {v:g}")
+
+
 def cmd_hbm(args):
     """``mcfric hbm``: one deterministic parameter set, to a CSV file and a figure."""
     import numpy as np
 
     from . import hbm, plot
     from .metric import METRIC_UNITS, omega_power
-    from .validators import InputError, number
 
     spec = _load(args).spec
-    for flag, v in (("--mu0", args.mu0), ("--kc", args.kc), ("--N0", args.N0)):
-        try:
-            number(lo=0)(v, flag)
-        except InputError as e:
-            raise UsageError(str(e)) from None
+    for flag, v in (("mu0", args.mu0), ("kc", args.kc), ("N0", args.N0)):
+        _check_friction_flag(flag, v)
     out = _output_path(args, ".csv", prefix="hbm-", figure=not args.no_figure)
     model, f = spec.model, spec.freq_hz
     H = spec.solver.harmonics
@@ -1090,7 +1099,6 @@ def _verify_source(args):
     import numpy as np
 
     from . import config
-    from .validators import InputError, number
 
     src = args.source
     # by content: run writes any -o name (out.H5, x)
@@ -1127,10 +1135,7 @@ def _verify_source(args):
     for flag, default in (("mu0", 0.5), ("kc", 6000.0), ("N0", 0.5)):
         v = getattr(args, flag)
         v = default if v is None else v
-        try:
-            number(lo=0)(v, f"--{flag}")
-        except InputError as e:
-            raise UsageError(str(e)) from None
+        _check_friction_flag(flag, v)
         params.append(v)
     return spec.model, params, None, None
 
@@ -1210,6 +1215,8 @@ def cmd_verify(args):
 
     def usage(e):
         msg = str(e).splitlines()[0]
+        if msg.startswith("kc:") and stem is None:      # typed as --kc, not from a file
+            return UsageError("--" + msg)
         return UsageError("--f:" + msg[8:] if msg.startswith("freq_hz:") else msg)
     try:
         time_steps(model, args.f, kc)           # before any output is made

@@ -96,6 +96,16 @@ def test_overrides_apply_and_name_their_flag():
     assert e.value.key == "--F0"
 
 
+def test_a_vanishing_force_is_refused():
+    """F0 = 1e-150 N ran, and its members' squared responses underflowed: 388,807 of
+    2,000,000 points fell outside the searched bounds ("please report"); F0 below
+    1e-12 N is refused, 1e-12 N itself accepted."""
+    with pytest.raises(ConfigError, match=r"--F0: expected a finite number >= 1e-12"):
+        config.load("two-beam", {"excitation.F0": (1e-150, "--F0")})
+    assert config.load("two-beam", {"excitation.F0": (1e-12, "--F0")}).model().excitation.F0 \
+        == 1e-12
+
+
 def test_file_merges_key_by_key_and_replaces_distribution_tables(tmp_path):
     p = tmp_path / "c.toml"
     p.write_text('[model]\npreset = "two-beam"\n[frequency]\nn = 40\n'
