@@ -304,6 +304,10 @@ def _overrides(args):
         if hasattr(args, attr):
             o[key] = (getattr(args, attr), flag)
     if getattr(args, "no_peaks", False):
+        for attr, flag in (("peaks", "--peaks"), ("peak_rtol", "--peak-rtol")):
+            if getattr(args, attr, None) is not None:
+                raise UsageError(f"{flag}: a setting of the peak refinement; not with "
+                                 f"--no-peaks")
         o["peaks.enabled"] = (False, "--no-peaks")
     for skip, key in (("no_certify", "bounds.certify"), ("no_bounds", "bounds.enabled")):
         if not getattr(args, skip, False):
@@ -331,6 +335,12 @@ def _load(args, fixed=None):
         cfg = config.load(args.source, overrides)
     except config.ConfigError as e:
         raise UsageError(str(e)) from None
+    H = cfg.data["solver"]["harmonics"]
+    if H > 1:
+        for attr, flag in (("peaks", "--peaks"), ("peak_rtol", "--peak-rtol")):
+            if getattr(args, attr, None) is not None:
+                raise UsageError(f"{flag}: peaks are refined in single-harmonic runs only "
+                                 f"(this one balances the odd harmonics up to {H})")
     if cfg.data["excitation"]["engine_orders"] and args.command not in ("run", "config"):
         raise UsageError(f"excitation.engine_orders: a sweep of engine orders is for "
                          f"mcfric run; mcfric {args.command} takes one engine_order")
@@ -347,6 +357,11 @@ def _default_output(args, suffix, prefix=""):
     else:
         stem = Path(args.source).stem
     return DEFAULT_DIR / f"{prefix}{stem}{suffix}"
+
+
+#: Default output directories this invocation made: removed at exit if still empty (a
+#: run refused after its output path was chosen leaves nothing behind).
+_MADE_DIRS = []
 
 
 def _output_path(args, suffix, prefix="", figure=False):
@@ -370,7 +385,9 @@ def _output_path(args, suffix, prefix="", figure=False):
             raise UsageError(f"-o: {out} is not a regular file (a device or a pipe)")
     else:
         out = _default_output(args, suffix, prefix)
-        out.parent.mkdir(parents=True, exist_ok=True)
+        if not out.parent.is_dir():
+            out.parent.mkdir(parents=True, exist_ok=True)
+            _MADE_DIRS.append(out.parent)
     what = "results file" if suffix == ".h5" else f"{suffix[1:].upper()} output"
     if suffix == ".h5" and out.name.endswith(".partial"):
         raise UsageError(f"-o: {out.name} ends in .partial, the name of an interrupted "
@@ -1344,6 +1361,11 @@ def main(argv=None):
     finally:
         for sig, h in previous.items():
             signal.signal(sig, h)
+        while _MADE_DIRS:
+            try:
+                _MADE_DIRS.pop().rmdir()         # only an empty one
+            except OSError:
+                pass
 
 
 if __name__ == "__main__":   # pragma: no cover

@@ -376,6 +376,10 @@ def prepare(spec, path, *, resume=False, force=False):
             if not (resume and part.exists()):
                 raise RunError(f"{e}; use --force to replace it") from None
             attrs = None
+        if attrs is not None and int(attrs.get("samples", -1)) == 0:
+            # its configuration can equal this run's: not "this run, by other code"
+            raise RunError(f"{final} exists and holds bounds alone (mcfric bounds), no "
+                           f"members; use --force to replace it, or choose another -o")
         diff = None if attrs is None else _same_run(spec, attrs, final)
         if attrs is not None and diff is None and attrs.get("complete") == 1:
             # the same run by other code or libraries: its bits need not be this code's

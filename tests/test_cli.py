@@ -458,3 +458,28 @@ def test_verify_of_a_file_checks_its_default_output_too(tmp_path, capsys, monkey
     err = capsys.readouterr().err
     assert rc == 2 and "is an HDF5 file" in err, err
     assert clash.read_bytes() == res.read_bytes()
+
+
+def test_a_refused_run_leaves_no_empty_results_directory(tmp_path, monkeypatch, capsys):
+    """A run refused after its default output path was chosen (here: the disk space
+    check) made ``mcfric-results/`` and left it empty; it is removed again, and a directory
+    that was there before is kept."""
+    monkeypatch.chdir(tmp_path)
+    rc, _, err = call(["run", "two-beam", "--samples", "1000000000"], capsys)
+    assert rc != 0 and "free" in err
+    assert not (tmp_path / "mcfric-results").exists()
+    (tmp_path / "mcfric-results").mkdir()
+    rc, _, _ = call(["run", "two-beam", "--samples", "1000000000"], capsys)
+    assert rc != 0 and (tmp_path / "mcfric-results").is_dir()
+
+
+def test_run_onto_a_bounds_file_says_it_holds_bounds(tmp_path, capsys):
+    """A bounds file of the same configuration given to ``run -o`` was "this run, made
+    by other solver code ... fingerprint None"; it is named as bounds alone, kept."""
+    out = tmp_path / "b.h5"
+    grid = ["two-beam", "--n-freq", "20", "-o", str(out)]
+    assert call(["bounds", *grid, "--no-figure"], capsys)[0] == 0
+    before = out.read_bytes()
+    rc, _, err = call(["run", *grid], capsys)
+    assert rc == 2 and "holds bounds alone (mcfric bounds), no members" in err
+    assert "fingerprint" not in err and out.read_bytes() == before
