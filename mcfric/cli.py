@@ -1220,11 +1220,13 @@ def cmd_verify(args):
 
     if args.max_periods < 1:
         raise UsageError(f"--max-periods: expected an integer >= 1, got {args.max_periods}")
-    if args.harmonics < 3 or args.harmonics % 2 == 0:
+    from .hbm import MAX_HARMONICS
+
+    if not 3 <= args.harmonics <= MAX_HARMONICS or args.harmonics % 2 == 0:
         # the single-harmonic solution is compared in any case
-        raise UsageError(f"--harmonics: expected an odd integer >= 3 (the odd harmonics 1, "
-                         f"3, ..., H are balanced beside the single-harmonic solution), got "
-                         f"{args.harmonics}")
+        raise UsageError(f"--harmonics: expected an odd integer in 3..{MAX_HARMONICS} (the "
+                         f"odd harmonics 1, 3, ..., H are balanced beside the "
+                         f"single-harmonic solution), got {args.harmonics}")
     model, (mu0, kc, N0), stem, run = _verify_source(args)
     stored = []
     if stem is not None:

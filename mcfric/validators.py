@@ -162,14 +162,17 @@ def choice(*options):
     return check
 
 
-def string():
+def string(nonblank=False):
     """Text without control characters (a NUL or a newline would break files and the
-    one-line outputs)."""
+    one-line outputs); ``nonblank``: not empty or spaces alone either."""
     def check(v, key):
         if not isinstance(v, str):
             raise InputError(key, f"expected a string, got {show(v)}")
         if any(ord(c) < 32 or ord(c) == 127 for c in v):
             raise InputError(key, f"expected text without control characters, got {v!r}")
+        if nonblank and not v.strip():
+            raise InputError(key, "expected a non-blank name, got "
+                                  + ("an empty one" if not v else "spaces alone"))
         return v
     return check
 

@@ -235,7 +235,15 @@ REFUSED_BEFORE_WORK = [
     (["verify", "two-beam", "--f", "0.001", "--harmonics", "3"], "--f: at 0.001 Hz"),
     (["verify", "two-beam", "--f", "nan"], "--f:"),
     (["verify", "two-beam", "--f", "20", "--harmonics", "1"], "--harmonics: expected an "
-     "odd integer >= 3"),
+     "odd integer in 3..99"),
+    # said "in 1..99" (the run's range) for verify, which needs 3 or more
+    (["verify", "two-beam", "--f", "20", "--harmonics", "101"], "--harmonics: expected an "
+     "odd integer in 3..99"),
+    # a blank name titled the results file and its plots with nothing
+    (["run", "{dir}/blank.toml", "--samples", "4", *TINY], "model.name: expected a "
+     "non-blank name"),
+    (["run", "two-beam", *TINY, "--no-peaks", "--peaks", "3", "-o", "{dir}/r.h5"],
+     "--peaks: a setting of the peak refinement; not with --no-peaks"),
     (["bounds", "eight-beam", "--no-certify", "--moments", "-o", "{dir}/b.h5"],
      "--moments: the order of the certification; not with --no-certify"),
     (["run", "two-beam", *TINY, "--no-certify", "--first-order", "-o", "{dir}/r.h5"],
@@ -270,13 +278,16 @@ def test_outputs_that_cannot_be_made_are_refused_before_the_work(tmp_path, capsy
         (tmp_path / "c.toml.h5").write_bytes(b"")
     if "fifo.h5" in " ".join(argv):
         os.mkfifo(tmp_path / "fifo.h5")
+    if "blank.toml" in " ".join(argv):
+        (tmp_path / "blank.toml").write_text('[model]\nname = "  "\n')
     before = snapshot(tmp_path)
     rc = cli.main([a.format(dir=tmp_path) for a in argv])
     err = capsys.readouterr().err.strip()
     assert rc == 2 and message in err and len(err.splitlines()) == 1, err
     assert snapshot(tmp_path) == before
     assert sorted(p.name for p in tmp_path.iterdir()
-                  if p.name not in ("c.toml.h5", "fifo.h5")) == ["c.toml", "fig.png"]
+                  if p.name not in ("c.toml.h5", "fifo.h5", "blank.toml")) == ["c.toml",
+                                                                                 "fig.png"]
 
 
 def test_bounds_replaces_its_own_bounds_file(tmp_path, capsys):

@@ -113,7 +113,7 @@ DIST_DOC = {
 SPEC = {
     "model": {
         "preset": (choice(*PRESETS), "base rig; every other key overrides it"),
-        "name": (string(), "free text, shown in plots and in `mcfric info`"),
+        "name": (string(nonblank=True), "free text, shown in plots and in `mcfric info`"),
         "n_beams": (integer(2, 100000), "number of beams (>= 2)"),
         "topology": (choice(*TOPOLOGIES), '"linear": n_beams - 1 dampers between '
                                           'neighbours; "circular": also last-first'),
