@@ -550,21 +550,23 @@ def cmd_run(args):
     orders = cfg.data["excitation"]["engine_orders"]
     if not orders:
         return _run_one(args, cfg, out)
-    runs = [(cfg.replace("excitation.engine_orders", []).replace("excitation.engine_order",
-                                                                   E), order_path(out, E))
+    runs = [(cfg.replace("excitation.engine_order", E).replace("excitation.engine_orders",
+                                                                 []), order_path(out, E))
             for E in orders]
-    # the refusals of every order's files before the first order starts (with --resume,
-    # a partial file is checked in its turn, under its lock: finished orders stay done)
+    # the refusals of every order's files before the first order starts (with --resume
+    # too: a later order's file of another run was found only after the earlier orders)
     for c, o in runs:
         if not args.no_figure:
             _not_replacing_hdf5(o.with_suffix(".png"), "figure")
-        if not args.resume:
-            try:
-                # under the order's lock: a writer of it is named, as for one run
-                with OutputLock(o, "mcfric run (checking an engine order's files)"):
-                    ensemble.prepare(c.spec, o, force=args.force)
-            except (ensemble.RunError, LockError) as e:
-                raise UsageError(str(e)) from None
+        try:
+            # under the order's lock: a writer of it is named, as for one run
+            with OutputLock(o, "mcfric run (checking an engine order's files)"):
+                kind, got = ensemble.prepare(c.spec, o, resume=args.resume,
+                                             force=args.force)
+                if kind == "resume":
+                    got[0].close()          # reopened in its turn
+        except (ensemble.RunError, LockError) as e:
+            raise UsageError(str(e)) from None
     print(f"mcfric run: engine orders {', '.join(map(str, orders))}: one results file "
           f"each ({', '.join(o.name for _, o in runs)})", flush=True)
     for c, o in runs:

@@ -208,6 +208,11 @@ def test_an_engine_order_sweep_is_one_run_per_order(tmp_path, capsys):
                     + args) == 2
     assert "s-eo2.h5 exists" in capsys.readouterr().err
     assert not (tmp_path / "s-eo1.h5").exists()
+    # with --resume too (order 1 ran to the end before order 2 was refused)
+    assert cli.main(["run", str(tmp_path / "sweep.toml"), "-o", str(tmp_path / "s.h5"),
+                     "--resume"] + args) == 2
+    assert "s-eo2.h5 exists" in capsys.readouterr().err
+    assert not (tmp_path / "s-eo1.h5").exists()
     clash.unlink()
     assert cli.main(["run", str(tmp_path / "sweep.toml"), "-o", str(tmp_path / "s.h5")]
                     + args) == 0
@@ -225,6 +230,19 @@ def test_an_engine_order_sweep_is_one_run_per_order(tmp_path, capsys):
     # `mcfric config` prints the sweep, the list kept
     assert cli.main(["config", str(tmp_path / "sweep.toml")]) == 0
     assert "engine_orders = [1, 2]" in capsys.readouterr().out
+
+
+def test_a_sweep_replaces_an_engine_order_that_does_not_fit():
+    """two-beam's engine_order (2, the template's) does not fit two beams; a sweep of
+    engine orders 0 and 1 replaced it and was refused for it."""
+    from mcfric import config
+
+    cfg = config.load({"model": {"preset": "two-beam"},
+                       "excitation": {"pattern": "travelling", "engine_orders": [0, 1]}})
+    assert cfg.model().excitation.engine_order == 0
+    with pytest.raises(config.ConfigError, match="excitation.engine_orders: expected "):
+        config.load({"model": {"preset": "two-beam"},
+                     "excitation": {"pattern": "travelling", "engine_orders": [0, 2]}})
 
 
 @pytest.mark.parametrize("F0", [0.25, 1.1])

@@ -168,8 +168,11 @@ def _model(d):
                                           b.get("zeta", t["zeta"]),
                                           b.get("shapes", t["shapes"]),
                                           tuple(t["positions"]))
-    # engine_orders is a sweep of runs (mcfric run), each with its own engine_order
+    # engine_orders is a sweep of runs (mcfric run), each with its own engine_order: the
+    # sweep's model is its first run's (the preset's engine_order may not fit its beams)
     ex = {k: v for k, v in d["excitation"].items() if k != "engine_orders"}
+    if d["excitation"]["engine_orders"]:
+        ex["engine_order"] = d["excitation"]["engine_orders"][0]
     return Model(beams=tuple(beams), excitation=Excitation(**ex),
                  topology=m["topology"], contact=m["contact"], output=m["output"],
                  drive=m["drive"], name=m["name"])

@@ -228,10 +228,10 @@ def _cross_checks(c):
         raise InputError("excitation.engine_orders", f'a list of engine orders needs '
                          f'pattern = "travelling", got pattern = "{ex["pattern"]}"')
     if ex["pattern"] == "travelling":
-        for E in [ex["engine_order"]] + ex["engine_orders"]:
+        # a sweep replaces engine_order (the preset's may not fit the beams: two-beam's 2)
+        key = "excitation.engine_orders" if ex["engine_orders"] else "excitation.engine_order"
+        for E in ex["engine_orders"] or [ex["engine_order"]]:
             if not 0 <= E < nb:
-                key = ("excitation.engine_order" if E == ex["engine_order"]
-                       and E not in ex["engine_orders"] else "excitation.engine_orders")
                 raise InputError(key, f"expected engine orders in 0..{nb - 1} (n_beams - 1; "
                                  f"E and E + n_beams are the same wave), got {E}")
     if ex["pattern"] == "mode" and not ex["mode"] < nb:
