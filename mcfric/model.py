@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .core.receptance import beam_receptances
-from .validators import choice, finite_array, integer, number, real
+from .validators import F0_RANGE, choice, finite_array, integer, number, real
 
 TOPOLOGIES = ("linear", "circular")
 #: Contact laws: Coulomb friction in series with a stiffness (the paper's), and a
@@ -112,7 +112,7 @@ class Excitation:
         ``mode``: free-chain mode ``m``, ``F_b = F0 cos(m pi (b - 1/2) / n)``, b = 1..n.
         ``travelling``: engine-order ``E`` wave, ``F_b = F0 exp(-2 pi i E (b-1) / n)``.
     F0 : float
-        Force amplitude, N (> 0).
+        Force amplitude, N (1e-12 to 1e6: :data:`mcfric.validators.F0_RANGE`).
     beam : int
         Driven beam for ``single`` (1-based).
     mode : int
@@ -129,7 +129,7 @@ class Excitation:
 
     def __post_init__(self):
         choice(*PATTERNS)(self.pattern, "pattern")
-        object.__setattr__(self, "F0", number(lo=0, lo_open=True)(self.F0, "F0"))
+        object.__setattr__(self, "F0", number(*F0_RANGE)(self.F0, "F0"))
         integer(0)(self.mode, "mode")
         integer(1)(self.beam, "beam")
         integer()(self.engine_order, "engine_order")

@@ -369,6 +369,11 @@ def frequencies(freq_hz, name="freq_hz"):
     return f
 
 
+#: Force amplitudes accepted, N (``F0``): below 1e-12 N the squared responses head for
+#: underflow (at 1e-150 N a fifth of the members fell outside their bounds); above 1e6 N
+#: no blade array of this kind stays linear.
+F0_RANGE = (1e-12, 1e6)
+
 #: Stiffest contact accepted, N/m (``kc``, and the bounds' ``k_max``): far stiffer than
 #: any real contact (a stuck damper). Far beyond it (~1e155) the slip ratio overflows and
 #: a stuck damper came back as a free one, marked converged.

@@ -471,6 +471,9 @@ def test_measured_beams_beyond_the_model_are_refused(tmp_path, capsys):
 ZERO_DAMPING = __import__("mcfric").model.ModalTable([20.0], [0.0], [[1.0, 1.0, 1.0]])
 
 API_CASES = [
+    # 1e-150 N solved, and a fifth of the members fell outside their bounds (underflow)
+    (lambda m: m.with_F0(1e-150), "F0: expected a finite number >= 1e-12"),
+    (lambda m: __import__("mcfric").two_beam(1e-150), "F0: expected a finite number >= 1e-12"),
     (lambda m: __import__("mcfric").solve(m, [20.0], "0.3", 5000.0), "mu0: expected real"),
     (lambda m: __import__("mcfric").solve(m, [20.0], True, 5000.0), "got booleans"),
     (lambda m: __import__("mcfric").solve(m, [20.0], 0.3, 5000.0 + 1j), "got complex"),

@@ -14,6 +14,7 @@ from ..model import PATTERNS, TOPOLOGIES
 from ..presets import PRESETS
 from ..presets import preset as make_preset
 from ..validators import (
+    F0_RANGE,
     MAX_FREQ_HZ,
     InputError,
     auto_or_boolean,
@@ -126,7 +127,7 @@ SPEC = {
     "excitation": {
         "pattern": (choice(*PATTERNS), '"single": one beam; "mode": F0 cos(m pi (b - 1/2) / n); '
                                        '"travelling": F0 exp(-2 pi i E (b - 1) / n)'),
-        "F0": (number(lo=1e-12, hi=1e6), "force amplitude, N (1e-12 to 1e6)"),
+        "F0": (number(*F0_RANGE), "force amplitude, N (1e-12 to 1e6)"),
         "beam": (integer(1), 'driven beam for "single" (1-based)'),
         "mode": (integer(0), 'chain mode m for "mode"'),
         "engine_order": (integer(), 'engine order E for "travelling"'),
