@@ -267,7 +267,7 @@ def test_multi_harmonic_on_a_mistuned_ring_agrees_with_time_integration():
     (["hbm", "two-beam", "--harmonics", "9", "--n-time", "16", "--n-freq", "5"], "n-time"),
     (["hbm", "eight-beam", "--harmonics", "99", "--n-freq", "2000000"], "GiB"),
     (["verify", "two-beam", "--harmonics", "2", "--f", "20"], "odd"),
-    (["verify", "two-beam", "--harmonics", "1", "--f", "20"], "integer >= 3"),
+    (["verify", "two-beam", "--harmonics", "1", "--f", "20"], "integer in 3..99"),
     (["verify", "two-beam", "--f", "-3"], "freq"),
     # argparse's order put SOURCE after --f in the usage line; --f took it as a number
     (["verify", "--f", "20", "two-beam"], "SOURCE goes before --f: mcfric verify two-beam"),
