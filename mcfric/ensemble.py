@@ -274,7 +274,7 @@ def layout(spec):
                 "at each refined peak"})
     if spec.solver.harmonics == 1:
         variables["harmonic_indicator"] = ((RECORD, "frequency"), np.float32, {
-            "units": "1", "long_name": "upper estimate of the 3rd and 5th harmonics at the "
+            "units": "1", "long_name": "estimate of the 3rd and 5th harmonics at the "
             "output relative to the fundamental (max over beams); above "
             f"{hbm.INDICATOR_THRESHOLD:g} one harmonic may not be enough; NaN where not "
             "converged", "threshold": hbm.INDICATOR_THRESHOLD})

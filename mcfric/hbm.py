@@ -74,8 +74,8 @@ class HBMResult:
         With ``harmonics > 1``: the largest ``|x(t)|`` over a period at the output of
         every beam, all harmonics together, m. NaN where not converged.
     harmonic_indicator : ndarray, shape (n_s, n_f) or None
-        Single-harmonic solves with ``indicator=True``: an upper estimate of the 3rd and
-        5th harmonics at the output relative to the fundamental (-);
+        Single-harmonic solves with ``indicator=True``: an estimate (not a bound) of the
+        3rd and 5th harmonics at the output relative to the fundamental (-);
         above :data:`INDICATOR_THRESHOLD`, rerun the point with ``harmonics >= 3``.
     response_harmonics : ndarray of complex, shape (n_s, n_f, n_h, n_beams) or None
         With ``store_harmonics``: the odd harmonics 1, 3, ..., of the output

@@ -8,6 +8,8 @@ harmonics it balanced. ``mcfric info`` and the run summary print these lines.
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 
 from .hbm import INDICATOR_THRESHOLD
@@ -61,10 +63,16 @@ def file_report(path):
                       if np.isfinite(flat[t])]
     if not total:
         return []
+    # a displacement ratio over every beam's output, whatever the metric: in velocity
+    # or acceleration the k-th harmonic weighs k or k^2 times more
+    q = json.loads(attrs.get("config_json", "{}")).get("metric", {}).get("quantity",
+                                                                         "displacement")
+    weigh = {"velocity": "; in velocity the 3rd and 5th weigh 3 and 5 times more",
+             "acceleration": "; in acceleration the 3rd and 5th weigh 9 and 25 times more"}
     lines = [f"harmonics:   single-harmonic; {flagged:,} of {total:,} converged points "
              f"({100.0 * flagged / total:.3g} %) may have higher harmonics above "
-             f"{INDICATOR_THRESHOLD:g} of the fundamental (harmonic_indicator, an upper "
-             f"estimate)"]
+             f"{INDICATOR_THRESHOLD:g} of the fundamental (harmonic_indicator: displacements "
+             f"at every beam's output, an estimate, not a bound{weigh.get(q, '')})"]
     if flagged and attrs.get("complete") == 1:   # member numbers need every row done
         freq = read(path, "frequency")
         worst = sorted(worst, reverse=True)[:SHOWN]

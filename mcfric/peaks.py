@@ -222,7 +222,9 @@ def file_report(path):
         (median over members of the grid's maximum over the refined peak), ``folds``
         (members with a fold), ``unchecked`` (members whose fold check failed),
         ``members``, ``unresolved`` (members with a peak not refined: their largest is a
-        lower estimate, and they are left out of ``grid_ratio``), and the bound's peak
+        lower estimate, and they are left out of ``grid_ratio``), ``at_end`` (members
+        whose largest value lies at an end of the band, not at a resonance peak; left out
+        of ``grid_ratio`` too), and the bound's peak
         ``bound_peak``, ``bound_peak_hz``, ``bound_peak_refined`` (and, where certified,
         ``certified_peak``) when the file has them (:func:`bound_peak`).
     """
@@ -232,7 +234,7 @@ def file_report(path):
         return None
     from .store import read
 
-    largest, ratio, folds, unchecked, n_unresolved = [], [], 0, 0, 0
+    largest, ratio, folds, unchecked, n_unresolved, n_end = [], [], 0, 0, 0, 0
     # blocks of ~1 MB of metric: memory stays flat in the number of members (8 bytes per
     # member are kept for the percentiles)
     block = max(1, (1 << 17) // max(1, len(read(path, "frequency"))))
@@ -245,17 +247,25 @@ def file_report(path):
         # resonance between grid points): that member's largest is a lower estimate
         open_ = (unresolved(arr["peak_status"], arr["peak_metric"]) > 0) & np.isfinite(big)
         n_unresolved += int(np.count_nonzero(open_))
+        # a largest value at an end of the band is no resonance peak (the band cuts it)
+        st = np.concatenate([arr["peak_status"]] * 2, axis=1)
+        top = np.argmax(np.where(np.isnan(both), -np.inf, both), axis=1)
+        end = (st[np.arange(len(top)), top] == AT_EDGE) & np.isfinite(big) & ~open_
+        n_end += int(np.count_nonzero(end))
         with np.errstate(invalid="ignore"):
             grid = np.nanmax(np.where(np.isnan(arr["metric"]), -np.inf, arr["metric"]), axis=1)
         largest.append(big)
-        ratio.append(np.where(open_, np.nan, grid / big))
+        ratio.append(np.where(open_ | end, np.nan, grid / big))
         folds += int(np.count_nonzero((arr["fold"] == FOLD_FOUND).any(axis=1)))
-        unchecked += int(np.count_nonzero((arr["fold"] == FOLD_UNCHECKED).any(axis=1)))
+        # an empty peak slot (fewer peaks than asked) has no fold to check either
+        unchecked += int(np.count_nonzero(((arr["fold"] == FOLD_UNCHECKED)
+                                           & (arr["peak_status"] != NONE)).any(axis=1)))
     largest = np.concatenate(largest) if largest else np.empty(0)
     ratio = np.concatenate(ratio) if ratio else np.empty(0)
     out = {"statistics": statistics(largest), "members": int(largest.size),
            "grid_ratio": float(np.nanmedian(ratio)) if np.isfinite(ratio).any() else np.nan,
-           "folds": folds, "unchecked": unchecked, "unresolved": n_unresolved}
+           "folds": folds, "unchecked": unchecked, "unresolved": n_unresolved,
+           "at_end": n_end}
     out.update(bound_peak(path))
     return out
 
@@ -268,7 +278,9 @@ CERTIFIED_PEAK_ATTRS = ("peak_upper_certified", "peak_upper_certified_frequency"
 
 def bound_peak(path):
     """The bound's refined peak stored in a file's ``bounds/`` group: ``bound_peak``,
-    ``bound_peak_hz`` (Hz) and ``bound_peak_refined``; where the bounds were certified,
+    ``bound_peak_hz`` (Hz), ``bound_peak_refined``, ``bound_peak_at_end`` (-1, 0 or 1:
+    at the band's lower end, inside, at its upper end) and ``bound_peak_coarse_step``
+    (Hz, 0 unless the grid is too coarse to find it); where the bounds were certified,
     ``certified_peak``, a dict of the certified bound near the peak (``certified``,
     ``witness``, their ``*_frequency``, ``peak_sub_grid_step`` and the grid's largest
     certified upper bound ``grid`` at ``grid_frequency``); empty where none was
@@ -281,7 +293,9 @@ def bound_peak(path):
     a = g[1]
     out = {"bound_peak": float(a["peak_upper"]),
            "bound_peak_hz": float(a["peak_upper_frequency"]),
-           "bound_peak_refined": bool(a.get("peak_upper_refined", 0))}
+           "bound_peak_refined": bool(a.get("peak_upper_refined", 0)),
+           "bound_peak_at_end": int(a.get("peak_upper_at_end", 0)),
+           "bound_peak_coarse_step": float(a.get("peak_upper_coarse_step", 0.0))}
     if "peak_upper_certified" in a:
         out["certified_peak"] = {k[len("peak_upper_"):] if k.startswith("peak_upper_") else k:
                                  float(a[k]) for k in CERTIFIED_PEAK_ATTRS}
@@ -300,16 +314,22 @@ def report_text(report, unit):
     """The lines ``mcfric info`` and the run summary print about the peaks."""
     st = report["statistics"]
     k = report.get("unresolved", 0)
+    e = report.get("at_end", 0)
     share = (f"the grid's maximum is {report['grid_ratio']:.3g} of the refined peak, median"
-             + (f" of the {st['members'] - k} fully refined" if k else "")
-             if st["members"] > k else "none fully refined")
+             + (f" of the {st['members'] - k - e} fully refined inside the band" if k or e
+                else "")
+             if st["members"] > k + e else "none fully refined inside the band")
+    # lower estimates among the members: the true statistics lie higher, so only the
+    # lower ends of the confidence intervals still hold
     lines = [f"peaks:       each member's largest, refined: median {st['median']:.4g}"
-             f"{_interval(st, 'median_ci')}, 95th percentile {st['p95']:.4g}"
-             f"{_interval(st, 'p95_ci')}, max {st['max']:.4g} {unit} "
+             f"{_interval(st, 'median_ci', bool(k))}, 95th percentile {st['p95']:.4g}"
+             f"{_interval(st, 'p95_ci', bool(k))}, max {st['max']:.4g} {unit} "
              f"({st['members']} members; {share})"
              + (f"; {k} of these {'is a lower estimate' if k == 1 else 'are lower estimates'}"
                 f": a peak of the member was not refined (a solver failed near it, or the "
-                f"grid is too coarse to search) and may lie higher" if k else ""),
+                f"grid is too coarse to search) and may lie higher" if k else "")
+             + (f"; {e} of these {'lies' if e == 1 else 'lie'} at an end of the band (the "
+                f"largest value there, not a resonance peak: the band cuts it)" if e else ""),
              f"folds:       {report['folds']} of {report['members']} members have more than "
              f"one steady state near a peak"
              + (f" ({report['unchecked']} could not be checked)" if report["unchecked"]
@@ -317,11 +337,14 @@ def report_text(report, unit):
     return lines + bound_peak_lines(report, unit, st["max"])
 
 
-def _interval(st, key):
+def _interval(st, key, lower_only=False):
     """`` (lo to hi, 95 % conf.)``: the confidence interval of a statistic as the summary
-    prints it (``above lo`` where too few members close its upper side; empty where
-    there is none)."""
+    prints it (``above lo`` where too few members close its upper side, or where
+    ``lower_only``: some members' values are lower estimates; empty where there is
+    none)."""
     lo, hi = st.get(key, (np.nan, np.nan))
+    if lower_only:
+        hi = np.inf
     pct = f"{100 * st.get('confidence', CONFIDENCE):g} % conf."
     if not np.isfinite(lo):
         return ""
@@ -335,7 +358,9 @@ def bound_peak_lines(pk, unit, largest_member=None):
     if "bound_peak" not in pk:
         return []
     lines = [bound_peak_line(pk["bound_peak"], pk["bound_peak_hz"],
-                             pk.get("bound_peak_refined", True), unit)
+                             pk.get("bound_peak_refined", True), unit,
+                             pk.get("bound_peak_at_end", 0),
+                             pk.get("bound_peak_coarse_step", 0.0))
              + ("" if largest_member is None else
                 f"; largest member / bound {largest_member / pk['bound_peak']:.4g}")]
     if "certified_peak" in pk:
@@ -362,12 +387,22 @@ def certified_peak_line(cp, unit):
             f"is at least {low} and at most {up}{grid}")
 
 
-def bound_peak_line(value, hz, refined, unit):
+def bound_peak_line(value, hz, refined, unit, at_end=0, coarse_step=0.0):
     """The ``bound peak:`` line of a summary: the upper bound's refined peak, ``value`` in
-    ``unit`` at ``hz`` (Hz); ``refined`` False says the refinement did not converge."""
+    ``unit`` at ``hz`` (Hz); ``refined`` False says the refinement did not converge,
+    ``at_end`` (-1, 1) that the largest value lies at the band's lower or upper end,
+    ``coarse_step`` (Hz, > 0) that the grid is too coarse to find the peak."""
     if not np.isfinite(value):
         return "bound peak:  none (the upper bound's search failed at every frequency)"
-    how = "refined" if refined else "not refined"
+    if at_end:
+        how = (f"at the band's {'lower' if at_end < 0 else 'upper'} end: the largest value "
+               f"there, not a resonance peak; the band cuts it")
+    elif coarse_step > 0:
+        how = (f"a lower estimate: the grid's step, {coarse_step:.3g} Hz, is more than "
+               f"{_kernel.N_FLANK_MAX} half-power widths of the narrowest mode, and the "
+               f"bound may peak far higher between grid points; use more frequencies")
+    else:
+        how = "refined" if refined else "not refined"
     return f"bound peak:  searched upper bound {value:.4g} {unit} at {hz:.5g} Hz ({how})"
 
 

@@ -9,10 +9,13 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 
 from .hbm import INDICATOR_THRESHOLD
 from .metric import METRIC_UNITS, omega_power
+from .peaks import AT_EDGE as PEAK_AT_EDGE
 from .peaks import GRID as PEAK_GRID
 from .store import dataset_names, iter_records, read, read_attrs, read_group
 
@@ -168,10 +171,15 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
         py = py * omega_power(px, quantity, stored)
         ok = np.isfinite(py) & (px >= lo_f) & (px <= hi_f) & (py > 0)
         grid = ok & (ps == PEAK_GRID)
+        end = ok & (ps == PEAK_AT_EDGE)
         n_unrefined = int(np.count_nonzero(grid))
-        if (ok & ~grid).any():
-            ax.plot(px[ok & ~grid], py[ok & ~grid], ".", color="0.15", ms=2.5, alpha=0.6,
-                    label="refined member peaks")
+        if (ok & ~grid & ~end).any():
+            ax.plot(px[ok & ~grid & ~end], py[ok & ~grid & ~end], ".", color="0.15", ms=2.5,
+                    alpha=0.6, label="refined member peaks")
+        if end.any():
+            # the band cuts a resonance: the largest value at its end is no peak
+            ax.plot(px[end], py[end], "|", color="0.4", ms=5,
+                    label="member maxima at an end of the band (not resonance peaks)")
         if grid.any():
             # a solver failed near them: the true peak may lie higher
             ax.plot(px[grid], py[grid], "o", mfc="none", color="tab:purple", ms=3.5,
@@ -190,9 +198,16 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
             up = C.upper[win] * scale[win]
             lo = C.lower[win] * scale[win]
             label = " (certified"
+        # they hold at the grid frequencies; the lines between them are no bound (a
+        # narrow resonance between grid points can rise above them)
+        label += " at the grid points, joined by lines"
         # the bounds rest on the describing function: with H > 1 they are the
-        # single-harmonic model's, the members' curves the fundamentals
-        label += ", single-harmonic model)" if harmonics > 1 else ")"
+        # single-harmonic model's, the members' curves the fundamentals; a mistuned
+        # run's members are not the nominal rig the bounds are for
+        cfg = json.loads(attrs.get("config_json", "{}"))
+        if cfg.get("sampling", {}).get("mistuning", 0) > 0:
+            label += "; the nominal rig's"
+        label += "; single-harmonic model)" if harmonics > 1 else ")"
         up = np.where(np.isfinite(up), up, np.nan)
         band = lo, up
         ax.plot(fw, up, color="tab:blue", lw=2.0, label="upper bound" + label)
@@ -215,9 +230,14 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
         g = read_group(path, "bounds")[1]
         if "peak_upper" in g and lo_f <= g["peak_upper_frequency"] <= hi_f:
             fb = g["peak_upper_frequency"]
-            how = "refined" if g.get("peak_upper_refined", 1) else "largest (not refined)"
+            what = ("largest value of the upper bound, at an end of the band"
+                    if g.get("peak_upper_at_end", 0) else
+                    "peak of the upper bound, a lower estimate: grid too coarse"
+                    if g.get("peak_upper_coarse_step", 0) > 0 else
+                    "refined peak of the upper bound" if g.get("peak_upper_refined", 1)
+                    else "largest (not refined) peak of the upper bound")
             ax.plot([fb], [g["peak_upper"] * omega_power(fb, quantity, stored)], "*",
-                    color="tab:blue", ms=9, label=f"{how} peak of the upper bound (searched)")
+                    color="tab:blue", ms=9, label=f"{what} (searched)")
             marked.append("searched")
         fc = g.get("peak_upper_certified_frequency", np.nan)
         if (np.isfinite(g.get("peak_upper_certified", np.nan)) and lo_f <= fc <= hi_f):

@@ -351,3 +351,62 @@ def test_a_peak_beside_a_failed_neighbour_is_flagged_not_refined():
     assert np.all(P.status[:, 0] == GRID)
     assert np.allclose(P.metric[:, 0], r.metric()[np.arange(4), k], rtol=1e-12, atol=0)
     assert np.array_equal(P.freq_hz[:, 0], f[k])
+
+
+def test_band_ends_and_coarse_grids_are_not_called_refined_peaks(tmp_path):
+    """A band cutting the first resonance (16.3-17 Hz; it lies at 16.2 Hz): every
+    member's largest value and the bound's lie at the band's lower end, said so, not
+    "refined"; the folds of empty peak slots are not "could not be checked". A 5-point
+    grid (35 Hz steps): the bound's peak is a lower estimate, said so, and a fine search
+    finds the bound 10x higher."""
+    from mcfric.bounds import compute_bounds
+    from mcfric.peaks import bound_peak
+
+    cfg = config.load("two-beam", {"sampling.samples": (6, "--samples"),
+                                   "frequency.n": (30, "--n-freq"),
+                                   "frequency.f_min": (16.3, "--f-min"),
+                                   "frequency.f_max": (17.0, "--f-max"),
+                                   "bounds.certify": (False, "--no-certify")})
+    summary = ensemble.run(cfg, tmp_path / "edge.h5", progress=False)
+    rep = file_report(summary.path)
+    text = summary.text()
+    assert rep["at_end"] == 6 and rep["unchecked"] == 0, rep
+    assert "6 of these lie at an end of the band" in text
+    assert "could not be checked" not in text
+    assert rep["bound_peak_at_end"] == -1 and rep["bound_peak_hz"] == pytest.approx(16.3)
+    assert "at the band's lower end: the largest value there, not a resonance peak" in text
+    # independently: each member's maximum over a wider band lies below 16.3 Hz
+    with __import__("h5py").File(summary.path) as h:
+        mu0, kc, N0 = (h[k][()] for k in ("mu0", "kc", "N0"))
+    f = np.linspace(15.5, 17.0, 600)
+    r = mcfric.solve(cfg.model(), f, mu0, kc, N0)
+    assert np.all(f[np.argmax(r.metric(), axis=1)] < 16.3)
+
+    coarse = config.load("two-beam", {"sampling.samples": (2, "--samples"),
+                                      "frequency.n": (5, "--n-freq"),
+                                      "bounds.certify": (False, "--no-certify")})
+    summary = ensemble.run(coarse, tmp_path / "coarse.h5", progress=False)
+    pk = bound_peak(summary.path)
+    assert pk["bound_peak_coarse_step"] == pytest.approx(35.0)
+    assert "(a lower estimate: the grid's step, 35 Hz, is more than 64 half-power" \
+        in summary.text()
+    lim = coarse.spec.bounds
+    fine = compute_bounds(coarse.model(), np.linspace(15.5, 17.0, 300), lim.k_max_re,
+                          F_lim=lim.F_lim, certified=False)
+    assert np.nanmax(fine.upper) > 10 * pk["bound_peak"]
+    grid60 = config.load("two-beam", {"frequency.n": (60, "--n-freq")})
+    from mcfric.bounds.peak import grid_too_coarse
+    assert grid_too_coarse(grid60.model(), grid60.frequencies()) is None
+
+
+def test_lower_estimates_keep_only_the_lower_ends_of_the_intervals():
+    """Members whose largest is a lower estimate: the true median and 95th percentile lie
+    higher, so only the lower ends of their confidence intervals are printed."""
+    from mcfric.peaks import report_text, statistics
+
+    x = np.random.default_rng(5).lognormal(-5.0, 0.3, 2000)
+    rep = {"statistics": statistics(x), "grid_ratio": 0.7, "unresolved": 3,
+           "members": 2000, "folds": 0, "unchecked": 0}
+    line = report_text(rep, "m")[0]
+    assert re.search(r"median \S+ \(above \S+, 95 % conf\.\), 95th percentile \S+ "
+                     r"\(above \S+, 95 % conf\.\)", line), line

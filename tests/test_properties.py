@@ -197,8 +197,7 @@ KEYS = ["model.n_beams", "model.topology", "excitation.F0", "excitation.pattern"
 ALLOWED = {("sampling.seed", int, 0), ("sampling.mistuning", int, 0),
            ("metric.beams", list, (1, 2)), ("bounds.F_lim", float, 1e300),
            ("run.threads", int, 0), ("run.chunk", int, 0),
-           ("output.keep_response", bool, True), ("model.name", str, "x"),
-           ("model.name", str, "")}
+           ("output.keep_response", bool, True), ("model.name", str, "x")}
 
 
 def allowed(key, value):

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..core.peaks import N_FLANK_MAX
 from ..core.receptance import contact_space
 from ..metric import QUANTITIES
 from ..peaks import golden_maximize, maximize
@@ -157,6 +158,25 @@ def certified_near_peak(model, B, sub_f):
     return up, wit
 
 
+def grid_too_coarse(model, freq_hz):
+    """The grid's largest step (Hz) where it exceeds ``N_FLANK_MAX`` half-power widths
+    (``2 zeta f``) of the model's narrowest mode, else None: as for the members' peaks
+    (:mod:`mcfric.core.peaks`), a resonance may then lie between grid points unseen."""
+    f_n, zeta, u = model.modal_arrays()
+    real = np.any(u != 0, axis=2)                 # not a padding mode
+    width = float(np.min((2.0 * zeta * f_n)[real])) if real.any() else np.inf
+    step = float(np.max(np.diff(freq_hz))) if len(freq_hz) > 1 else np.inf
+    return step if not step <= N_FLANK_MAX * width else None
+
+
+def at_band_end(freq_hz, f_pk):
+    """-1 or 1 where the refined peak ``f_pk`` (Hz) lies at the lower or upper end of the
+    band ``freq_hz`` (within 1e-9 of its range: the largest value is there, not a
+    resonance peak), else 0."""
+    tol = 1e-9 * (freq_hz[-1] - freq_hz[0])
+    return -1 if f_pk <= freq_hz[0] + tol else 1 if f_pk >= freq_hz[-1] - tol else 0
+
+
 def peak_attrs(model, B, rtol=1e-4):
     """The ``bounds/`` group attributes of the upper bound's refined peak (``model``,
     ``B`` and ``rtol`` as for :func:`refine_upper_peak`).
@@ -166,7 +186,11 @@ def peak_attrs(model, B, rtol=1e-4):
     dict
         ``peak_upper`` (the metric's unit), ``peak_upper_frequency`` (Hz) and
         ``peak_upper_refined`` (1 if the refinement converged), as
-        :func:`refine_upper_peak` gives them; where ``B`` is certified, the largest
+        :func:`refine_upper_peak` gives them, ``peak_upper_at_end`` (-1 or 1 where the
+        peak lies at the lower or upper end of the band, else 0: :func:`at_band_end`) and
+        ``peak_upper_coarse_step`` (Hz: the grid's largest step where it is too coarse to
+        find the bound's peak, :func:`grid_too_coarse`, else 0); where ``B`` is certified,
+        the largest
         certified upper bound on the refinement's sub-grid and at the refined peak's
         frequency ``peak_upper_certified`` (the metric's unit; inf where one of these
         frequencies was not certified) at
@@ -176,8 +200,12 @@ def peak_attrs(model, B, rtol=1e-4):
         ``peak_sub_grid_step`` (Hz).
     """
     f_pk, up_pk, ok, sub_f = _refine(model, B, rtol)
+    coarse = grid_too_coarse(model, B.freq_hz)
     out = {"peak_upper": np.float64(up_pk), "peak_upper_frequency": np.float64(f_pk),
-           "peak_upper_refined": np.int8(ok)}
+           "peak_upper_refined": np.int8(ok),
+           "peak_upper_at_end": np.int8(at_band_end(B.freq_hz, f_pk)
+                                        if np.isfinite(f_pk) else 0),
+           "peak_upper_coarse_step": np.float64(coarse or 0.0)}
     if sub_f is not None and B.certificate is not None:
         # the refined peak's frequency joins the sub-grid: between sub-grid points the
         # certified values alone could fall below the searched peak they should bracket

@@ -9,9 +9,10 @@ the output harmonics they cause are bounded by the triangle inequality::
 
 with ``A_j = mu0_j N0_j / (kc_j s_j)``. The indicator of a point is
 ``max_b (|y_3b| + |y_5b|) / max_b |y_1b|``: the higher harmonics at the output relative
-to the largest fundamental, an upper estimate that ignores their feedback on the
-fundamental. The docs (theory, "When one harmonic is not enough") give its measured quality
-against multi-harmonic solutions.
+to the largest fundamental. The triangle inequality takes the worst phases, but the
+feedback of the harmonics on the fundamental is ignored: an estimate, not a bound (it
+can lie below the harmonics a time integration finds). The docs (harmonics, "When one
+harmonic is not enough") give its measured quality against multi-harmonic solutions.
 """
 
 import math
