@@ -1334,8 +1334,10 @@ def main(argv=None):
         argv = ["run"] + argv        # `mcfric` alone (or `mcfric two-beam`) means `mcfric run`
     import signal
 
-    previous = _stop_signals_interrupt()
+    previous = {}
     try:
+        # inside: Ctrl-C while the solver's modules load is an interrupt like any other
+        previous = _stop_signals_interrupt()
         args = _parser().parse_args(argv)
         rc = {"run": cmd_run, "config": cmd_config, "info": cmd_info, "hbm": cmd_hbm,
               "bounds": cmd_bounds, "plot": cmd_plot,

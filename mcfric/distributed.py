@@ -15,7 +15,6 @@ imports it only when a cluster is asked for.
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import logging
 import math
@@ -115,19 +114,87 @@ def _worker_ready(fingerprint, task, spec):
     return fingerprint()
 
 
-@contextlib.contextmanager
 def _workers_ignore_ctrl_c():
-    """Start local worker processes with SIGINT ignored (they inherit it): Ctrl-C in a
-    terminal reaches the whole process group, and only the client should act on it (it
-    commits, then stops the cluster) instead of every worker printing a traceback."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    """Make the local cluster's worker processes ignore SIGINT; returns the Dask
+    configuration to leave (``__exit__``) when the cluster is closed.
+
+    Ctrl-C in a terminal reaches the whole process group, and only the client should act
+    on it (it commits, then stops the cluster) instead of every worker printing a
+    traceback. A spawned worker cannot be made to ignore it (exec resets Python's
+    handlers, and distributed runs nothing of ours before its start-up), so the workers
+    are forked from multiprocessing's fork server, started here with SIGINT ignored:
+    its children inherit that. (Ignoring SIGINT in the client while the cluster started
+    lost a Ctrl-C pressed then: the run went on.)
+    """
+    import multiprocessing.forkserver
+
+    import dask
+    from distributed.utils import get_mp_context
+
+    config = dask.config.set({"distributed.worker.multiprocessing-method": "forkserver"})
+    get_mp_context()                 # distributed's preload of the fork server
+    if threading.current_thread() is threading.main_thread():
+        old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+        try:
+            multiprocessing.forkserver.ensure_running()
+        finally:
+            signal.signal(signal.SIGINT, old)
+    return config
+
+
+class _HeldStops:
+    """Hold the client's stop signals while a local cluster starts, until it exists.
+
+    A SIGINT, SIGTERM or SIGHUP meanwhile is noted and replayed by :meth:`replay` once
+    the cluster exists and can be closed (a stop inside the start-up left distributed's
+    exit handler a half-started cluster and a traceback). A second one stops at once.
+    """
+
+    NAMES = ("SIGINT", "SIGTERM", "SIGHUP")
+
+    def __init__(self):
+        self.held, self.old = [], {}
+
+    def __enter__(self):
+        if threading.current_thread() is not threading.main_thread():
+            return self
+
+        def note(signum, frame):
+            self.held.append(signum)
+            if len(self.held) > 1:          # pressed again: stop now, whatever is left
+                raise KeyboardInterrupt(signal.Signals(signum).name)
+
+        for name in self.NAMES:
+            if hasattr(signal, name):
+                sig = getattr(signal, name)
+                self.old[sig] = signal.signal(sig, note)
+        return self
+
+    def __exit__(self, *exc):
+        for sig, h in self.old.items():
+            signal.signal(sig, h)
+        return False
+
+    def replay(self):
+        """Act on the first stop signal noted, as its own handler would have."""
+        if not self.held:
+            return
+        sig = self.held[0]
+        h = self.old.get(sig)
+        if callable(h):
+            h(sig, None)
+        if h != signal.SIG_IGN:
+            raise KeyboardInterrupt(signal.Signals(sig).name)
+
+
+def _close_local(local, config):
+    """Stop a local cluster (None: none) and leave its Dask configuration."""
     try:
-        yield
+        if local is not None:
+            local.close()
     finally:
-        signal.signal(signal.SIGINT, old)
+        if config is not None:
+            config.__exit__(None, None, None)
 
 
 class Cluster:
@@ -156,6 +223,7 @@ class Cluster:
         self.startup_s = 0.0
         # the fingerprint function and the client's value, checked by every chunk
         self._fingerprint = (None, None)
+        self._config = None         # the Dask configuration of a local cluster's workers
 
     @classmethod
     def connect(cls, address, *, spec, task, fingerprint, verbose=False):
@@ -186,28 +254,34 @@ class Cluster:
             import distributed
         except ImportError:
             raise ClusterError(f"scheduler {address!r} {INSTALL_HINT}") from None
-        local = None
+        local = config = None
         try:
             if address.startswith("local:"):
                 n = int(address.split(":", 1)[1])
+                config = _workers_ignore_ctrl_c()
                 # CRITICAL: a worker that dies makes the scheduler log ERROR lines
                 # ("Couldn't gather keys") for chunks that Dask then recomputes; a chunk
                 # that really fails is reported by chunks(), in one line
-                with _workers_ignore_ctrl_c():
+                with _HeldStops() as stops:
                     local = distributed.LocalCluster(
                         n_workers=n, threads_per_worker=1, processes=True,
                         dashboard_address=DASHBOARD, silence_logs=logging.CRITICAL)
+                stops.replay()
                 client = distributed.Client(local, timeout=CONNECT_TIMEOUT_S)
             else:
                 client = distributed.Client(address, timeout=CONNECT_TIMEOUT_S)
         except Exception as e:
             # OSError, TimeoutError, ValueError; a tls:// or ucx:// address without its
             # security settings or package is a TypeError or ImportError deep in distributed
-            if local is not None:
-                local.close()
+            _close_local(local, config)
             raise ClusterError(f"cannot reach the Dask scheduler at {address}: "
                                f"{_first_line(e)}") from None
+        except BaseException:
+            # Ctrl-C or a stop signal once the local cluster exists: close it
+            _close_local(local, config)
+            raise
         self = cls(client, local, address)
+        self._config = config
         try:
             self._ready(spec, task, fingerprint)
         except BaseException:
@@ -359,6 +433,5 @@ class Cluster:
         try:
             self.client.close()
         finally:
-            if self._local is not None:
-                self._local.close()
+            _close_local(self._local, self._config)
 

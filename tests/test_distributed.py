@@ -365,3 +365,38 @@ def test_a_chunk_refuses_a_worker_with_another_solver():
 
 def _spec():
     return config.validate(config.defaults()).spec
+
+
+def test_a_stop_while_the_local_cluster_starts_is_held_and_its_workers_ignore_ctrl_c(
+        monkeypatch):
+    """A Ctrl-C while the local cluster started was lost (SIGINT was ignored in the
+    client meanwhile, so that the workers inherited it): the run went on and exited 0.
+    The stop is now held until the cluster exists, then raised, and the cluster closed;
+    the workers still ignore SIGINT (a terminal's Ctrl-C reaches them too), forked from
+    a fork server that ignores it, and the Dask setting that does it is left after."""
+    import dask
+    import distributed as dd
+
+    from mcfric import distributed as md
+
+    if threading.current_thread() is not threading.main_thread():
+        pytest.skip("signal handlers are the main thread's")
+    method = dask.config.get("distributed.worker.multiprocessing-method")
+    made, ignoring = [], {}
+
+    class Interrupted(dd.LocalCluster):
+        def __init__(self, *args, **kwargs):
+            super().__init__(*args, **kwargs)
+            made.append(self)
+            with dd.Client(self) as c:
+                ignoring.update(c.run(lambda: signal.getsignal(signal.SIGINT)
+                                      == signal.SIG_IGN))
+            os.kill(os.getpid(), signal.SIGINT)       # still inside the start-up
+            time.sleep(0.2)                          # its handler runs here
+
+    monkeypatch.setattr(dd, "LocalCluster", Interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        md.Cluster.connect("local:2", spec=None, task=None, fingerprint=None)
+    assert len(made) == 1 and made[0].status.name == "closed"
+    assert len(ignoring) == 2 and all(ignoring.values()), ignoring
+    assert dask.config.get("distributed.worker.multiprocessing-method") == method
