@@ -345,3 +345,16 @@ def test_bad_input_names_the_argument(kwargs, name):
     args.update(kwargs)
     with pytest.raises(ValueError, match=name):
         compute_bounds(args.pop("model"), args.pop("freq_hz"), **args)
+
+
+def test_a_failed_frequency_is_not_counted_as_set_by_the_box():
+    """The summary counted a frequency whose search failed (NaN bound, limited_by 0)
+    as set by the box."""
+    B = compute_bounds(mcfric.two_beam(0.22), np.linspace(10.0, 150.0, 20), 15000.0,
+                       certified=False)
+    up = B.upper.copy()
+    up[3] = np.nan
+    text = dataclasses.replace(B, upper=up).summary()
+    force = int(np.count_nonzero(B.limited_by == 1))
+    assert (f"upper set by the force limit at {force}, by the box at {19 - force}; "
+            f"failed: 1") in text, text

@@ -118,10 +118,11 @@ class Bounds:
 
     def summary(self):
         """What sets the upper bound where, the failures, and the certificate's gaps."""
-        force = np.count_nonzero(self.limited_by == 1)
+        ok = np.isfinite(self.upper)           # a failed search has no constraint
+        force = np.count_nonzero(ok & (self.limited_by == 1))
+        box = np.count_nonzero(ok & (self.limited_by != 1))
         text = (f"searched bounds at {len(self.freq_hz)} frequencies: upper set by the force "
-                f"limit at {force}, by the box at {len(self.freq_hz) - force}; failed: "
-                f"{self.n_failed}")
+                f"limit at {force}, by the box at {box}; failed: {self.n_failed}")
         if self.certificate is not None:
             text += "\n" + self.certificate.summary(self.freq_hz)
         return text
