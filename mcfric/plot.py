@@ -200,13 +200,13 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
             label = " (certified"
         # they hold at the grid frequencies; the lines between them are no bound (a
         # narrow resonance between grid points can rise above them)
-        label += " at the grid points, joined by lines"
+        label += " at the grid points"
         # the bounds rest on the describing function: with H > 1 they are the
         # single-harmonic model's, the members' curves the fundamentals; a mistuned
         # run's members are not the nominal rig the bounds are for
         cfg = json.loads(attrs.get("config_json", "{}"))
         if cfg.get("sampling", {}).get("mistuning", 0) > 0:
-            label += "; the nominal rig's"
+            label += "; nominal rig"
         label += "; single-harmonic model)" if harmonics > 1 else ")"
         up = np.where(np.isfinite(up), up, np.nan)
         band = lo, up

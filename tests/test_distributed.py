@@ -395,8 +395,13 @@ def test_a_stop_while_the_local_cluster_starts_is_held_and_its_workers_ignore_ct
             time.sleep(0.2)                          # its handler runs here
 
     monkeypatch.setattr(dd, "LocalCluster", Interrupted)
-    with pytest.raises(KeyboardInterrupt):
-        md.Cluster.connect("local:2", spec=None, task=None, fingerprint=None)
+    # Python's own handler (a pytest-xdist worker ignores SIGINT: held, then ignored too)
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            md.Cluster.connect("local:2", spec=None, task=None, fingerprint=None)
+    finally:
+        signal.signal(signal.SIGINT, previous)
     assert len(made) == 1 and made[0].status.name == "closed"
     assert len(ignoring) == 2 and all(ignoring.values()), ignoring
     assert dask.config.get("distributed.worker.multiprocessing-method") == method

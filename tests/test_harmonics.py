@@ -438,8 +438,8 @@ def test_a_multi_harmonic_run_says_its_bounds_are_the_single_harmonic_models(tmp
         assert "fundamental (odd harmonics 1..3 balanced)" in r["metric"].attrs["long_name"]
         assert "fundamental" in r["response"].attrs["long_name"]
     drawn = plot.results_figure(res, tmp_path / "a.png")
-    assert ("upper bound (certified at the grid points, joined by lines; single-harmonic "
-            "model)") in drawn["legend"]
+    assert "upper bound (certified at the grid points; single-harmonic model)" \
+        in drawn["legend"]
     assert "fundamental, H = 3" in drawn["ylabel"]
     # a single-harmonic run's check keeps its warning wording (none where none is outside)
     from mcfric.cli import _outside_note
