@@ -11,10 +11,10 @@ misleads the parabolic steps), a golden-section search of the bracket is kept wh
 finds more. Like the bound itself, the refined peak is the result of a search.
 
 Where the bounds were certified, the sub-grid and the refined peak's frequency are
-certified too (:func:`certified_near_peak`): the largest certified upper bound on it and the largest
-witness (attained by an admissible set of describing functions) bracket the worst case
-near the peak, as far as the sub-grid samples it; the grid alone can miss much of it
-(measured: the docs' peaks page).
+certified too (:func:`certified_near_peak`): the largest certified upper bound there and
+the largest witness (attained by an admissible set of describing functions) bracket the
+worst case near the peak, as far as these frequencies sample it; the grid alone can miss
+much of it (measured: the docs' peaks page).
 """
 
 from __future__ import annotations
@@ -190,14 +190,12 @@ def peak_attrs(model, B, rtol=1e-4):
         peak lies at the lower or upper end of the band, else 0: :func:`at_band_end`) and
         ``peak_upper_coarse_step`` (Hz: the grid's largest step where it is too coarse to
         find the bound's peak, :func:`grid_too_coarse`, else 0); where ``B`` is certified,
-        the largest
-        certified upper bound on the refinement's sub-grid and at the refined peak's
-        frequency ``peak_upper_certified`` (the metric's unit; inf where one of these
-        frequencies was not certified) at
-        ``peak_upper_certified_frequency`` (Hz), the largest witness there
-        ``peak_upper_witness`` at ``peak_upper_witness_frequency`` (both NaN where no
-        sub-grid frequency has a witness), and the sub-grid's spacing
-        ``peak_sub_grid_step`` (Hz).
+        the largest certified upper bound on the refinement's sub-grid and at the refined
+        peak's frequency ``peak_upper_certified`` (the metric's unit; inf where one of
+        these frequencies was not certified) at ``peak_upper_certified_frequency`` (Hz),
+        the largest witness there ``peak_upper_witness`` at
+        ``peak_upper_witness_frequency`` (both NaN where none of them has a witness), and
+        the sub-grid's spacing ``peak_sub_grid_step`` (Hz).
     """
     f_pk, up_pk, ok, sub_f = _refine(model, B, rtol)
     coarse = grid_too_coarse(model, B.freq_hz)
