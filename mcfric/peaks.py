@@ -9,6 +9,7 @@ of them to find where the member has more than one steady state. The algorithm i
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
 
 import numpy as np
@@ -284,7 +285,8 @@ def bound_peak(path):
     ``certified_peak``, a dict of the certified bound near the peak (``certified``,
     ``witness``, their ``*_frequency``, ``peak_sub_grid_step`` and the grid's largest
     certified upper bound ``grid`` at ``grid_frequency``); empty where none was
-    stored."""
+    stored. ``bound_peak_nominal`` is True in a mistuned run (the nominal rig's
+    bounds)."""
     from .store import read_group
 
     g = read_group(path, "bounds")
@@ -296,6 +298,13 @@ def bound_peak(path):
            "bound_peak_refined": bool(a.get("peak_upper_refined", 0)),
            "bound_peak_at_end": int(a.get("peak_upper_at_end", 0)),
            "bound_peak_coarse_step": float(a.get("peak_upper_coarse_step", 0.0))}
+    from .store import read_attrs
+
+    # a mistuned run's bounds are the nominal rig's (a bounds file has no members)
+    root = read_attrs(path)
+    cfg = json.loads(root.get("config_json", "{}"))
+    if cfg.get("sampling", {}).get("mistuning", 0) > 0 and int(root.get("samples", 0)):
+        out["bound_peak_nominal"] = True
     if "peak_upper_certified" in a:
         out["certified_peak"] = {k[len("peak_upper_"):] if k.startswith("peak_upper_") else k:
                                  float(a[k]) for k in CERTIFIED_PEAK_ATTRS}
@@ -361,6 +370,8 @@ def bound_peak_lines(pk, unit, largest_member=None):
                              pk.get("bound_peak_refined", True), unit,
                              pk.get("bound_peak_at_end", 0),
                              pk.get("bound_peak_coarse_step", 0.0))
+             + ("; the nominal rig's bounds (the members are mistuned)"
+                if pk.get("bound_peak_nominal") else "")
              + ("" if largest_member is None else
                 f"; largest member / bound {largest_member / pk['bound_peak']:.4g}")]
     if "certified_peak" in pk:
@@ -398,9 +409,11 @@ def bound_peak_line(value, hz, refined, unit, at_end=0, coarse_step=0.0):
         how = (f"at the band's {'lower' if at_end < 0 else 'upper'} end: the largest value "
                f"there, not a resonance peak; the band cuts it")
     elif coarse_step > 0:
-        how = (f"a lower estimate: the grid's step, {coarse_step:.3g} Hz, is more than "
-               f"{_kernel.N_FLANK_MAX} half-power widths of the narrowest mode, and the "
-               f"bound may peak far higher between grid points; use more frequencies")
+        how = (f"{'refined' if refined else 'not refined'} around the grid's largest "
+               f"value, yet a lower estimate: the grid's step, {coarse_step:.3g} Hz, is "
+               f"more than {_kernel.N_FLANK_MAX} half-power widths of the narrowest mode, "
+               f"and the bound may peak far higher between grid points; use more "
+               f"frequencies")
     else:
         how = "refined" if refined else "not refined"
     return f"bound peak:  searched upper bound {value:.4g} {unit} at {hz:.5g} Hz ({how})"

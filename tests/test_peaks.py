@@ -388,8 +388,8 @@ def test_band_ends_and_coarse_grids_are_not_called_refined_peaks(tmp_path):
     summary = ensemble.run(coarse, tmp_path / "coarse.h5", progress=False)
     pk = bound_peak(summary.path)
     assert pk["bound_peak_coarse_step"] == pytest.approx(35.0)
-    assert "(a lower estimate: the grid's step, 35 Hz, is more than 64 half-power" \
-        in summary.text()
+    assert ("around the grid's largest value, yet a lower estimate: the grid's step, "
+            "35 Hz, is more than 64 half-power") in summary.text()
     lim = coarse.spec.bounds
     fine = compute_bounds(coarse.model(), np.linspace(15.5, 17.0, 300), lim.k_max_re,
                           F_lim=lim.F_lim, certified=False)
@@ -410,3 +410,19 @@ def test_lower_estimates_keep_only_the_lower_ends_of_the_intervals():
     line = report_text(rep, "m")[0]
     assert re.search(r"median \S+ \(above \S+, 95 % conf\.\), 95th percentile \S+ "
                      r"\(above \S+, 95 % conf\.\)", line), line
+
+
+def test_a_mistuned_runs_bound_peak_says_it_is_the_nominal_rigs(tmp_path):
+    """The bound's peak of a mistuned run is the nominal rig's (its members need not lie
+    under it); a bounds file of the same configuration has no members to say it of."""
+    from mcfric.peaks import bound_peak, bound_peak_lines
+
+    over = {"sampling.samples": (3, "--samples"), "sampling.mistuning": (0.05, "x"),
+            "frequency.n": (60, "--n-freq"), "bounds.certify": (False, "--no-certify")}
+    cfg = config.load("two-beam", over)
+    summary = ensemble.run(cfg, tmp_path / "m.h5", progress=False)
+    assert "(the members are mistuned)" in bound_peak_lines(bound_peak(summary.path), "m")[0]
+    plain = ensemble.run(config.load("two-beam", {k: v for k, v in over.items()
+                                                  if k != "sampling.mistuning"}),
+                         tmp_path / "p.h5", progress=False)
+    assert "mistuned" not in bound_peak_lines(bound_peak(plain.path), "m")[0]
