@@ -124,7 +124,10 @@ def _workers_ignore_ctrl_c():
     handlers, and distributed runs nothing of ours before its start-up), so the workers
     are forked from multiprocessing's fork server, started here with SIGINT ignored:
     its children inherit that. (Ignoring SIGINT in the client while the cluster started
-    lost a Ctrl-C pressed then: the run went on.)
+    lost a Ctrl-C pressed then: the run went on.) The fork server is the process's own:
+    one already running (started by other code without SIGINT ignored) gives workers
+    that do not ignore it, and the one started here keeps ignoring it for later
+    fork-server children of this process.
     """
     import multiprocessing.forkserver
 
@@ -132,13 +135,17 @@ def _workers_ignore_ctrl_c():
     from distributed.utils import get_mp_context
 
     config = dask.config.set({"distributed.worker.multiprocessing-method": "forkserver"})
-    get_mp_context()                 # distributed's preload of the fork server
-    if threading.current_thread() is threading.main_thread():
-        old = signal.signal(signal.SIGINT, signal.SIG_IGN)
-        try:
-            multiprocessing.forkserver.ensure_running()
-        finally:
-            signal.signal(signal.SIGINT, old)
+    try:
+        get_mp_context()                 # distributed's preload of the fork server
+        if threading.current_thread() is threading.main_thread():
+            old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+            try:
+                multiprocessing.forkserver.ensure_running()
+            finally:
+                signal.signal(signal.SIGINT, old)
+    except BaseException:
+        config.__exit__(None, None, None)
+        raise
     return config
 
 
@@ -167,7 +174,8 @@ class _HeldStops:
         for name in self.NAMES:
             if hasattr(signal, name):
                 sig = getattr(signal, name)
-                self.old[sig] = signal.signal(sig, note)
+                if signal.getsignal(sig) != signal.SIG_IGN:     # ignored stays ignored
+                    self.old[sig] = signal.signal(sig, note)
         return self
 
     def __exit__(self, *exc):
@@ -176,14 +184,15 @@ class _HeldStops:
         return False
 
     def replay(self):
-        """Act on the first stop signal noted, as its own handler would have."""
+        """Act on the first stop signal noted, as its own handler would have (a Python
+        handler is called; the default action is taken as Ctrl-C's, a stop)."""
         if not self.held:
             return
         sig = self.held[0]
         h = self.old.get(sig)
         if callable(h):
             h(sig, None)
-        if h != signal.SIG_IGN:
+        else:
             raise KeyboardInterrupt(signal.Signals(sig).name)
 
 

@@ -376,7 +376,8 @@ def prepare(spec, path, *, resume=False, force=False):
             if not (resume and part.exists()):
                 raise RunError(f"{e}; use --force to replace it") from None
             attrs = None
-        if attrs is not None and int(attrs.get("samples", -1)) == 0:
+        if (attrs is not None and int(attrs.get("samples", -1)) == 0
+                and not (resume and part.exists())):
             # its configuration can equal this run's: not "this run, by other code"
             raise RunError(f"{final} exists and holds bounds alone (mcfric bounds), no "
                            f"members; use --force to replace it, or choose another -o")

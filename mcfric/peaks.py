@@ -207,6 +207,32 @@ def statistics(largest, confidence=CONFIDENCE):
             "p95_ci": quantile_interval(v, 0.95, confidence), "confidence": confidence}
 
 
+def at_band_end(freq_hz, f_pk):
+    """Where the peak frequencies ``f_pk`` (Hz, any shape) lie at an end of the band
+    ``freq_hz`` (an increasing grid of two or more frequencies, Hz).
+
+    Parameters
+    ----------
+    freq_hz : ndarray, shape (n_f,)
+        The grid, Hz.
+    f_pk : float or ndarray
+        Peak frequencies, Hz (NaN: none).
+
+    Returns
+    -------
+    ndarray of int8, the shape of ``f_pk``
+        -1 at the lower end, 1 at the upper end (within 1e-9 of the band's width: the
+        largest value is there, not at a resonance peak), else 0.
+    """
+    f_pk = np.asarray(f_pk, dtype=float)
+    if len(freq_hz) < 2:
+        return np.zeros(f_pk.shape, np.int8)
+    tol = 1e-9 * (freq_hz[-1] - freq_hz[0])
+    with np.errstate(invalid="ignore"):
+        return np.where(f_pk <= freq_hz[0] + tol, -1,
+                        np.where(f_pk >= freq_hz[-1] - tol, 1, 0)).astype(np.int8)
+
+
 def unresolved(status, metric):
     """Per member, how many of its peaks are grid values, not refined (status 2 with a
     value), shape (n_s,). Any one of them may be the member's true largest peak."""
@@ -225,9 +251,10 @@ def file_report(path):
         ``members``, ``unresolved`` (members with a peak not refined: their largest is a
         lower estimate, and they are left out of ``grid_ratio``), ``at_end`` (members
         whose largest value lies at an end of the band, not at a resonance peak; left out
-        of ``grid_ratio`` too), and the bound's peak
-        ``bound_peak``, ``bound_peak_hz``, ``bound_peak_refined`` (and, where certified,
-        ``certified_peak``) when the file has them (:func:`bound_peak`).
+        of ``grid_ratio`` too), and the bound's peak (``bound_peak``, ``bound_peak_hz``,
+        ``bound_peak_refined``, ``bound_peak_at_end``, ``bound_peak_coarse_step``,
+        ``bound_peak_nominal`` and, where certified, ``certified_peak``) when the file has
+        it (:func:`bound_peak`).
     """
     from .store import dataset_names, iter_records
 
@@ -239,7 +266,9 @@ def file_report(path):
     # blocks of ~1 MB of metric: memory stays flat in the number of members (8 bytes per
     # member are kept for the percentiles)
     block = max(1, (1 << 17) // max(1, len(read(path, "frequency"))))
-    names = ["metric", "peak_metric", "peak_metric_down", "fold", "peak_status"]
+    names = ["metric", "peak_metric", "peak_metric_down", "fold", "peak_status",
+             "peak_frequency", "peak_frequency_down"]
+    f = read(path, "frequency")
     for _, arr in iter_records(path, names, block=block):
         both = np.concatenate([arr["peak_metric"], arr["peak_metric_down"]], axis=1)
         big = np.max(np.where(np.isnan(both), -np.inf, both), axis=1)
@@ -248,10 +277,15 @@ def file_report(path):
         # resonance between grid points): that member's largest is a lower estimate
         open_ = (unresolved(arr["peak_status"], arr["peak_metric"]) > 0) & np.isfinite(big)
         n_unresolved += int(np.count_nonzero(open_))
-        # a largest value at an end of the band is no resonance peak (the band cuts it)
+        # a largest value at an end of the band is no resonance peak (the band cuts it);
+        # status 1 says only that the grid's maximum was there: the refinement may have
+        # climbed to a resonance inside the first or last grid interval
         st = np.concatenate([arr["peak_status"]] * 2, axis=1)
+        fq = np.concatenate([arr["peak_frequency"], arr["peak_frequency_down"]], axis=1)
         top = np.argmax(np.where(np.isnan(both), -np.inf, both), axis=1)
-        end = (st[np.arange(len(top)), top] == AT_EDGE) & np.isfinite(big) & ~open_
+        rows = np.arange(len(top))
+        end = ((st[rows, top] == AT_EDGE) & (at_band_end(f, fq[rows, top]) != 0)
+               & np.isfinite(big) & ~open_)
         n_end += int(np.count_nonzero(end))
         with np.errstate(invalid="ignore"):
             grid = np.nanmax(np.where(np.isnan(arr["metric"]), -np.inf, arr["metric"]), axis=1)
@@ -287,7 +321,7 @@ def bound_peak(path):
     certified upper bound ``grid`` at ``grid_frequency``); empty where none was
     stored. ``bound_peak_nominal`` is True in a mistuned run (the nominal rig's
     bounds)."""
-    from .store import read_group
+    from .store import read_attrs, read_group
 
     g = read_group(path, "bounds")
     if g is None or "peak_upper" not in g[1]:
@@ -298,8 +332,6 @@ def bound_peak(path):
            "bound_peak_refined": bool(a.get("peak_upper_refined", 0)),
            "bound_peak_at_end": int(a.get("peak_upper_at_end", 0)),
            "bound_peak_coarse_step": float(a.get("peak_upper_coarse_step", 0.0))}
-    from .store import read_attrs
-
     # a mistuned run's bounds are the nominal rig's (a bounds file has no members)
     root = read_attrs(path)
     cfg = json.loads(root.get("config_json", "{}"))

@@ -17,6 +17,7 @@ from .hbm import INDICATOR_THRESHOLD
 from .metric import METRIC_UNITS, omega_power
 from .peaks import AT_EDGE as PEAK_AT_EDGE
 from .peaks import GRID as PEAK_GRID
+from .peaks import at_band_end
 from .store import dataset_names, iter_records, read, read_attrs, read_group
 
 
@@ -171,7 +172,8 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
         py = py * omega_power(px, quantity, stored)
         ok = np.isfinite(py) & (px >= lo_f) & (px <= hi_f) & (py > 0)
         grid = ok & (ps == PEAK_GRID)
-        end = ok & (ps == PEAK_AT_EDGE)
+        # status 1 with the refined peak inside the band is a resonance peak all right
+        end = ok & (ps == PEAK_AT_EDGE) & (at_band_end(f, px) != 0)
         n_unrefined = int(np.count_nonzero(grid))
         if (ok & ~grid & ~end).any():
             ax.plot(px[ok & ~grid & ~end], py[ok & ~grid & ~end], ".", color="0.15", ms=2.5,
@@ -205,7 +207,7 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
         # single-harmonic model's, the members' curves the fundamentals; a mistuned
         # run's members are not the nominal rig the bounds are for
         cfg = json.loads(attrs.get("config_json", "{}"))
-        if cfg.get("sampling", {}).get("mistuning", 0) > 0:
+        if cfg.get("sampling", {}).get("mistuning", 0) > 0 and n:    # members to say it of
             label += "; nominal rig"
         label += "; single-harmonic model)" if harmonics > 1 else ")"
         up = np.where(np.isfinite(up), up, np.nan)
@@ -244,7 +246,8 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
             # the grid can miss the certified bound's peak: its largest near the peak
             ax.plot([fc], [g["peak_upper_certified"] * omega_power(fc, quantity, stored)],
                     "v", color="tab:blue", mfc="none", ms=8, mew=1.2,
-                    label="largest certified upper bound near the peak (sub-grid)")
+                    label="largest certified upper bound near the peak (sub-grid, "
+                          "peak's frequency)")
             marked.append("certified")
     for mm in measured:
         g = mm.to_quantity(quantity)

@@ -483,3 +483,23 @@ def test_run_onto_a_bounds_file_says_it_holds_bounds(tmp_path, capsys):
     rc, _, err = call(["run", *grid], capsys)
     assert rc == 2 and "holds bounds alone (mcfric bounds), no members" in err
     assert "fingerprint" not in err and out.read_bytes() == before
+    # a --force run over it, interrupted, resumes as its message says (it was refused)
+    real, calls = hbm.solve, []
+
+    def stop_at_3(*a, **k):
+        calls.append(1)
+        if len(calls) == 3:
+            raise KeyboardInterrupt
+        return real(*a, **k)
+
+    small = [*grid, "--samples", "40", "--chunk", "8", "--no-figure", "--no-progress"]
+    ensemble.hbm.solve = stop_at_3
+    try:
+        assert call(["run", *small, "--force"], capsys)[0] == 130
+    finally:
+        ensemble.hbm.solve = real
+    assert out.with_name("b.h5.partial").exists()
+    rc, text, err = call(["run", *small, "--resume"], capsys)
+    assert rc == 0, err
+    with h5py.File(out) as h:
+        assert int(h.attrs["samples"]) == 40 and h["done"][...].all()

@@ -382,6 +382,20 @@ def test_band_ends_and_coarse_grids_are_not_called_refined_peaks(tmp_path):
     r = mcfric.solve(cfg.model(), f, mu0, kc, N0)
     assert np.all(f[np.argmax(r.metric(), axis=1)] < 16.3)
 
+    # the grid's maximum at the band's first point, the peak refined inside the first
+    # interval (16.2 Hz): a resonance peak, not cut by the band
+    inside = config.load("two-beam", {"sampling.samples": (6, "--samples"),
+                                      "frequency.n": (20, "--n-freq"),
+                                      "frequency.f_min": (16.1, "--f-min"),
+                                      "frequency.f_max": (30.0, "--f-max"),
+                                      "bounds.certify": (False, "--no-certify")})
+    summary = ensemble.run(inside, tmp_path / "inside.h5", progress=False)
+    rep = file_report(summary.path)
+    with __import__("h5py").File(summary.path) as h:
+        st, fp = h["peak_status"][:, 0], h["peak_frequency"][:, 0]
+    assert np.all(st == 1) and np.all(fp > 16.15), (st, fp)     # status 1, yet inside
+    assert rep["at_end"] == 0 and "at an end of the band" not in summary.text()
+
     coarse = config.load("two-beam", {"sampling.samples": (2, "--samples"),
                                       "frequency.n": (5, "--n-freq"),
                                       "bounds.certify": (False, "--no-certify")})

@@ -118,7 +118,8 @@ class Bounds:
 
     def summary(self):
         """What sets the upper bound where, the failures, and the certificate's gaps."""
-        ok = np.isfinite(self.upper)           # a failed search has no constraint
+        # a failed search (either bound: n_failed) has no constraint to name
+        ok = np.isfinite(self.upper) & np.isfinite(self.lower)
         force = np.count_nonzero(ok & (self.limited_by == 1))
         box = np.count_nonzero(ok & (self.limited_by != 1))
         text = (f"searched bounds at {len(self.freq_hz)} frequencies: upper set by the force "

@@ -24,7 +24,7 @@ import numpy as np
 from ..core.peaks import N_FLANK_MAX
 from ..core.receptance import contact_space
 from ..metric import QUANTITIES
-from ..peaks import golden_maximize, maximize
+from ..peaks import at_band_end, golden_maximize, maximize
 from .equivalent_linear import MAX_SWEEPS, MAX_SWEEPS_FRACTION_MAX, compute_bounds, upper_bound
 
 _CORNERS = np.array([0, 1, 1 + 1j, 1j])
@@ -159,22 +159,30 @@ def certified_near_peak(model, B, sub_f):
 
 
 def grid_too_coarse(model, freq_hz):
-    """The grid's largest step (Hz) where it exceeds ``N_FLANK_MAX`` half-power widths
-    (``2 zeta f``) of the model's narrowest mode, else None: as for the members' peaks
-    (:mod:`mcfric.core.peaks`), a resonance may then lie between grid points unseen."""
+    """Whether a grid is too coarse to find the bound's peak, as for the members' peaks
+    (:mod:`mcfric.core.peaks`): a step of more than ``N_FLANK_MAX`` half-power widths
+    (``2 zeta f``) of the model's narrowest mode may hide a resonance between grid
+    points.
+
+    Parameters
+    ----------
+    model : Model
+    freq_hz : ndarray, shape (n_f,)
+        The grid, Hz.
+
+    Returns
+    -------
+    float or None
+        The grid's largest step (Hz) where it is too coarse, else None (also for a grid
+        of one frequency, which has no step).
+    """
     f_n, zeta, u = model.modal_arrays()
     real = np.any(u != 0, axis=2)                 # not a padding mode
     width = float(np.min((2.0 * zeta * f_n)[real])) if real.any() else np.inf
-    step = float(np.max(np.diff(freq_hz))) if len(freq_hz) > 1 else np.inf
+    if len(freq_hz) < 2:
+        return None
+    step = float(np.max(np.diff(freq_hz)))
     return step if not step <= N_FLANK_MAX * width else None
-
-
-def at_band_end(freq_hz, f_pk):
-    """-1 or 1 where the refined peak ``f_pk`` (Hz) lies at the lower or upper end of the
-    band ``freq_hz`` (within 1e-9 of its range: the largest value is there, not a
-    resonance peak), else 0."""
-    tol = 1e-9 * (freq_hz[-1] - freq_hz[0])
-    return -1 if f_pk <= freq_hz[0] + tol else 1 if f_pk >= freq_hz[-1] - tol else 0
 
 
 def peak_attrs(model, B, rtol=1e-4):
@@ -187,7 +195,8 @@ def peak_attrs(model, B, rtol=1e-4):
         ``peak_upper`` (the metric's unit), ``peak_upper_frequency`` (Hz) and
         ``peak_upper_refined`` (1 if the refinement converged), as
         :func:`refine_upper_peak` gives them, ``peak_upper_at_end`` (-1 or 1 where the
-        peak lies at the lower or upper end of the band, else 0: :func:`at_band_end`) and
+        peak lies at the lower or upper end of the band, else 0:
+        :func:`mcfric.peaks.at_band_end`) and
         ``peak_upper_coarse_step`` (Hz: the grid's largest step where it is too coarse to
         find the bound's peak, :func:`grid_too_coarse`, else 0); where ``B`` is certified,
         the largest certified upper bound on the refinement's sub-grid and at the refined
@@ -201,8 +210,7 @@ def peak_attrs(model, B, rtol=1e-4):
     coarse = grid_too_coarse(model, B.freq_hz)
     out = {"peak_upper": np.float64(up_pk), "peak_upper_frequency": np.float64(f_pk),
            "peak_upper_refined": np.int8(ok),
-           "peak_upper_at_end": np.int8(at_band_end(B.freq_hz, f_pk)
-                                        if np.isfinite(f_pk) else 0),
+           "peak_upper_at_end": np.int8(at_band_end(B.freq_hz, f_pk)),
            "peak_upper_coarse_step": np.float64(coarse or 0.0)}
     if sub_f is not None and B.certificate is not None:
         # the refined peak's frequency joins the sub-grid: between sub-grid points the

@@ -3,7 +3,7 @@
 For a converged single-harmonic point, each slipping damper's force has 3rd and 5th
 harmonics (closed form: :func:`mcfric.core.friction.higher_harmonics`), which drive the
 beams at ``3 omega`` and ``5 omega``. Without their phases (only the slip ratios are kept)
-the output harmonics they cause are bounded by the triangle inequality::
+the output harmonics they cause, to first order, are bounded by the triangle inequality::
 
     |y_3b| <= |D21_b(3 omega)| sum_{j at beam b} |F_3j|,   |F_nj| = kc_j A_j |F_n / (kc A)|(s_j)
 
