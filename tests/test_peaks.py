@@ -362,11 +362,14 @@ def test_band_ends_and_coarse_grids_are_not_called_refined_peaks(tmp_path):
     from mcfric.bounds import compute_bounds
     from mcfric.peaks import bound_peak
 
-    cfg = config.load("two-beam", {"sampling.samples": (6, "--samples"),
-                                   "frequency.n": (30, "--n-freq"),
-                                   "frequency.f_min": (16.3, "--f-min"),
-                                   "frequency.f_max": (17.0, "--f-max"),
-                                   "bounds.certify": (False, "--no-certify")})
+    def two_beam(n, f_min, f_max):
+        return config.load("two-beam", {"sampling.samples": (6, "--samples"),
+                                        "frequency.n": (n, "--n-freq"),
+                                        "frequency.f_min": (f_min, "--f-min"),
+                                        "frequency.f_max": (f_max, "--f-max"),
+                                        "bounds.certify": (False, "--no-certify")})
+
+    cfg = two_beam(30, 16.3, 17.0)
     summary = ensemble.run(cfg, tmp_path / "edge.h5", progress=False)
     rep = file_report(summary.path)
     text = summary.text()
@@ -384,12 +387,7 @@ def test_band_ends_and_coarse_grids_are_not_called_refined_peaks(tmp_path):
 
     # the grid's maximum at the band's first point, the peak refined inside the first
     # interval (16.2 Hz): a resonance peak, not cut by the band
-    inside = config.load("two-beam", {"sampling.samples": (6, "--samples"),
-                                      "frequency.n": (20, "--n-freq"),
-                                      "frequency.f_min": (16.1, "--f-min"),
-                                      "frequency.f_max": (30.0, "--f-max"),
-                                      "bounds.certify": (False, "--no-certify")})
-    summary = ensemble.run(inside, tmp_path / "inside.h5", progress=False)
+    summary = ensemble.run(two_beam(20, 16.1, 30.0), tmp_path / "inside.h5", progress=False)
     rep = file_report(summary.path)
     with __import__("h5py").File(summary.path) as h:
         st, fp = h["peak_status"][:, 0], h["peak_frequency"][:, 0]
