@@ -284,6 +284,10 @@ def _number_or_none(text):
         raise argparse.ArgumentTypeError(f'expected a number or "none", got {text!r}') from None
 
 
+#: The peak refinement's settings on the command line: (argument, flag).
+_PEAK_FLAGS = (("peaks", "--peaks"), ("peak_rtol", "--peak-rtol"))
+
+
 def _overrides(args):
     o = {}
     for key, attr, flag in (("excitation.F0", "F0", "--F0"),
@@ -304,7 +308,7 @@ def _overrides(args):
         if hasattr(args, attr):
             o[key] = (getattr(args, attr), flag)
     if getattr(args, "no_peaks", False):
-        for attr, flag in (("peaks", "--peaks"), ("peak_rtol", "--peak-rtol")):
+        for attr, flag in _PEAK_FLAGS:
             if getattr(args, attr, None) is not None:
                 raise UsageError(f"{flag}: a setting of the peak refinement; not with "
                                  f"--no-peaks")
@@ -337,7 +341,7 @@ def _load(args, fixed=None):
         raise UsageError(str(e)) from None
     H = cfg.data["solver"]["harmonics"]
     if H > 1:
-        for attr, flag in (("peaks", "--peaks"), ("peak_rtol", "--peak-rtol")):
+        for attr, flag in _PEAK_FLAGS:
             if getattr(args, attr, None) is not None:
                 raise UsageError(f"{flag}: peaks are refined in single-harmonic runs only "
                                  f"(this one balances the odd harmonics up to {H})")
@@ -1042,14 +1046,14 @@ def cmd_info(args):
 def _check_friction_flag(name, v):
     """``--mu0``, ``--kc`` or ``--N0`` (``name`` without dashes): finite and >= 0, ``kc``
     at most :data:`mcfric.validators.KC_MAX`; a UsageError naming the flag otherwise."""
-    from .validators import KC_MAX, InputError, number
+    from .validators import InputError, check_kc, number
 
     try:
         number(lo=0)(v, f"--{name}")
+        if name == "kc":
+            check_kc("--kc", v)
     except InputError as e:
         raise UsageError(str(e)) from None
-    if name == "kc" and v > KC_MAX:
-        raise UsageError(f"--kc: expected at most {KC_MAX:g} N/m (a stuck contact), got {v:g}")
 
 
 def cmd_hbm(args):

@@ -233,6 +233,21 @@ def at_band_end(freq_hz, f_pk):
                         np.where(f_pk >= freq_hz[-1] - tol, 1, 0)).astype(np.int8)
 
 
+def cut_by_band(status, f_pk, freq_hz):
+    """Where a peak is the largest value at an end of the band, not a resonance peak:
+    status 1 (the grid's maximum was at an end) and the refined frequency ``f_pk`` (Hz)
+    still there (the refinement may climb to a resonance inside the first or last grid
+    interval); ``freq_hz`` the grid (Hz). Boolean, the shape of ``status``."""
+    return (np.asarray(status) == AT_EDGE) & (at_band_end(freq_hz, f_pk) != 0)
+
+
+def nominal_bounds(attrs):
+    """True where a file's bounds are the nominal rig's while its members are mistuned
+    (``attrs``: the root attributes; a bounds file has no members to say it of)."""
+    cfg = json.loads(attrs.get("config_json", "{}"))
+    return cfg.get("sampling", {}).get("mistuning", 0) > 0 and int(attrs.get("samples", 0)) > 0
+
+
 def unresolved(status, metric):
     """Per member, how many of its peaks are grid values, not refined (status 2 with a
     value), shape (n_s,). Any one of them may be the member's true largest peak."""
@@ -277,15 +292,12 @@ def file_report(path):
         # resonance between grid points): that member's largest is a lower estimate
         open_ = (unresolved(arr["peak_status"], arr["peak_metric"]) > 0) & np.isfinite(big)
         n_unresolved += int(np.count_nonzero(open_))
-        # a largest value at an end of the band is no resonance peak (the band cuts it);
-        # status 1 says only that the grid's maximum was there: the refinement may have
-        # climbed to a resonance inside the first or last grid interval
+        # a largest value at an end of the band is no resonance peak (the band cuts it)
         st = np.concatenate([arr["peak_status"]] * 2, axis=1)
         fq = np.concatenate([arr["peak_frequency"], arr["peak_frequency_down"]], axis=1)
         top = np.argmax(np.where(np.isnan(both), -np.inf, both), axis=1)
         rows = np.arange(len(top))
-        end = ((st[rows, top] == AT_EDGE) & (at_band_end(f, fq[rows, top]) != 0)
-               & np.isfinite(big) & ~open_)
+        end = cut_by_band(st[rows, top], fq[rows, top], f) & np.isfinite(big) & ~open_
         n_end += int(np.count_nonzero(end))
         with np.errstate(invalid="ignore"):
             grid = np.nanmax(np.where(np.isnan(arr["metric"]), -np.inf, arr["metric"]), axis=1)
@@ -332,10 +344,7 @@ def bound_peak(path):
            "bound_peak_refined": bool(a.get("peak_upper_refined", 0)),
            "bound_peak_at_end": int(a.get("peak_upper_at_end", 0)),
            "bound_peak_coarse_step": float(a.get("peak_upper_coarse_step", 0.0))}
-    # a mistuned run's bounds are the nominal rig's (a bounds file has no members)
-    root = read_attrs(path)
-    cfg = json.loads(root.get("config_json", "{}"))
-    if cfg.get("sampling", {}).get("mistuning", 0) > 0 and int(root.get("samples", 0)):
+    if nominal_bounds(read_attrs(path)):
         out["bound_peak_nominal"] = True
     if "peak_upper_certified" in a:
         out["certified_peak"] = {k[len("peak_upper_"):] if k.startswith("peak_upper_") else k:

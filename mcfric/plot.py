@@ -9,15 +9,12 @@
 
 from __future__ import annotations
 
-import json
-
 import numpy as np
 
 from .hbm import INDICATOR_THRESHOLD
 from .metric import METRIC_UNITS, omega_power
-from .peaks import AT_EDGE as PEAK_AT_EDGE
 from .peaks import GRID as PEAK_GRID
-from .peaks import at_band_end
+from .peaks import cut_by_band, nominal_bounds
 from .store import dataset_names, iter_records, read, read_attrs, read_group
 
 
@@ -172,8 +169,7 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
         py = py * omega_power(px, quantity, stored)
         ok = np.isfinite(py) & (px >= lo_f) & (px <= hi_f) & (py > 0)
         grid = ok & (ps == PEAK_GRID)
-        # status 1 with the refined peak inside the band is a resonance peak all right
-        end = ok & (ps == PEAK_AT_EDGE) & (at_band_end(f, px) != 0)
+        end = ok & cut_by_band(ps, px, f)
         n_unrefined = int(np.count_nonzero(grid))
         if (ok & ~grid & ~end).any():
             ax.plot(px[ok & ~grid & ~end], py[ok & ~grid & ~end], ".", color="0.15", ms=2.5,
@@ -206,8 +202,7 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
         # the bounds rest on the describing function: with H > 1 they are the
         # single-harmonic model's, the members' curves the fundamentals; a mistuned
         # run's members are not the nominal rig the bounds are for
-        cfg = json.loads(attrs.get("config_json", "{}"))
-        if cfg.get("sampling", {}).get("mistuning", 0) > 0 and n:    # members to say it of
+        if nominal_bounds(attrs):
             label += "; nominal rig"
         label += "; single-harmonic model)" if harmonics > 1 else ")"
         up = np.where(np.isfinite(up), up, np.nan)

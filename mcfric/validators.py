@@ -380,6 +380,14 @@ F0_RANGE = (1e-12, 1e6)
 KC_MAX = 1e12
 
 
+def check_kc(name, kc):
+    """Raise :class:`InputError` under ``name`` where a contact stiffness ``kc`` (N/m,
+    any shape) exceeds :data:`KC_MAX`."""
+    if np.any(np.asarray(kc) > KC_MAX):
+        raise InputError(name, f"expected at most {KC_MAX:g} N/m (a stuck contact), got "
+                         f"{float(np.max(kc)):g}")
+
+
 def per_damper(nd, **params):
     """Broadcast per-damper parameters to a common (n_s, nd) float array each.
 
@@ -408,9 +416,8 @@ def per_damper(nd, **params):
             raise InputError(name, "values must be finite (no NaN or inf)")
         if np.any(arr < 0):
             raise InputError(name, "values must be >= 0")
-        if name == "kc" and np.any(arr > KC_MAX):
-            raise InputError(name, f"expected at most {KC_MAX:g} N/m (a stuck contact), got "
-                             f"{float(arr.max()):g}")
+        if name == "kc":
+            check_kc(name, arr)
         if arr.shape[0] != 1:
             if n_s not in (1, arr.shape[0]):
                 raise InputError(name, f"{arr.shape[0]} samples do not match the "
