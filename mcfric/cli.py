@@ -1088,9 +1088,10 @@ def cmd_hbm(args):
     fmt = ["%.10g"] + ["%.10e"] * (model.n_beams + 1) + ["%d"] + ["%.10e"] * model.n_dampers
     if H > 1:
         # the fundamental above; the full-period peak (all harmonics) after
-        header += [f"peak_y{b + 1}_m" for b in range(model.n_beams)]
-        table = np.column_stack([table, res.response_peak[0]])
-        fmt += ["%.10e"] * model.n_beams
+        header += [f"peak_y{b + 1}_m" for b in range(model.n_beams)] + ["from_above"]
+        table = np.column_stack([table, res.response_peak[0],
+                                 res.from_above[0].astype(float)])
+        fmt += ["%.10e"] * model.n_beams + ["%d"]
     np.savetxt(out, table, delimiter=",", header=",".join(header), comments="", fmt=fmt)
     bad = int(np.count_nonzero(~conv))
     print(f"mcfric hbm: {model.name}, mu0 = {args.mu0:g}, kc = {args.kc:g} N/m, "
@@ -1100,6 +1101,10 @@ def cmd_hbm(args):
     print(f"not converged: {bad} of {len(f)} points"
           + (f" (at {', '.join(f'{x:.4g}' for x in f[~conv][:10])} Hz"
              f"{', ...' if bad > 10 else ''}; not drawn)" if bad else ""))
+    up = int(np.count_nonzero(res.from_above[0]))
+    if up:
+        print(f"from above: {up} points converged only from the next frequency's solution "
+              f"(column from_above)")
     print(f"csv: {out}")
     if not args.no_figure:
         png = out.with_suffix(".png")

@@ -278,6 +278,10 @@ def layout(spec):
             "output relative to the fundamental (max over beams); above "
             f"{hbm.INDICATOR_THRESHOLD:g} one harmonic may not be enough; NaN where not "
             "converged", "threshold": hbm.INDICATOR_THRESHOLD})
+    if spec.solver.harmonics > 1:
+        variables["from_above"] = ((RECORD, "frequency"), np.bool_, {
+            "long_name": "true where the balance converged only from the solution at the "
+            "next frequency, sweeping back down: on the branch reached from above"})
     if spec.solver.harmonics > 1 and spec.keep_response:
         amp = spec.response_format == "amplitude"
         variables["response_peak"] = ((RECORD, "frequency", "beam"),
@@ -676,6 +680,8 @@ def record_arrays(spec, d, res):
               "converged": res.converged, "mu0": d.mu0, "kc": d.kc, "N0": d.N0}
     if res.harmonic_indicator is not None:
         arrays["harmonic_indicator"] = res.harmonic_indicator.astype(np.float32)
+    if spec.solver.harmonics > 1:
+        arrays["from_above"] = res.from_above
     if spec.keep_response:
         amp = spec.response_format == "amplitude"
         if amp:

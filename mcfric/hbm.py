@@ -17,6 +17,7 @@ from .core import harmonic_indicator as _indicator
 from .core import multi_harmonic as _multi_harmonic
 from .core import sweep as _sweep
 from .core.aft import harmonic_orders
+from .core.multi_harmonic import FROM_ABOVE
 from .core.newton import NOT_CONVERGED
 from .core.receptance import D21
 from .memory import check_fits
@@ -56,7 +57,10 @@ class HBMResult:
         only suggests a stuck damper (higher harmonics add to the motion).
     status : ndarray of int8, shape (n_s, n_f)
         0 converged, 1 converged after a restart, 2 by the last-resort solver,
-        -1 not converged.
+        -1 not converged; with ``harmonics > 1`` or ``aft`` also :data:`FROM_ABOVE`
+        (3): converged only from the solution at the next frequency, sweeping back down
+        (on an upward grid the branch reached from above, which may differ from the one
+        continued from below where there are several).
     iterations : ndarray of int16, shape (n_s, n_f)
     residual : ndarray, shape (n_s, n_f)
         Single harmonic: ``max_j |s_j kc_j A_j / (mu0_j N0_j) - 1|`` of the returned
@@ -103,6 +107,12 @@ class HBMResult:
         return self.status > NOT_CONVERGED
 
     @property
+    def from_above(self):
+        """Boolean mask (n_s, n_f) of points that converged only from the solution at
+        the next frequency (multi-harmonic runs; all false otherwise)."""
+        return self.status == FROM_ABOVE
+
+    @property
     def n_not_converged(self):
         """Number of points that did not converge."""
         return int(np.count_nonzero(~self.converged))
@@ -136,7 +146,9 @@ def solve(model, freq_hz, mu0, kc, N0=0.5, *, modal_freq_hz=None, tol=TOL,
 
     Each sample sweeps the frequencies in the order given (upward for a sorted grid),
     warm-starting every point from the previous ones: like a slow stepped sine, so on a
-    branch with several solutions the one continued from below is returned.
+    branch with several solutions the one continued from below is returned. With
+    ``harmonics > 1`` or ``aft``, a point the sweep cannot reach is tried again from the
+    converged solution at the next frequency (status :data:`FROM_ABOVE`).
 
     Parameters
     ----------

@@ -41,8 +41,15 @@ def file_report(path):
                 "metric holds the fundamental"]
         if "response_peak" in names:
             what.append("response_peak the full-period peak")
-        return [f"harmonics:   odd harmonics 1..{H} balanced (multi-harmonic); "
-                + ", ".join(what)]
+        lines = [f"harmonics:   odd harmonics 1..{H} balanced (multi-harmonic); "
+                 + ", ".join(what)]
+        if "from_above" in names:
+            n = sum(int(np.count_nonzero(arr["from_above"]))
+                    for _, arr in iter_records(path, ["from_above"]))
+            if n:
+                lines.append(f"from above:  {n:,} points converged only from the next "
+                             "frequency's solution, sweeping down (dataset from_above)")
+        return lines
     if "harmonic_indicator" not in names:
         return []
     flagged = total = 0

@@ -7,6 +7,8 @@ import pytest
 import mcfric
 from mcfric import cli, hbm
 from mcfric.core import aft
+from mcfric.core.multi_harmonic import FROM_ABOVE
+from mcfric.core.newton import NOT_CONVERGED
 from mcfric.verify import verify
 
 from . import naive
@@ -227,6 +229,30 @@ def test_newton_passes_a_kink_of_the_friction_force():
     assert np.all(abs(res.response[0, -1] - v.harmonics[0]) <= 2e-3 * a1.max())
 
 
+def test_a_point_the_upward_sweep_misses_converges_from_the_one_above():
+    """Member 52 of the default run's draw (eight beams) at 11.40 Hz, H = 7: a
+    superharmonic resonance below the first mode, where Newton fails from the previous
+    frequency, from the single-harmonic start and by continuation. The sweep's second
+    pass starts it from the converged solution at the next frequency, labels it
+    ``FROM_ABOVE``, and it agrees with time integration as its converged neighbours do
+    at this order (0.2 % here; 0.05 and 0.3 % at the two above)."""
+    model = mcfric.preset("eight-beam")
+    mu0 = np.array([0.2526385, 0.70972409, 0.13397817, 0.93157952, 0.37374907, 0.93139735,
+                    0.02406183])
+    kc = np.array([14785.65064518, 9612.99783187, 7898.58202803, 5085.55754201,
+                   8793.39196153, 2905.19872606, 7599.92877579])
+    f = np.linspace(10.0, 150.0, 1000)[10:13]         # 11.40 Hz and the two above
+    res = hbm.solve(model, f, mu0[None], kc[None], 0.5, harmonics=7, n_threads=1)
+    assert res.converged.all(), res.status
+    assert res.status[0, 0] == FROM_ABOVE and not res.from_above[0, 1:].any(), res.status
+    alone = hbm.solve(model, f[:1], mu0[None], kc[None], 0.5, harmonics=7, n_threads=1)
+    assert alone.status[0, 0] == NOT_CONVERGED      # the start the sweep had: none
+    v = verify(model, f[0], mu0, kc, 0.5, harmonics=7)[0]
+    assert v.periodic
+    a1 = abs(v.harmonics[0])
+    assert np.all(abs(res.response[0, 0] - v.harmonics[0]) <= 1e-2 * a1.max()), v.table()
+
+
 def test_a_static_offset_depends_on_the_start_and_leaves_the_odd_harmonics():
     """Eight beams at 21 Hz: the integration settles with a mean offset of every beam
     that depends on where it started; the odd harmonics do not, and match the balance."""
@@ -334,7 +360,7 @@ def test_multi_harmonic_run_is_identical_for_any_threads_and_chunks(tmp_path, ca
     text = capsys.readouterr().out
     assert "odd harmonics 1..5 balanced" in text
     with mcfric.open_results(runs[0]) as A, mcfric.open_results(runs[1]) as B:
-        for name in ("response", "response_peak", "converged"):
+        for name in ("response", "response_peak", "converged", "from_above"):
             assert A[name].values.tobytes() == B[name].values.tobytes()
         assert int(A.attrs["harmonics"]) == 5
         assert "peak_metric" not in A and "harmonic_indicator" not in A

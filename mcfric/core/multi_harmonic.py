@@ -23,6 +23,11 @@ better than an extrapolation). If that fails, it starts from the previous freque
 solution itself; then (or at the first frequency) from the single-harmonic solution of
 the same point (passed in as its slip ratios), with zero higher harmonics.
 
+A point none of these reach is tried once more after the sweep, going back down the
+grid: from the converged solution at the next frequency of the sweep (the one above, on
+an upward grid), predicted as in the sweep, then from that solution itself. Such a
+point lies on the branch continued from the other side, and its status says so (3).
+
 Arguments
 ---------
 rech : ndarray of complex128, shape (n_r * n_h, n_f, 4, n_beams)
@@ -46,8 +51,10 @@ s : ndarray of float64, shape (n_s, n_f, nd)
 status, iterations, residual
     Out: 0 from the previous frequencies (prediction or last solution), 1 from the
     single-harmonic start, 2 by continuation in the higher harmonics' coupling from the
-    single-harmonic start, -1 not converged (``y``, ``y_peak`` and ``s`` NaN);
-    iterations of all attempts; the final ``max |R| / max_j |Q_j1|``.
+    single-harmonic start, 3 only from the converged solution at the next frequency
+    (continued back down the grid), -1 not converged (``y``, ``y_peak`` and ``s`` NaN);
+    iterations of all attempts; the final ``max |R| / max_j |Q_j1|`` (of the sweep's
+    attempts where the point did not converge).
 """
 
 import math
@@ -62,6 +69,9 @@ from .linalg import lu_factor, lu_solve
 from .receptance import D21, D23
 from .sweep import _dense_G, _q0
 
+#: Status of a point that converged only from the solution at the next frequency,
+#: sweeping back down the grid (on the branch reached from above).
+FROM_ABOVE = 3
 _MAX_HALVINGS = 10
 #: Watchdog: after ``_CRAWL_ITERS`` iterations in a row whose accepted step was at most
 #: ``_CRAWL_STEP``, a rejected full step is followed by up to ``_WATCHDOG_STEPS`` undamped
@@ -602,7 +612,9 @@ def _sample(i, rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, tol, m
     G = np.empty((n_h, nd, nd), dtype=np.complex128)
     Gs = np.empty((n_h, nd, nd), dtype=np.complex128)
     Qc = np.zeros((nd, n_h), dtype=np.complex128)
+    Qall = np.zeros((n_f, nd, n_h), dtype=np.complex128)   # every converged solution
     q0 = np.empty(nd, dtype=np.complex128)
+    q0n = np.empty(nd, dtype=np.complex128)
     Q = np.zeros((nd, n_h), dtype=np.complex128)
     Qp = np.zeros((nd, n_h), dtype=np.complex128)
     Qpp = np.zeros((nd, n_h), dtype=np.complex128)
@@ -624,6 +636,7 @@ def _sample(i, rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, tol, m
     fs = np.empty(nd)
     for j in range(nd):
         fs[j] = mu0[i, j] * N0[i, j]
+    n_failed = 0
     have_prev = False
     have_prev2 = False               # Qpp holds the solution two frequencies back
     sh_prev = False                  # Qsh_prev holds the single-harmonic start of k - 1
@@ -694,6 +707,7 @@ def _sample(i, rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, tol, m
         residual[i, k] = rel
         if not ok:
             status[i, k] = -1
+            n_failed += 1
             have_prev = False
             have_prev2 = False
             for bb in range(n_beams):
@@ -710,43 +724,105 @@ def _sample(i, rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, tol, m
             for h in range(n_h):
                 Qpp[j, h] = Qp[j, h]
                 Qp[j, h] = Q[j, h]
-            amp = abs(Q[j, 0])
-            if fs[j] == 0.0:
-                s[i, k, j] = 0.0
-            elif kci[j] == 0.0 or amp == 0.0:
-                s[i, k, j] = math.inf
-            else:
-                s[i, k, j] = fs[j] / (kci[j] * amp)
-        # output harmonics: y_h = D23 F [h = 1] - D21(n_h omega) B^T F_h
+                Qall[k, j, h] = Q[j, h]
+        _outputs(i, k, Q, F, rech, r_base, force, a, b, orders, kci, fs, y, y_peak, s, yh,
+                 yt, pc, ps)
+    if n_failed == 0 or n_failed == n_f:
+        return
+    # back down the grid: a failed point below a converged one starts from it
+    for k in range(n_f - 2, -1, -1):
+        if status[i, k] >= 0 or status[i, k + 1] < 0:
+            continue
         for h in range(n_h):
-            for bb in range(n_beams):
-                yh[h, bb] = 0.0j
+            _dense_G(rech, r_base + h, k, a, b, G[h], nd)
+            _dense_G(rech, r_base + h, k + 1, a, b, Gs[h], nd)
+        for j in range(nd):
+            q0[j] = _q0(rech, r_base, k, force, a, b, j)
+        sh = _single_harmonic_start(s1[i, k], G, q0, kci, Qsh, T, piv, nd, n_h)
+        for j in range(nd):
+            q0n[j] = _q0(rech, r_base, k + 1, force, a, b, j)
+        sh_next = _single_harmonic_start(s1[i, k + 1], Gs, q0n, kci, Qsh_prev, T, piv, nd,
+                                         n_h)
+        next2 = k + 2 < n_f and status[i, k + 2] >= 0
+        its = 0
+        ok = False
+        # the prediction, then the solution above itself (one call site: _newton is
+        # inlined, and every copy adds to the compile time)
+        for attempt in range(2):
+            if attempt == 0 and not ((sh and sh_next) or next2):
+                continue                 # no prediction: the solution above alone
             for j in range(nd):
-                yh[h, a[j]] -= rech[r_base + h, k, D21, a[j]] * F[j, h]
-                yh[h, b[j]] += rech[r_base + h, k, D21, b[j]] * F[j, h]
-        for bb in range(n_beams):
-            yh[0, bb] += rech[r_base, k, D23, bb] * force[bb]
-            for h in range(y.shape[2]):
-                y[i, k, h, bb] = yh[h, bb]
-            hi = -math.inf
-            lo = math.inf
-            t_hi = np.int64(0)
-            t_lo = np.int64(0)
-            for t in range(n_peak):
-                yt[t] = 0.0
+                for h in range(n_h):
+                    if attempt == 0 and h == 0 and sh and sh_next:
+                        Q[j, h] = Qall[k + 1, j, h] + (Qsh[j, h] - Qsh_prev[j, h])
+                    elif attempt == 0 and next2:
+                        Q[j, h] = 2.0 * Qall[k + 1, j, h] - Qall[k + 2, j, h]
+                    else:
+                        Q[j, h] = Qall[k + 1, j, h]
+            ok, it, rel = _newton(Q, orders, G, q0, kci, fs, n_time, tol, max_iter, F, dF,
+                                  R, J, piv, dx, dw, Qt, work, nd, n_h, chain)
+            its += it
+            if ok:
+                break
+        iterations[i, k] = min(iterations[i, k] + its, 32767)
+        if not ok:
+            continue
+        status[i, k] = FROM_ABOVE
+        residual[i, k] = rel
+        for j in range(nd):
             for h in range(n_h):
-                yr = yh[h, bb].real
-                yi = yh[h, bb].imag
-                for t in range(n_peak):
-                    yt[t] += yr * pc[h, t] - yi * ps[h, t]
+                Qall[k, j, h] = Q[j, h]
+        _outputs(i, k, Q, F, rech, r_base, force, a, b, orders, kci, fs, y, y_peak, s, yh,
+                 yt, pc, ps)
+
+
+@jit
+def _outputs(i, k, Q, F, rech, r_base, force, a, b, orders, kci, fs, y, y_peak, s, yh, yt,
+             pc, ps):
+    """Slip ratios, output harmonics and the largest ``|y(t)|`` of the converged point
+    ``(i, k)`` (``F`` holds the forces at ``Q``)."""
+    nd = a.shape[0]
+    n_h = orders.shape[0]
+    n_beams = force.shape[0]
+    n_peak = pc.shape[1]
+    for j in range(nd):
+        amp = abs(Q[j, 0])
+        if fs[j] == 0.0:
+            s[i, k, j] = 0.0
+        elif kci[j] == 0.0 or amp == 0.0:
+            s[i, k, j] = math.inf
+        else:
+            s[i, k, j] = fs[j] / (kci[j] * amp)
+    # output harmonics: y_h = D23 F [h = 1] - D21(n_h omega) B^T F_h
+    for h in range(n_h):
+        for bb in range(n_beams):
+            yh[h, bb] = 0.0j
+        for j in range(nd):
+            yh[h, a[j]] -= rech[r_base + h, k, D21, a[j]] * F[j, h]
+            yh[h, b[j]] += rech[r_base + h, k, D21, b[j]] * F[j, h]
+    for bb in range(n_beams):
+        yh[0, bb] += rech[r_base, k, D23, bb] * force[bb]
+        for h in range(y.shape[2]):
+            y[i, k, h, bb] = yh[h, bb]
+        hi = -math.inf
+        lo = math.inf
+        t_hi = np.int64(0)
+        t_lo = np.int64(0)
+        for t in range(n_peak):
+            yt[t] = 0.0
+        for h in range(n_h):
+            yr = yh[h, bb].real
+            yi = yh[h, bb].imag
             for t in range(n_peak):
-                v = yt[t]
-                if v > hi:
-                    hi = v
-                    t_hi = t
-                if v < lo:
-                    lo = v
-                    t_lo = t
-            y_peak[i, k, bb] = max(_extremum(yh, orders, bb, t_hi, n_peak, hi),
-                                   -_extremum(yh, orders, bb, t_lo, n_peak, lo))
+                yt[t] += yr * pc[h, t] - yi * ps[h, t]
+        for t in range(n_peak):
+            v = yt[t]
+            if v > hi:
+                hi = v
+                t_hi = t
+            if v < lo:
+                lo = v
+                t_lo = t
+        y_peak[i, k, bb] = max(_extremum(yh, orders, bb, t_hi, n_peak, hi),
+                               -_extremum(yh, orders, bb, t_lo, n_peak, lo))
 
