@@ -1029,7 +1029,7 @@ def cmd_info(args):
         lines.append(f"run time:    {a['wall_time_s']:.1f} s "
                      f"(kernel {a.get('kernel_time_s', float('nan')):.1f} s) in the session "
                      f"that completed it")
-    # a bounds file records its mcfric version only
+    # what wrote the file (bounds files before 2026-11-30 record the mcfric version only)
     lines.append(f"written by:  mcfric {a.get('mcfric_version')}" + "".join(
         f", {name} {a[key]}" for name, key in (("numba", "numba_version"),
                                               ("numpy", "numpy_version"),

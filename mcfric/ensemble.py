@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import platform
 import queue
 import shutil
 import sys
@@ -26,7 +25,6 @@ import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
-from datetime import datetime, timezone
 from pathlib import Path
 
 import numpy as np
@@ -39,6 +37,7 @@ from .memory import human
 from .metric import METRIC_UNITS
 from .peaks import file_report as peak_report
 from .peaks import report_text
+from .provenance import software_attrs
 from .store import Store, StoreError, allocated_bytes, iter_records, partial_path, read_attrs
 from .store.lock import LockError, OutputLock
 
@@ -196,12 +195,6 @@ def auto_chunk(spec):
 
 def layout(spec):
     """The store layout of a run: coords, variables, root attrs, summary placeholders."""
-    import h5py
-    import numba
-    import scipy
-
-    from . import __version__
-
     model = spec.model
     nb, nd = model.n_beams, model.n_dampers
     a, b = model.dampers
@@ -312,14 +305,7 @@ def layout(spec):
         "sampling_contract": "sample i draws from Generator(PCG64(SeedSequence(seed, "
                              "spawn_key=(i,)))); see mcfric.sampling",
         "solver_fingerprint": fingerprint(),
-        "mcfric_version": __version__,
-        "numba_version": numba.__version__,
-        "numpy_version": np.__version__,
-        "scipy_version": scipy.__version__,
-        "h5py_version": h5py.__version__,
-        "hdf5_version": h5py.version.hdf5_version,
-        "python_version": platform.python_version(),
-        "created_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+        **software_attrs(),
     }
     placeholders = {"n_not_converged": np.int64(-1), "wall_time_s": np.float64(np.nan),
                     "kernel_time_s": np.float64(np.nan),

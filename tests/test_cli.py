@@ -187,6 +187,11 @@ def test_bounds_file_holds_the_bound_peak_as_a_run_does(tmp_path, capsys):
     # a bounds file holds no members: info says so rather than '0 of 0 points'
     assert "sampling:    none (a bounds file: no members)" in info
     assert "converged:" not in info and "metric:      displacement m\n" in info
+    # what wrote it, as a run's file says (versions and time)
+    with h5py.File(out) as h:
+        root = dict(h.attrs)
+    assert root["numpy_version"] == np.__version__ and "created_utc" in root
+    assert f"numpy {np.__version__}, HDF5 " in info and root["created_utc"] in info
     # a run of the same configuration stores the same peak
     rc, _, _ = call(["run", "two-beam", "--n-freq", "60", "--samples", "4", "--no-certify",
                      "-o", str(tmp_path / "r.h5"), "--no-progress", "--no-figure"], capsys)

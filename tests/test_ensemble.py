@@ -398,6 +398,9 @@ def test_results_file_opens_with_h5py_and_xarray_with_labelled_dims(tmp_path):
                                "modal_freq_hz")}
         assert h5.attrs["numba_version"] == numba.__version__
         assert h5.attrs["mcfric_version"] == mcfric.__version__
+        # the package says the version it is installed as
+        pyproject = Path(__file__).parents[1] / "pyproject.toml"
+        assert mcfric.__version__ == tomllib.loads(pyproject.read_text())["project"]["version"]
         assert h5.attrs["seed"] == 11 and h5.attrs["complete"] == 1
         assert config.validate(tomllib.loads(h5.attrs["config"])).data == cfg.data
     with xr.open_dataset(out, engine="h5netcdf") as ds:

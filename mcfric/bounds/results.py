@@ -127,7 +127,7 @@ def write_bounds_file(path, cfg, B, peak=None):
     attributes as a run's (configuration, versions), written atomically by the store;
     ``peak`` (:func:`mcfric.bounds.peak.peak_attrs`), when given, joins the group's
     attributes as in a run's file."""
-    from .. import __version__
+    from ..provenance import software_attrs
     from ..store import write_file
 
     spec = getattr(cfg, "spec", cfg)
@@ -141,7 +141,7 @@ def write_bounds_file(path, cfg, B, peak=None):
     }
     attrs = {"title": f"mcfric response bounds: {model.name}", "model_name": model.name,
              "config": spec.config_toml, "config_json": spec.config_json,
-             "samples": np.int64(0), "mcfric_version": __version__}
+             "samples": np.int64(0), **software_attrs()}
     variables, group_attrs = to_group(B)
     group_attrs.update(peak or {})
     return write_file(path, coords, {"bounds": (variables, group_attrs)}, attrs)
