@@ -1186,15 +1186,18 @@ def _stored_points(path, member, freqs, quantity):
     import numpy as np
 
     from .metric import METRIC_UNITS
-    from .store import read
+    from .store import dataset_names, read
 
     f = read(path, "frequency")
     conv = read(path, "converged", member)
     metric = read(path, "metric", member)
+    names = dataset_names(path)
+    above = (read(path, "from_above", member) if "from_above" in names
+             else np.zeros(len(f), bool))
     lines = [f"file: member {member}'s harmonic balance here is solved afresh (the run's "
              f"tolerance and iterations, a short sweep over the frequencies given, each "
-             f"started from the one before: near a fold it may reach another branch than "
-             f"the run's sweep over its grid)"]
+             f"started from the one before, a failed one again from the one after: near a "
+             f"fold it may reach another branch than the run's sweep over its grid)"]
     out = []
     for fk in freqs:
         if not (math.isfinite(fk) and fk > 0):
@@ -1219,6 +1222,11 @@ def _stored_points(path, member, freqs, quantity):
         else:
             lines.append(f"file: at {fk:.10g} Hz the run stored M = {metric[k]:.6g} "
                          f"{METRIC_UNITS[quantity]} ({quantity}, the run's metric)")
+            if above[k]:
+                nxt = (f"; add its next grid frequency, --f {fk:.10g} {f[k + 1]:.10g}, to "
+                       f"start there too" if k + 1 < len(f) else "")
+                lines.append(f"file: the run reached {fk:.10g} Hz only from its solution at "
+                             f"the next grid frequency (from_above){nxt}")
     return out, lines
 
 

@@ -301,7 +301,9 @@ def check_harmonic_memory(model, harmonics, n_time, n_f, n_r):
     """Refuse a multi-harmonic solve whose receptances would not fit in memory."""
     n_h = (harmonics + 1) // 2
     need = 16.0 * n_r * n_h * n_f * 4 * model.n_beams
-    need += 8.0 * (2 * model.n_dampers * n_h) ** 2 * numba.get_num_threads()
+    # per thread: the Jacobian, and every frequency's solution for the pass back down
+    need += (8.0 * (2 * model.n_dampers * n_h) ** 2
+             + 16.0 * n_f * model.n_dampers * n_h) * numba.get_num_threads()
     if need > MAX_HARMONIC_BYTES:
         raise ValueError(f"harmonics: H = {harmonics} needs {need / 2**30:.3g} GiB for "
                          f"this model and grid (limit {MAX_HARMONIC_BYTES / 2**30:.0f} GiB); "
@@ -380,6 +382,13 @@ def multi_harmonic(model, result, omega, modal_freq_hz, harmonics, n_time, tol, 
     _multi_harmonic.sweep_multi_harmonic(
         rech, force, a, b, orders, np.ascontiguousarray(omega), mu0, N0, kc, int(n_time), s1,
         float(tol), int(max_iter), y, y_peak, s, status, iterations, residual)
+    # as for the single-harmonic kernel: a value that is not finite is no solution
+    bad = (status >= 0) & ~(np.isfinite(y).all(axis=(2, 3)) & np.isfinite(y_peak).all(axis=2))
+    if bad.any():
+        status[bad] = NOT_CONVERGED
+        y[bad] = complex(np.nan, np.nan)
+        y_peak[bad] = np.nan
+        s[bad] = np.nan
     result.response = np.ascontiguousarray(y[:, :, 0, :])
     result.response_harmonics = y if store_harmonics else None
     result.s, result.status = s, status

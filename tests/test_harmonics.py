@@ -425,6 +425,30 @@ def test_verify_takes_a_member_of_a_results_file(tmp_path, capsys):
     assert rc == 2 and "not done" in capsys.readouterr().err and not out.exists()
 
 
+def test_verify_says_when_the_run_reached_a_point_only_from_above(tmp_path, capsys):
+    """A point a multi-harmonic run converged only from the next frequency's solution
+    (``from_above``, set here by hand on a small run): verify's file lines say so and
+    give the next grid frequency to add."""
+    import h5py
+
+    res = tmp_path / "r.h5"
+    assert cli.main(["run", "two-beam", "--samples", "3", "--n-freq", "20", "--harmonics",
+                     "3", "-o", str(res), "--no-progress", "--no-figure", "--no-bounds"]) == 0
+    with h5py.File(res, "r+") as h:
+        f = h["frequency"][()]
+        assert not h["from_above"][()].any()
+        h["from_above"][1, 4] = True
+    capsys.readouterr()
+    assert cli.main(["verify", str(res), "--member", "1", "--f", f"{f[4]:.10g}",
+                     f"{f[6]:.10g}", "--harmonics", "3", "-o", str(tmp_path / "v.csv"),
+                     "--no-figure"]) == 0
+    text = capsys.readouterr().out
+    assert (f"the run reached {f[4]:.10g} Hz only from its solution at the next grid "
+            f"frequency (from_above); add its next grid frequency, --f {f[4]:.10g} "
+            f"{f[5]:.10g}") in text
+    assert text.count("only from its solution") == 1       # not at f[6]
+
+
 def test_verify_solves_a_members_points_with_the_runs_solver_settings(tmp_path, capsys,
                                                                       monkeypatch):
     from mcfric import verify as verify_module
@@ -535,7 +559,8 @@ def test_the_memory_check_counts_the_threads_the_solve_uses(two_beam, monkeypatc
         pytest.skip("needs two threads")
     H, n_f = 5, 4
     n_h = (H + 1) // 2
-    per_thread = 8.0 * (2 * two_beam.n_dampers * n_h) ** 2
+    # the Jacobian and every frequency's solution (for the pass back down)
+    per_thread = 8.0 * (2 * two_beam.n_dampers * n_h) ** 2 + 16.0 * n_f * two_beam.n_dampers * n_h
     one = 16.0 * n_h * n_f * 4 * two_beam.n_beams + per_thread
     monkeypatch.setattr(hbm, "MAX_HARMONIC_BYTES", one + per_thread / 2)
     f = np.linspace(20, 30, n_f)

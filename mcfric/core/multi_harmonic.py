@@ -612,7 +612,7 @@ def _sample(i, rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, tol, m
     G = np.empty((n_h, nd, nd), dtype=np.complex128)
     Gs = np.empty((n_h, nd, nd), dtype=np.complex128)
     Qc = np.zeros((nd, n_h), dtype=np.complex128)
-    Qall = np.zeros((n_f, nd, n_h), dtype=np.complex128)   # every converged solution
+    Qall = np.empty((n_f, nd, n_h), dtype=np.complex128)   # rows of converged points
     q0 = np.empty(nd, dtype=np.complex128)
     q0n = np.empty(nd, dtype=np.complex128)
     Q = np.zeros((nd, n_h), dtype=np.complex128)
