@@ -585,6 +585,8 @@ def _run_one(args, cfg, out, resume_as=None):
     """One ensemble run into ``out``; ``resume_as``: the -o to give ``--resume``."""
     from . import ensemble, plot
     from .distributed import ClusterError
+    from .memory import MemoryRefused
+    from .store import partial_path
 
     spec = cfg.spec
     # every refusal (bad config, existing files) happens before anything is written
@@ -608,6 +610,14 @@ def _run_one(args, cfg, out, resume_as=None):
         # the committed chunks are in the partial file (the writer commits before stopping)
         print(f"mcfric: error: {e}; the finished chunks are kept: continue with "
               f"`mcfric run ... -o {resume_as or out} --resume`", file=sys.stderr)
+        return EXIT_FAIL
+    except MemoryRefused as e:
+        # a chunk's solve found too little free memory (after --skip-space-check, or as
+        # the machine's free memory fell): what was committed stays, to resume
+        kept = (f"; the finished chunks are kept: continue with `mcfric run ... -o "
+                f"{resume_as or out} --resume` when memory is free"
+                if partial_path(out).exists() else "")
+        print(f"mcfric: error: {_one_line(e)}{kept}", file=sys.stderr)
         return EXIT_FAIL
     if summary.already_complete:
         print(f"{out} already holds this run (same configuration, [run] and [bounds] "

@@ -32,8 +32,7 @@ import numpy as np
 from . import hbm
 from .config import first_difference, identity
 from .indicator import file_report as indicator_report
-from .memory import available as available_memory
-from .memory import human
+from .memory import check_fits, human
 from .metric import METRIC_UNITS
 from .peaks import file_report as peak_report
 from .peaks import report_text
@@ -528,12 +527,11 @@ def check_space(spec, final, resume):
     written (the chunks are allocated up front but sparse until written). The memory
     estimate is :func:`peak_memory_bytes` against the available memory.
     """
-    mem = peak_memory_bytes(spec)
-    avail = available_memory()
-    if avail is not None and mem > avail:
-        raise RunError(f"the run needs about {human(mem)} of memory but {human(avail)} is "
-                       f"available: use fewer beams or frequencies, a smaller [run] chunk, "
-                       f"or --skip-space-check if the estimate is wrong")
+    try:
+        check_fits(peak_memory_bytes(spec), "the run", "use fewer beams or frequencies, a "
+                   "smaller [run] chunk, or --skip-space-check if the estimate is wrong")
+    except ValueError as e:                  # a refused run, as the disk check's below
+        raise RunError(str(e)) from None
     need = output_bytes(spec)
     part = partial_path(final)
     if resume and part.exists():

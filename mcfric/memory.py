@@ -3,6 +3,11 @@
 from __future__ import annotations
 
 
+class MemoryRefused(ValueError):
+    """A computation refused before it allocates: its arrays would not fit in the memory
+    available (a ``ValueError``, as for any input too large)."""
+
+
 def available():
     """MemAvailable of ``/proc/meminfo``, bytes (None where there is no such file)."""
     try:
@@ -24,7 +29,8 @@ def human(n):
 
 
 def check_fits(need, what, hint):
-    """Raise ``ValueError`` (one line) if ``need`` bytes exceed the memory available.
+    """Raise :class:`MemoryRefused` (one line) if ``need`` bytes exceed the memory
+    available.
 
     Parameters
     ----------
@@ -37,5 +43,5 @@ def check_fits(need, what, hint):
     """
     free = available()
     if free is not None and need > free:
-        raise ValueError(f"{what} needs about {human(need)} of memory but {human(free)} is "
-                         f"available: {hint}")
+        raise MemoryRefused(f"{what} needs about {human(need)} of memory but {human(free)} "
+                            f"is available: {hint}")
