@@ -39,6 +39,7 @@ from .peaks import report_text
 from .provenance import software_attrs
 from .store import Store, StoreError, allocated_bytes, iter_records, partial_path, read_attrs
 from .store.lock import LockError, OutputLock
+from .threads import threads
 
 RECORD = "sample"
 #: Names of the stop signals (SIGTERM, SIGHUP) the command line received during this run:
@@ -520,6 +521,21 @@ def peak_memory_bytes(spec):
     return int(est)
 
 
+def check_solvable(spec):
+    """Refuse, before any file, a multi-harmonic run whose chunks the solve would refuse
+    (its fixed limit on the receptances and workspaces, :func:`mcfric.hbm.
+    check_harmonic_memory`): not skipped by ``--skip-space-check``."""
+    if spec.solver.harmonics == 1:
+        return
+    chunk = min(spec.samples, spec.execution.chunk or auto_chunk(spec))
+    try:
+        with threads(spec.execution.threads):
+            hbm.check_harmonic_memory(spec.model, spec.solver.harmonics, spec.solver.n_time,
+                                      len(spec.freq_hz), chunk if spec.mistuned else 1)
+    except ValueError as e:
+        raise RunError(str(e).replace("samples per call", "samples per chunk")) from None
+
+
 def check_space(spec, final, resume):
     """Refuse a run that cannot fit on disk or in memory (before any work).
 
@@ -554,6 +570,7 @@ def _run_locked(spec, final, resume, force, progress, groups, t_start, space_che
                        0.0, True, already_complete=True)
     # the refusals before anything is written; a resumed store is closed on any of them
     try:
+        check_solvable(spec)
         if space_check:
             check_space(spec, final, what == "resume")
         cluster = _connect(spec, progress) if spec.execution.scheduler else None

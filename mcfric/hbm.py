@@ -20,7 +20,7 @@ from .core.aft import harmonic_orders
 from .core.multi_harmonic import FROM_ABOVE
 from .core.newton import NOT_CONVERGED
 from .core.receptance import D21
-from .memory import check_fits
+from .memory import MemoryRefused, check_fits
 from .metric import check_beams, response_metric
 from .model import CONTACT_LAWS, Model
 from .peaks import Peaks, PeakSettings, refine
@@ -305,9 +305,9 @@ def check_harmonic_memory(model, harmonics, n_time, n_f, n_r):
     need += (8.0 * (2 * model.n_dampers * n_h) ** 2
              + 16.0 * n_f * model.n_dampers * n_h) * numba.get_num_threads()
     if need > MAX_HARMONIC_BYTES:
-        raise ValueError(f"harmonics: H = {harmonics} needs {need / 2**30:.3g} GiB for "
-                         f"this model and grid (limit {MAX_HARMONIC_BYTES / 2**30:.0f} GiB); "
-                         "use fewer harmonics, frequencies or samples per call")
+        raise MemoryRefused(f"harmonics: H = {harmonics} needs {need / 2**30:.3g} GiB for "
+                            f"this model and grid (limit {MAX_HARMONIC_BYTES / 2**30:.0f} "
+                            f"GiB); use fewer harmonics, frequencies or samples per call")
 
 
 def check_output_memory(model, n_s, n_f, harmonics, store_harmonics, n_r):

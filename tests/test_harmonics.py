@@ -308,6 +308,24 @@ def test_bad_harmonics_input_one_line_exit_2_nothing_written(argv, message, tmp_
     assert list(tmp_path.iterdir()) == []
 
 
+def test_a_run_whose_harmonics_the_solve_would_refuse_is_refused_up_front(tmp_path,
+                                                                          monkeypatch, capsys):
+    """The solve's fixed limit on a multi-harmonic call (13.7 GiB on two threads here)
+    refused the first chunk after the partial file existed, in a traceback; the run now
+    checks it first, with or without --skip-space-check."""
+    monkeypatch.chdir(tmp_path)
+    argv = ["run", "eight-beam", "--harmonics", "99", "--samples", "2", "--n-freq", "400000",
+            "--no-bounds", "--no-progress", "--no-figure"]
+    for extra in ([], ["--skip-space-check"]):
+        rc = cli.main(argv + extra)
+        err = capsys.readouterr().err
+        assert rc == 2 and err.count("\n") == 1, err
+        # the need counts a workspace per thread: the number depends on the machine's
+        assert "harmonics: H = 99 needs " in err and "GiB for this model" in err
+        assert "(limit 8 GiB)" in err
+        assert list(tmp_path.iterdir()) == []
+
+
 def test_indicator_bounds_the_higher_harmonics_of_each_point(eight_beam):
     """The indicator (slip ratios only, triangle inequality) is >= the output's 3rd + 5th
     harmonics relative to the fundamental, computed with phases through the AFT."""
