@@ -1233,8 +1233,10 @@ def _stored_points(path, member, freqs, quantity):
             lines.append(f"file: at {fk:.10g} Hz the run stored M = {metric[k]:.6g} "
                          f"{METRIC_UNITS[quantity]} ({quantity}, the run's metric)")
             if above[k]:
+                given = k + 1 < len(f) and any(abs(g - f[k + 1]) <= GRID_MATCH * g
+                                               for g in freqs if math.isfinite(g))
                 nxt = (f"; add its next grid frequency, --f {fk:.10g} {f[k + 1]:.10g}, to "
-                       f"start there too" if k + 1 < len(f) else "")
+                       f"start there too" if k + 1 < len(f) and not given else "")
                 lines.append(f"file: the run reached {fk:.10g} Hz only from its solution at "
                              f"the next grid frequency (from_above){nxt}")
     return out, lines

@@ -465,6 +465,13 @@ def test_verify_says_when_the_run_reached_a_point_only_from_above(tmp_path, caps
             f"frequency (from_above); add its next grid frequency, --f {f[4]:.10g} "
             f"{f[5]:.10g}") in text
     assert text.count("only from its solution") == 1       # not at f[6]
+    # with the next grid frequency given too, nothing to add
+    assert cli.main(["verify", str(res), "--member", "1", "--f", f"{f[4]:.10g}",
+                     f"{f[5]:.4g}", "--harmonics", "3", "-o", str(tmp_path / "v.csv"),
+                     "--no-figure"]) == 0
+    text = capsys.readouterr().out
+    assert "only from its solution at the next grid frequency (from_above)\n" in text
+    assert "add its next grid frequency" not in text
 
 
 def test_verify_solves_a_members_points_with_the_runs_solver_settings(tmp_path, capsys,
