@@ -131,11 +131,15 @@ class HBMResult:
         return response_metric(self.response, self.freq_hz, quantity, beams)
 
     def summary(self):
-        """One line: samples x frequencies and the non-converged points."""
+        """One line: samples x frequencies, the non-converged points, and those converged
+        only from the next frequency's solution (where there are any)."""
         n = self.status.size
         bad = self.n_not_converged
+        up = int(np.count_nonzero(self.from_above))
         return (f"{self.status.shape[0]} samples x {self.status.shape[1]} frequencies = {n} "
-                f"points; not converged: {bad} ({100.0 * bad / max(n, 1):.4g} %)")
+                f"points; not converged: {bad} ({100.0 * bad / max(n, 1):.4g} %)"
+                + (f"; {up} converged only from the next frequency's solution (from_above)"
+                   if up else ""))
 
 
 def solve(model, freq_hz, mu0, kc, N0=0.5, *, modal_freq_hz=None, tol=TOL,

@@ -245,6 +245,8 @@ def test_a_point_the_upward_sweep_misses_converges_from_the_one_above():
     res = hbm.solve(model, f, mu0[None], kc[None], 0.5, harmonics=7, n_threads=1)
     assert res.converged.all(), res.status
     assert res.status[0, 0] == FROM_ABOVE and not res.from_above[0, 1:].any(), res.status
+    assert res.summary().endswith("; 1 converged only from the next frequency's solution "
+                                  "(from_above)")
     alone = hbm.solve(model, f[:1], mu0[None], kc[None], 0.5, harmonics=7, n_threads=1)
     assert alone.status[0, 0] == NOT_CONVERGED      # the start the sweep had: none
     v = verify(model, f[0], mu0, kc, 0.5, harmonics=7)[0]
