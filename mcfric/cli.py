@@ -589,6 +589,7 @@ def _run_one(args, cfg, out, resume_as=None):
     from .store import partial_path
 
     spec = cfg.spec
+    resume = f"`mcfric run ... -o {resume_as or out} --resume`"
     # every refusal (bad config, existing files) happens before anything is written
     try:
         model = spec.model
@@ -603,20 +604,18 @@ def _run_one(args, cfg, out, resume_as=None):
     except ensemble.Interrupted as e:
         s = e.summary
         print(f"interrupted: {s.samples_done} of {s.samples} samples saved in {s.path}; "
-              f"continue with `mcfric run ... -o {resume_as or out} --resume`",
-              file=sys.stderr)
+              f"continue with {resume}", file=sys.stderr)
         return EXIT_INTERRUPTED
     except ClusterError as e:
         # the committed chunks are in the partial file (the writer commits before stopping)
-        print(f"mcfric: error: {e}; the finished chunks are kept: continue with "
-              f"`mcfric run ... -o {resume_as or out} --resume`", file=sys.stderr)
+        print(f"mcfric: error: {e}; the finished chunks are kept: continue with {resume}",
+              file=sys.stderr)
         return EXIT_FAIL
     except MemoryRefused as e:
         # a chunk's solve found too little free memory (after --skip-space-check, or as
         # the machine's free memory fell): what was committed stays, to resume
-        kept = (f"; the finished chunks are kept: continue with `mcfric run ... -o "
-                f"{resume_as or out} --resume` when memory is free"
-                if partial_path(out).exists() else "")
+        kept = (f"; the finished chunks are kept: continue with {resume} when memory is "
+                f"free" if partial_path(out).exists() else "")
         print(f"mcfric: error: {_one_line(e)}{kept}", file=sys.stderr)
         return EXIT_FAIL
     if summary.already_complete:

@@ -531,9 +531,10 @@ def check_solvable(spec):
     try:
         with threads(spec.execution.threads):
             hbm.check_harmonic_memory(spec.model, spec.solver.harmonics, spec.solver.n_time,
-                                      len(spec.freq_hz), chunk if spec.mistuned else 1)
+                                      len(spec.freq_hz), chunk if spec.mistuned else 1,
+                                      per="chunk")
     except ValueError as e:
-        raise RunError(str(e).replace("samples per call", "samples per chunk")) from None
+        raise RunError(str(e)) from None
 
 
 def check_space(spec, final, resume):

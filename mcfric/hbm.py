@@ -301,8 +301,10 @@ def check_harmonics(harmonics, n_time=None):
     return harmonics, int(n_time)
 
 
-def check_harmonic_memory(model, harmonics, n_time, n_f, n_r):
-    """Refuse a multi-harmonic solve whose receptances would not fit in memory."""
+def check_harmonic_memory(model, harmonics, n_time, n_f, n_r, per="call"):
+    """Refuse a multi-harmonic solve whose receptances would not fit in memory
+    (``per``: what the message asks for fewer samples of, a ``"call"`` or a run's
+    ``"chunk"``)."""
     n_h = (harmonics + 1) // 2
     need = 16.0 * n_r * n_h * n_f * 4 * model.n_beams
     # per thread: the Jacobian, and every frequency's solution for the pass back down
@@ -311,7 +313,7 @@ def check_harmonic_memory(model, harmonics, n_time, n_f, n_r):
     if need > MAX_HARMONIC_BYTES:
         raise MemoryRefused(f"harmonics: H = {harmonics} needs {need / 2**30:.3g} GiB for "
                             f"this model and grid (limit {MAX_HARMONIC_BYTES / 2**30:.0f} "
-                            f"GiB); use fewer harmonics, frequencies or samples per call")
+                            f"GiB); use fewer harmonics, frequencies or samples per {per}")
 
 
 def check_output_memory(model, n_s, n_f, harmonics, store_harmonics, n_r):
@@ -386,13 +388,7 @@ def multi_harmonic(model, result, omega, modal_freq_hz, harmonics, n_time, tol, 
     _multi_harmonic.sweep_multi_harmonic(
         rech, force, a, b, orders, np.ascontiguousarray(omega), mu0, N0, kc, int(n_time), s1,
         float(tol), int(max_iter), y, y_peak, s, status, iterations, residual)
-    # as for the single-harmonic kernel: a value that is not finite is no solution
-    bad = (status >= 0) & ~(np.isfinite(y).all(axis=(2, 3)) & np.isfinite(y_peak).all(axis=2))
-    if bad.any():
-        status[bad] = NOT_CONVERGED
-        y[bad] = complex(np.nan, np.nan)
-        y_peak[bad] = np.nan
-        s[bad] = np.nan
+    _not_finite_not_converged(status, y, y_peak, s)
     result.response = np.ascontiguousarray(y[:, :, 0, :])
     result.response_harmonics = y if store_harmonics else None
     result.s, result.status = s, status
@@ -455,11 +451,22 @@ def run_kernel(model, rec, omega, mu0, N0, kc, tol, max_iter, y, s, status, iter
         _sweep.sweep_one_damper(*args, *outs)
     else:
         _sweep.sweep_chain(*args, *outs)
-    # a response that is not finite (an undamped resonance with the contacts free) is
-    # no solution, whatever the residual said: not converged, never a number
-    bad = (status >= 0) & ~np.isfinite(y).all(axis=-1)
+    _not_finite_not_converged(status, y, None, s)
+    return mu0, N0, kc
+
+
+def _not_finite_not_converged(status, y, y_peak, s):
+    """Flag as not converged (outputs NaN) every point marked converged whose response
+    ``y`` (every harmonic) or full-period peak ``y_peak`` (None: none) is not finite:
+    such a value (an undamped resonance with the contacts free) is no solution, whatever
+    the residual said. In place; arrays indexed (sample, frequency, ...)."""
+    fine = np.isfinite(y).reshape(status.shape + (-1,)).all(axis=-1)
+    if y_peak is not None:
+        fine &= np.isfinite(y_peak).reshape(status.shape + (-1,)).all(axis=-1)
+    bad = (status >= 0) & ~fine
     if bad.any():
         status[bad] = NOT_CONVERGED
         y[bad] = complex(np.nan, np.nan)
         s[bad] = np.nan
-    return mu0, N0, kc
+        if y_peak is not None:
+            y_peak[bad] = np.nan
