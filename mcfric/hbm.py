@@ -60,7 +60,8 @@ class HBMResult:
         -1 not converged; with ``harmonics > 1`` or ``aft`` also :data:`FROM_ABOVE`
         (3): converged only from the solution at the next frequency, sweeping back down
         (on an upward grid the branch reached from above, which may differ from the one
-        continued from below where there are several).
+        continued from below where there are several); there, 0 also marks a point
+        converged after the sweep by continuation in frequency from the point below.
     iterations : ndarray of int16, shape (n_s, n_f)
     residual : ndarray, shape (n_s, n_f)
         Single harmonic: ``max_j |s_j kc_j A_j / (mu0_j N0_j) - 1|`` of the returned

@@ -255,6 +255,32 @@ def test_a_point_the_upward_sweep_misses_converges_from_the_one_above():
     assert np.all(abs(res.response[0, 0] - v.harmonics[0]) <= 1e-2 * a1.max()), v.table()
 
 
+def test_continuation_in_frequency_reaches_a_point_from_either_neighbour():
+    """Member 844 of the default run's draw (eight beams) at 11.26 Hz, H = 7: Newton
+    fails there from the converged solution at 11.12 Hz below, and from the one at
+    11.40 Hz above, directly or predicted. Continuation in frequency from either (the
+    receptances and the drive moved to the point's in steps) converges: from above
+    ``FROM_ABOVE``, from below status 0, on the same solution, which agrees with time
+    integration (0.02 % measured)."""
+    model = mcfric.preset("eight-beam")
+    mu0 = np.array([0.2972219690310291, 0.02962459286608704, 0.03977779430767442,
+                    0.4118309103573741, 0.9192818081849625, 0.5752096324630525,
+                    0.3344677780869753])
+    kc = np.array([10820.915392186218, 2784.076133845652, 7613.44366073981,
+                   10210.378358454422, 1349.433469863822, 108.35887345990142,
+                   14031.836100690965])
+    f = np.linspace(10.0, 150.0, 1000)[8:11]          # 11.12, 11.26 and 11.40 Hz
+    down = hbm.solve(model, f[1:], mu0[None], kc[None], 0.5, harmonics=7, n_threads=1)
+    up = hbm.solve(model, f[:2], mu0[None], kc[None], 0.5, harmonics=7, n_threads=1)
+    assert down.status.tolist() == [[FROM_ABOVE, 1]], down.status
+    assert up.status.tolist() == [[1, 0]], up.status
+    a = abs(down.response[0, 0]).max()
+    assert np.all(abs(down.response[0, 0] - up.response[0, 1]) <= 1e-9 * a)
+    v = verify(model, f[1], mu0, kc, 0.5, harmonics=7)[0]
+    assert v.periodic
+    assert np.all(abs(up.response[0, 1] - v.harmonics[0]) <= 2e-3 * a), v.table()
+
+
 def test_a_static_offset_depends_on_the_start_and_leaves_the_odd_harmonics():
     """Eight beams at 21 Hz: the integration settles with a mean offset of every beam
     that depends on where it started; the odd harmonics do not, and match the balance."""

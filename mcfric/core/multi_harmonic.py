@@ -25,8 +25,12 @@ the same point (passed in as its slip ratios), with zero higher harmonics.
 
 A point none of these reach is tried once more after the sweep, going back down the
 grid: from the converged solution at the next frequency of the sweep (the one above, on
-an upward grid), predicted as in the sweep, then from that solution itself. Such a
-point lies on the branch continued from the other side, and its status says so (3).
+an upward grid), predicted as in the sweep, then from that solution itself, then by
+continuation in frequency from it (the receptances and the drive moved from that
+frequency's to the point's on a straight line, :func:`_continuation`). Such a point lies
+on the branch continued from the other side, and its status says so (3). Last, by
+continuation in frequency from the converged solution below (status 0: the sweep's own
+branch, which its direct Newton from there missed).
 
 Arguments
 ---------
@@ -49,10 +53,11 @@ y_peak : ndarray of float64, shape (n_s, n_f, n_beams)
 s : ndarray of float64, shape (n_s, n_f, nd)
     Out: ``mu0 N0 / (kc |Q_j1|)``, the slip ratio of the fundamental.
 status, iterations, residual
-    Out: 0 from the previous frequencies (prediction or last solution), 1 from the
-    single-harmonic start, 2 by continuation in the higher harmonics' coupling from the
-    single-harmonic start, 3 only from the converged solution at the next frequency
-    (continued back down the grid), -1 not converged (``y``, ``y_peak`` and ``s`` NaN);
+    Out: 0 from the previous frequencies (prediction or last solution; after the sweep,
+    by continuation in frequency from the point below), 1 from the single-harmonic
+    start, 2 by continuation in the higher harmonics' coupling from the single-harmonic
+    start, 3 only from the converged solution at the next frequency (continued back down
+    the grid), -1 not converged (``y``, ``y_peak`` and ``s`` NaN);
     iterations of all attempts; the final ``max |R| / max_j |Q_j1|`` (of the sweep's
     attempts where the point did not converge).
 """
@@ -546,12 +551,15 @@ _LAMBDA_MIN_STEP = 1.0 / 64.0
 
 
 @jit
-def _continuation(Q, Qc, orders, G, Gs, q0, kc, fs, n_time, tol, max_iter, F, dF, R, J, piv,
-                  dx, dw, Qt, work, nd, n_h, chain):
-    """Last resort from the single-harmonic start ``Q``: follow the solution while the
-    higher harmonics' receptances are scaled up from 0 (where ``Q`` solves the equations
-    exactly) to 1, by natural continuation with step halving. Returns like
-    :func:`_newton`; ``Q`` holds the solution on success."""
+def _continuation(Q, Qc, orders, G, Gs, G0, q0, q0s, q00, kc, fs, n_time, tol, max_iter, F,
+                  dF, R, J, piv, dx, dw, Qt, work, nd, n_h, chain):
+    """Follow the solution from ``Q``, which solves the equations with receptances ``G0``
+    and drive ``q00``, while they move in a straight line to ``G`` and ``q0``: natural
+    continuation in the line's parameter with step halving (``Gs``, ``q0s`` hold the
+    point on the line). From the single-harmonic start, ``G0`` is ``G`` with the higher
+    harmonics' receptances zero; from a grid neighbour's solution, its ``G`` and ``q0``
+    (continuation in frequency, the straight line standing for the frequencies between).
+    Returns like :func:`_newton`; ``Q`` holds the solution on success."""
     lam = 0.0
     step = _LAMBDA_STEP
     total = 0
@@ -563,14 +571,14 @@ def _continuation(Q, Qc, orders, G, Gs, q0, kc, fs, n_time, tol, max_iter, F, dF
     while lam < 1.0 and step >= _LAMBDA_MIN_STEP:
         target = min(1.0, lam + step)
         for h in range(n_h):
-            scale = 1.0 if h == 0 else target
             for j in range(nd):
                 for m in range(nd):
-                    Gs[h, j, m] = scale * G[h, j, m]
+                    Gs[h, j, m] = G0[h, j, m] + target * (G[h, j, m] - G0[h, j, m])
         for j in range(nd):
+            q0s[j] = q00[j] + target * (q0[j] - q00[j])
             for h in range(n_h):
                 Q[j, h] = Qc[j, h]
-        ok, it, rel = _newton(Q, orders, Gs, q0, kc, fs, n_time, tol, max_iter, F, dF, R, J,
+        ok, it, rel = _newton(Q, orders, Gs, q0s, kc, fs, n_time, tol, max_iter, F, dF, R, J,
                               piv, dx, dw, Qt, work, nd, n_h, chain)
         total += it
         if ok:
@@ -611,10 +619,12 @@ def _sample(i, rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, tol, m
         r_base = np.int64(i) * n_h
     G = np.empty((n_h, nd, nd), dtype=np.complex128)
     Gs = np.empty((n_h, nd, nd), dtype=np.complex128)
+    G0 = np.empty((n_h, nd, nd), dtype=np.complex128)
     Qc = np.zeros((nd, n_h), dtype=np.complex128)
     Qall = np.empty((n_f, nd, n_h), dtype=np.complex128)   # rows of converged points
     q0 = np.empty(nd, dtype=np.complex128)
     q0n = np.empty(nd, dtype=np.complex128)
+    q0s = np.empty(nd, dtype=np.complex128)
     Q = np.zeros((nd, n_h), dtype=np.complex128)
     Qp = np.zeros((nd, n_h), dtype=np.complex128)
     Qpp = np.zeros((nd, n_h), dtype=np.complex128)
@@ -699,9 +709,11 @@ def _sample(i, rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, tol, m
             for j in range(nd):
                 for h in range(n_h):
                     Q[j, h] = Qsh[j, h]
-            ok, it, rel = _continuation(Q, Qc, orders, G, Gs, q0, kci, fs, n_time, tol,
-                                        max_iter, F, dF, R, J, piv, dx, dw, Qt, work, nd, n_h,
-                                        chain)
+                    for m in range(nd):
+                        G0[h, j, m] = G[h, j, m] if h == 0 else 0.0j
+            ok, it, rel = _continuation(Q, Qc, orders, G, Gs, G0, q0, q0s, q0, kci, fs,
+                                        n_time, tol, max_iter, F, dF, R, J, piv, dx, dw, Qt,
+                                        work, nd, n_h, chain)
             its += it
         iterations[i, k] = min(its, 32767)
         residual[i, k] = rel
@@ -729,45 +741,74 @@ def _sample(i, rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, tol, m
                  yt, pc, ps)
     if n_failed == 0 or n_failed == n_f:
         return
-    # back down the grid: a failed point below a converged one starts from it
-    for k in range(n_f - 2, -1, -1):
-        if status[i, k] >= 0 or status[i, k + 1] < 0:
+    # back down the grid: a failed point next to a converged one starts from it: from the
+    # one above (predicted, itself, by continuation in frequency), then by continuation
+    # in frequency from the one below (the sweep tried it directly)
+    for k in range(n_f - 1, -1, -1):
+        if status[i, k] >= 0:
+            continue
+        above = k + 1 < n_f and status[i, k + 1] >= 0
+        below = k > 0 and status[i, k - 1] >= 0
+        if not (above or below):
             continue
         for h in range(n_h):
             _dense_G(rech, r_base + h, k, a, b, G[h], nd)
-            _dense_G(rech, r_base + h, k + 1, a, b, Gs[h], nd)
         for j in range(nd):
             q0[j] = _q0(rech, r_base, k, force, a, b, j)
-        sh = _single_harmonic_start(s1[i, k], G, q0, kci, Qsh, T, piv, nd, n_h)
-        for j in range(nd):
-            q0n[j] = _q0(rech, r_base, k + 1, force, a, b, j)
-        sh_next = _single_harmonic_start(s1[i, k + 1], Gs, q0n, kci, Qsh_prev, T, piv, nd,
-                                         n_h)
-        next2 = k + 2 < n_f and status[i, k + 2] >= 0
+        sh = False
+        sh_next = False
+        if above:
+            for h in range(n_h):
+                _dense_G(rech, r_base + h, k + 1, a, b, G0[h], nd)
+            for j in range(nd):
+                q0n[j] = _q0(rech, r_base, k + 1, force, a, b, j)
+            sh = _single_harmonic_start(s1[i, k], G, q0, kci, Qsh, T, piv, nd, n_h)
+            sh_next = _single_harmonic_start(s1[i, k + 1], G0, q0n, kci, Qsh_prev, T, piv,
+                                             nd, n_h)
+        next2 = above and k + 2 < n_f and status[i, k + 2] >= 0
         its = 0
         ok = False
-        # the prediction, then the solution above itself (one call site: _newton is
-        # inlined, and every copy adds to the compile time)
-        for attempt in range(2):
+        st = FROM_ABOVE
+        # one call site each of _newton and _continuation: every copy adds to the
+        # compile time
+        for attempt in range(4):
+            if attempt < 3 and not above or attempt == 3 and not below:
+                continue
             if attempt == 0 and not ((sh and sh_next) or next2):
                 continue                 # no prediction: the solution above alone
-            for j in range(nd):
-                for h in range(n_h):
-                    if attempt == 0 and h == 0 and sh and sh_next:
-                        Q[j, h] = Qall[k + 1, j, h] + (Qsh[j, h] - Qsh_prev[j, h])
-                    elif attempt == 0 and next2:
-                        Q[j, h] = 2.0 * Qall[k + 1, j, h] - Qall[k + 2, j, h]
-                    else:
-                        Q[j, h] = Qall[k + 1, j, h]
-            ok, it, rel = _newton(Q, orders, G, q0, kci, fs, n_time, tol, max_iter, F, dF,
-                                  R, J, piv, dx, dw, Qt, work, nd, n_h, chain)
+            if attempt < 2:
+                for j in range(nd):
+                    for h in range(n_h):
+                        if attempt == 0 and h == 0 and sh and sh_next:
+                            Q[j, h] = Qall[k + 1, j, h] + (Qsh[j, h] - Qsh_prev[j, h])
+                        elif attempt == 0 and next2:
+                            Q[j, h] = 2.0 * Qall[k + 1, j, h] - Qall[k + 2, j, h]
+                        else:
+                            Q[j, h] = Qall[k + 1, j, h]
+                ok, it, rel = _newton(Q, orders, G, q0, kci, fs, n_time, tol, max_iter, F,
+                                      dF, R, J, piv, dx, dw, Qt, work, nd, n_h, chain)
+            else:
+                kn = k + 1                   # G0 and q0n hold its receptances and drive
+                if attempt == 3:
+                    kn = k - 1
+                    st = 0                   # on the branch continued from below
+                    for h in range(n_h):
+                        _dense_G(rech, r_base + h, kn, a, b, G0[h], nd)
+                    for j in range(nd):
+                        q0n[j] = _q0(rech, r_base, kn, force, a, b, j)
+                for j in range(nd):
+                    for h in range(n_h):
+                        Q[j, h] = Qall[kn, j, h]
+                ok, it, rel = _continuation(Q, Qc, orders, G, Gs, G0, q0, q0s, q0n, kci, fs,
+                                            n_time, tol, max_iter, F, dF, R, J, piv, dx, dw,
+                                            Qt, work, nd, n_h, chain)
             its += it
             if ok:
                 break
         iterations[i, k] = min(iterations[i, k] + its, 32767)
         if not ok:
             continue
-        status[i, k] = FROM_ABOVE
+        status[i, k] = st
         residual[i, k] = rel
         for j in range(nd):
             for h in range(n_h):
