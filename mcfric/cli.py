@@ -1207,20 +1207,30 @@ def _stored_points(path, member, freqs, quantity):
              f"tolerance and iterations, a short sweep over the frequencies given, each "
              f"started from the one before, a failed one again from the one after: near a "
              f"fold it may reach another branch than the run's sweep over its grid)"]
+
+    def grid_index(fk):
+        """The grid frequency ``fk`` is taken as (index), or None."""
+        if not (math.isfinite(fk) and fk > 0):
+            return None
+        k = int(np.argmin(np.abs(f - fk)))
+        step = np.min(np.abs(np.diff(f)[max(k - 1, 0):k + 1])) if len(f) > 1 else np.inf
+        near = abs(f[k] - fk) <= GRID_MATCH * fk and abs(f[k] - fk) < step / 2
+        return k if abs(f[k] - fk) <= 1e-12 * fk or near else None
+
+    on_grid = [grid_index(fk) for fk in freqs]
     out = []
-    for fk in freqs:
+    for fk, k in zip(freqs, on_grid):
         if not (math.isfinite(fk) and fk > 0):
             out.append(fk)              # refused with its own message before any work
             continue
-        k = int(np.argmin(np.abs(f - fk)))
-        step = np.min(np.abs(np.diff(f)[max(k - 1, 0):k + 1])) if len(f) > 1 else np.inf
-        if abs(f[k] - fk) <= 1e-12 * fk:
+        if k is not None and abs(f[k] - fk) <= 1e-12 * fk:
             fk = float(f[k])
-        elif abs(f[k] - fk) <= GRID_MATCH * fk and abs(f[k] - fk) < step / 2:
+        elif k is not None:
             lines.append(f"file: --f {fk:g} Hz taken as the run's grid frequency "
                          f"{f[k]:.10g} Hz")
             fk = float(f[k])
         else:
+            k = int(np.argmin(np.abs(f - fk)))
             lines.append(f"file: {fk:g} Hz is not a grid frequency of the run (nearest "
                          f"{f[k]:.10g} Hz)")
             out.append(fk)
@@ -1232,10 +1242,9 @@ def _stored_points(path, member, freqs, quantity):
             lines.append(f"file: at {fk:.10g} Hz the run stored M = {metric[k]:.6g} "
                          f"{METRIC_UNITS[quantity]} ({quantity}, the run's metric)")
             if above[k]:
-                given = k + 1 < len(f) and any(abs(g - f[k + 1]) <= GRID_MATCH * g
-                                               for g in freqs if math.isfinite(g))
                 nxt = (f"; add its next grid frequency, --f {fk:.10g} {f[k + 1]:.10g}, to "
-                       f"start there too" if k + 1 < len(f) and not given else "")
+                       f"start there too" if k + 1 < len(f) and k + 1 not in on_grid
+                       else "")
                 lines.append(f"file: the run reached {fk:.10g} Hz only from its solution at "
                              f"the next grid frequency (from_above){nxt}")
     return out, lines
