@@ -1205,8 +1205,8 @@ def _stored_points(path, member, freqs, quantity):
              else np.zeros(len(f), bool))
     lines = [f"file: member {member}'s harmonic balance here is solved afresh (the run's "
              f"tolerance and iterations, a short sweep over the frequencies given, each "
-             f"started from the one before, a failed one again from the one after: near a "
-             f"fold it may reach another branch than the run's sweep over its grid)"]
+             f"started from the one before, a failed one again from its neighbours: near "
+             f"a fold it may reach another branch than the run's sweep over its grid)"]
 
     def grid_index(fk):
         """The grid frequency ``fk`` is taken as (index), or None."""

@@ -153,7 +153,9 @@ def solve(model, freq_hz, mu0, kc, N0=0.5, *, modal_freq_hz=None, tol=TOL,
     warm-starting every point from the previous ones: like a slow stepped sine, so on a
     branch with several solutions the one continued from below is returned. With
     ``harmonics > 1`` or ``aft``, a point the sweep cannot reach is tried again from the
-    converged solution at the next frequency (status :data:`FROM_ABOVE`).
+    converged solution at the next frequency (status :data:`FROM_ABOVE`), directly or by
+    continuation in frequency, then by continuation in frequency from the converged one
+    before it (status 0).
 
     Parameters
     ----------

@@ -29,8 +29,8 @@ an upward grid), predicted as in the sweep, then from that solution itself, then
 continuation in frequency from it (the receptances and the drive moved from that
 frequency's to the point's on a straight line, :func:`_continuation`). Such a point lies
 on the branch continued from the other side, and its status says so (3). Last, by
-continuation in frequency from the converged solution below (status 0: the sweep's own
-branch, which its direct Newton from there missed).
+continuation in frequency from the converged solution below (status 0: continued from
+below, as the sweep's points are; only the lowest point of a run of failures has one).
 
 Arguments
 ---------
@@ -570,12 +570,14 @@ def _continuation(Q, Qc, orders, G, Gs, G0, q0, q0s, q00, kc, fs, n_time, tol, m
             Qc[j, h] = Q[j, h]
     while lam < 1.0 and step >= _LAMBDA_MIN_STEP:
         target = min(1.0, lam + step)
+        end = target == 1.0             # the point's own equations, not rounded ones
         for h in range(n_h):
             for j in range(nd):
                 for m in range(nd):
-                    Gs[h, j, m] = G0[h, j, m] + target * (G[h, j, m] - G0[h, j, m])
+                    Gs[h, j, m] = (G[h, j, m] if end else
+                                   G0[h, j, m] + target * (G[h, j, m] - G0[h, j, m]))
         for j in range(nd):
-            q0s[j] = q00[j] + target * (q0[j] - q00[j])
+            q0s[j] = q0[j] if end else q00[j] + target * (q0[j] - q00[j])
             for h in range(n_h):
                 Q[j, h] = Qc[j, h]
         ok, it, rel = _newton(Q, orders, Gs, q0s, kc, fs, n_time, tol, max_iter, F, dF, R, J,
