@@ -18,7 +18,6 @@ its own random stream). Where the sample is too small for a side (``l < 1`` or
 from __future__ import annotations
 
 import numpy as np
-from scipy import stats
 
 
 def quantile_interval(values, p, confidence=0.95):
@@ -48,6 +47,9 @@ def quantile_interval(values, p, confidence=0.95):
     n = x.size
     if n == 0:
         return float("nan"), float("nan")
+    # imported here, not at the top: slow to import, and every command would wait for it
+    from scipy import stats
+
     tail = 0.5 * (1.0 - confidence)
     k = np.arange(n + 2)
     # the largest l with P(B <= l - 1) <= tail, the smallest u with P(B >= u) <= tail
