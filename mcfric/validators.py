@@ -23,6 +23,8 @@ import re
 
 import numpy as np
 
+from .scalars import is_bool, is_int
+
 
 class InputError(ValueError):
     """Bad input: ``key`` (what was wrong) and ``message`` (what is allowed).
@@ -61,11 +63,6 @@ def show(v):
 def choices(options):
     """``"a", "b", "c"``: the allowed words of a choice."""
     return ", ".join(json.dumps(o) for o in options)
-
-
-def is_int(v):
-    """True for an integer that is not a boolean."""
-    return isinstance(v, (int, np.integer)) and not is_bool(v)
 
 
 def is_num(v):
@@ -196,11 +193,6 @@ def scheduler_address():
         raise InputError(key, f"expected {what}, got {show(v)}")
     check.what = what
     return check
-
-
-def is_bool(v):
-    """True for ``True``/``False``, numpy's included (a word such as ``"no"`` is not)."""
-    return isinstance(v, (bool, np.bool_))
 
 
 def boolean():

@@ -7,17 +7,8 @@ import os
 import h5py
 import numpy as np
 
+from ..scalars import is_bool, is_int
 from .files import DONE, StoreError
-
-
-def is_bool(v):
-    """True for Python's and numpy's booleans (the store imports nothing above it)."""
-    return isinstance(v, (bool, np.bool_))
-
-
-def is_int(v):
-    """True for an integer that is not a boolean."""
-    return isinstance(v, (int, np.integer)) and not is_bool(v)
 
 
 def _open_read(path):
