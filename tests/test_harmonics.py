@@ -502,6 +502,27 @@ def test_verify_says_when_the_run_reached_a_point_only_from_above(tmp_path, caps
     assert "add its next grid frequency" not in text
 
 
+def test_verify_asks_for_the_next_grid_frequency_on_a_fine_grid(tmp_path, capsys):
+    """On a grid finer than verify's 0.1 % snapping (20,000 frequencies over 10-150 Hz:
+    steps of 0.07 % at 10 Hz), the from-above point's own frequency is not its next grid
+    frequency: verify still asks for that one (it counted as given when any typed
+    frequency lay within 0.1 % of it)."""
+    import h5py
+
+    res = tmp_path / "r.h5"
+    assert cli.main(["run", "two-beam", "--samples", "2", "--n-freq", "20000", "--harmonics",
+                     "3", "-o", str(res), "--no-progress", "--no-figure", "--no-bounds"]) == 0
+    with h5py.File(res, "r+") as h:
+        f = h["frequency"][()]
+        h["from_above"][1, 4] = True
+    assert abs(f[5] - f[4]) < 1e-3 * f[4]
+    capsys.readouterr()
+    assert cli.main(["verify", str(res), "--member", "1", "--f", f"{f[4]:.10g}",
+                     "--harmonics", "3", "-o", str(tmp_path / "v.csv"), "--no-figure"]) == 0
+    assert (f"add its next grid frequency, --f {f[4]:.10g} {f[5]:.10g}"
+            in capsys.readouterr().out)
+
+
 def test_verify_solves_a_members_points_with_the_runs_solver_settings(tmp_path, capsys,
                                                                       monkeypatch):
     from mcfric import verify as verify_module
