@@ -193,6 +193,12 @@ def auto_chunk(spec):
     return int(min(1 << (k.bit_length() - 1), spec.samples))
 
 
+def chunk_samples(spec):
+    """Samples per chunk of a run: ``[run] chunk``, or :func:`auto_chunk` for 0; at most
+    the run's samples."""
+    return min(spec.samples, spec.execution.chunk or auto_chunk(spec))
+
+
 def layout(spec):
     """The store layout of a run: coords, variables, root attrs, summary placeholders."""
     model = spec.model
@@ -513,7 +519,7 @@ def peak_memory_bytes(spec):
     nb, nd = spec.model.n_beams, spec.model.n_dampers
     n_f = len(spec.freq_hz)
     n_h = (spec.solver.harmonics + 1) // 2
-    chunk = min(spec.samples, spec.execution.chunk or auto_chunk(spec))
+    chunk = chunk_samples(spec)
     est = 3 * chunk * (output_bytes(spec) / spec.samples)
     est += n_f * 4 * nb * 16 * n_h * (chunk if spec.mistuned else 1)
     if spec.bounds:
@@ -527,7 +533,7 @@ def check_solvable(spec):
     check_harmonic_memory`): not skipped by ``--skip-space-check``."""
     if spec.solver.harmonics == 1:
         return
-    chunk = min(spec.samples, spec.execution.chunk or auto_chunk(spec))
+    chunk = chunk_samples(spec)
     try:
         with threads(spec.execution.threads):
             hbm.check_harmonic_memory(spec.model, spec.solver.harmonics, spec.solver.n_time,
@@ -753,8 +759,7 @@ def _drive(spec, store, done, not_conv_before, progress, t_start, cluster=None):
 
     n_f = len(spec.freq_hz)
     ex = spec.execution
-    chunk = ex.chunk or auto_chunk(spec)
-    chunks = _pending_chunks(done, chunk)
+    chunks = _pending_chunks(done, chunk_samples(spec))
     n_before = int(np.count_nonzero(done))
 
     bar = tqdm(total=spec.samples, initial=n_before, unit="sample", disable=not progress,
