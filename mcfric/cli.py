@@ -1208,29 +1208,31 @@ def _stored_points(path, member, freqs, quantity):
              f"started from the one before, a failed one again from its neighbours: near "
              f"a fold it may reach another branch than the run's sweep over its grid)"]
 
-    def grid_index(fk):
-        """The grid frequency ``fk`` is taken as (index), or None."""
-        if not (math.isfinite(fk) and fk > 0):
-            return None
+    def snap(fk):
+        """The nearest grid frequency's index, and whether ``fk`` is that frequency
+        (``"exact"``), is taken as it (``"near"``), or neither (None)."""
         k = int(np.argmin(np.abs(f - fk)))
         step = np.min(np.abs(np.diff(f)[max(k - 1, 0):k + 1])) if len(f) > 1 else np.inf
+        if abs(f[k] - fk) <= 1e-12 * fk:
+            return k, "exact"
         near = abs(f[k] - fk) <= GRID_MATCH * fk and abs(f[k] - fk) < step / 2
-        return k if abs(f[k] - fk) <= 1e-12 * fk or near else None
+        return k, ("near" if near else None)
 
-    on_grid = [grid_index(fk) for fk in freqs]
+    # refused with their own message before any work: not snapped
+    snapped = [snap(fk) if math.isfinite(fk) and fk > 0 else (None, None) for fk in freqs]
+    on_grid = {k for k, how in snapped if how}
     out = []
-    for fk, k in zip(freqs, on_grid):
-        if not (math.isfinite(fk) and fk > 0):
-            out.append(fk)              # refused with its own message before any work
+    for fk, (k, how) in zip(freqs, snapped):
+        if k is None:
+            out.append(fk)
             continue
-        if k is not None and abs(f[k] - fk) <= 1e-12 * fk:
+        if how == "exact":
             fk = float(f[k])
-        elif k is not None:
+        elif how == "near":
             lines.append(f"file: --f {fk:g} Hz taken as the run's grid frequency "
                          f"{f[k]:.10g} Hz")
             fk = float(f[k])
         else:
-            k = int(np.argmin(np.abs(f - fk)))
             lines.append(f"file: {fk:g} Hz is not a grid frequency of the run (nearest "
                          f"{f[k]:.10g} Hz)")
             out.append(fk)
