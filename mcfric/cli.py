@@ -221,9 +221,10 @@ def _verify_parser(sub):
     v.add_argument("--N0", type=float, metavar="N", help="normal preload, N (default 0.5)")
     v.add_argument("--F0", type=float, metavar="NEWTONS",
                    help="excitation amplitude of the preset's pattern, N")
-    v.add_argument("--harmonics", type=int, default=9, metavar="H",
+    v.add_argument("--harmonics", type=int, metavar="H",
                    help="highest odd harmonic (>= 3) of the multi-harmonic solution "
-                        "compared beside the single-harmonic one (default 9)")
+                        "compared beside the single-harmonic one (default: the run's or "
+                        "configuration's solver.harmonics where it is > 1, else 9)")
     v.add_argument("--start", choices=("single", "rest"), default="single",
                    help="initial state: the single-harmonic solution (default) or rest")
     v.add_argument("--max-periods", type=int, default=20000, metavar="N",
@@ -1132,7 +1133,8 @@ def cmd_hbm(args):
 def _verify_source(args):
     """Model and parameters of ``mcfric verify``: a preset/config and the flags, or a
     results file's configuration and one member's parameters. Returns ``(model, params,
-    stem, run)``: ``stem`` and ``run`` (the run's validated spec) only for a file."""
+    stem, spec)``: ``stem`` only for a file; ``spec`` the validated run specification (a
+    file's stored one)."""
     import numpy as np
 
     from . import config
@@ -1174,7 +1176,7 @@ def _verify_source(args):
         v = default if v is None else v
         _check_friction_flag(flag, v)
         params.append(v)
-    return spec.model, params, None, None
+    return spec.model, params, None, spec
 
 
 #: ``verify FILE --f HZ``: a frequency this close (relative) to one of the run's grid
@@ -1189,8 +1191,9 @@ def _stored_points(path, member, freqs, quantity):
     compared with, or that there is nothing.
 
     Returns the frequencies to verify (a typed one within ``GRID_MATCH`` of a grid
-    frequency, and nearer to it than to its neighbours, becomes that grid frequency) and
-    the lines to print.
+    frequency, and nearer to it than to its neighbours, becomes that grid frequency), the
+    lines to print, and the stored metric at each of them where the run converged there
+    (a dict, frequency -> M).
     """
     import numpy as np
 
@@ -1222,6 +1225,7 @@ def _stored_points(path, member, freqs, quantity):
     snapped = [snap(fk) if math.isfinite(fk) and fk > 0 else (None, None) for fk in freqs]
     on_grid = {k for k, how in snapped if how}
     out = []
+    stored = {}
     for fk, (k, how) in zip(freqs, snapped):
         if k is None:
             out.append(fk)
@@ -1243,13 +1247,48 @@ def _stored_points(path, member, freqs, quantity):
         else:
             lines.append(f"file: at {fk:.10g} Hz the run stored M = {metric[k]:.6g} "
                          f"{METRIC_UNITS[quantity]} ({quantity}, the run's metric)")
+            stored[fk] = float(metric[k])
             if above[k]:
                 nxt = (f"; add its next grid frequency, --f {fk:.10g} {f[k + 1]:.10g}, to "
                        f"start there too" if k + 1 < len(f) and k + 1 not in on_grid
                        else "")
                 lines.append(f"file: the run reached {fk:.10g} Hz only from its solution at "
                              f"the next grid frequency (from_above){nxt}")
-    return out, lines
+    return out, lines, stored
+
+
+def _compared_with_stored(vs, stored, spec, harmonics):
+    """Lines comparing the metric of the balance verify solved with the value the run
+    stored, at each verified grid frequency where the run converged: whether verify's
+    table shows the file's solution (the same to the solver's tolerance), another branch
+    of the same equations, or (``harmonics`` not the run's) another truncation."""
+    import numpy as np
+
+    from .metric import response_metric
+
+    H_run = spec.solver.harmonics
+    if H_run > 1 and harmonics != H_run:
+        return [f"file: the run balanced H = {H_run}, verify H = {harmonics} (--harmonics): "
+                f"its multi-harmonic columns are another truncation, not the file's values"]
+    lines = []
+    for v in vs:
+        if v.freq_hz not in stored:
+            continue
+        y = v.single if H_run == 1 else v.multi[0]
+        m = float(response_metric(y[None, :], np.array([v.freq_hz]), spec.metric.quantity,
+                                  spec.metric.beams)[0])
+        what = "single-harmonic" if H_run == 1 else f"H = {H_run}"
+        if not np.isfinite(m):
+            lines.append(f"file: at {v.freq_hz:.10g} Hz the {what} balance solved here did "
+                         f"not converge: the stored value is not checked against it")
+            continue
+        rel = abs(m - stored[v.freq_hz]) / stored[v.freq_hz]
+        same = (f"the stored value's solution ({rel:.1e} from it)" if rel <= 1e-6 else
+                f"{100 * rel:.3g} % from the stored value: a solution (branch) of the same "
+                f"equations other than the run's")
+        lines.append(f"file: at {v.freq_hz:.10g} Hz the {what} balance solved here gives "
+                     f"M = {m:.6g}, {same}")
+    return lines
 
 
 def cmd_verify(args):
@@ -1263,15 +1302,20 @@ def cmd_verify(args):
         raise UsageError(f"--max-periods: expected an integer >= 1, got {args.max_periods}")
     from .hbm import MAX_HARMONICS
 
-    if not 3 <= args.harmonics <= MAX_HARMONICS or args.harmonics % 2 == 0:
+    if args.harmonics is not None and (not 3 <= args.harmonics <= MAX_HARMONICS
+                                       or args.harmonics % 2 == 0):
         # the single-harmonic solution is compared in any case
         raise UsageError(f"--harmonics: expected an odd integer in 3..{MAX_HARMONICS} (the "
                          f"odd harmonics 1, 3, ..., H are balanced beside the "
                          f"single-harmonic solution), got {args.harmonics}")
-    model, (mu0, kc, N0), stem, run = _verify_source(args)
-    stored = []
+    model, (mu0, kc, N0), stem, spec = _verify_source(args)
+    H_run = spec.solver.harmonics
+    # by default the run's own balance, so that the table shows the file's values
+    harmonics = args.harmonics or (H_run if H_run > 1 else 9)
+    lines, stored = [], {}
     if stem is not None:
-        args.f, stored = _stored_points(args.source, args.member, args.f, run.metric.quantity)
+        args.f, lines, stored = _stored_points(args.source, args.member, args.f,
+                                               spec.metric.quantity)
 
     def usage(e):
         msg = str(e).splitlines()[0]
@@ -1286,18 +1330,21 @@ def cmd_verify(args):
     # mcfric-results/verify-NAME.csv was overwritten)
     out = _output_path(args, ".csv", prefix="verify-", figure=not args.no_figure)
     try:
-        # a file's member: its harmonic balance with the run's tolerance and iterations
-        vs = verify(model, args.f, mu0, kc, N0, harmonics=args.harmonics, start=args.start,
+        # the harmonic balance with the run's tolerance, iterations and (its H) AFT samples
+        vs = verify(model, args.f, mu0, kc, N0, harmonics=harmonics, start=args.start,
                     max_periods=args.max_periods, progress=not args.no_progress,
-                    hb_tol=run and run.solver.tol, hb_max_iter=run and run.solver.max_iter)
+                    hb_tol=spec.solver.tol, hb_max_iter=spec.solver.max_iter,
+                    hb_n_time=spec.solver.n_time if harmonics == H_run else None)
     except ValueError as e:
         raise usage(e) from None
     label = (f"mu0 = {np.ravel(mu0)[0]:g}, kc = {np.ravel(kc)[0]:g} N/m, "
              f"N0 = {np.ravel(N0)[0]:g} N" if np.size(mu0) == 1 or np.ptp(mu0) == 0 else
              "member parameters")
     print(f"mcfric verify: {model.name}, {label}, F0 = {model.excitation.F0:g} N; "
-          f"time integration against harmonic balance (H = 1 and H = {args.harmonics})")
-    for line in stored:
+          f"time integration against harmonic balance (H = 1 and H = {harmonics})")
+    if stem is not None:
+        lines += _compared_with_stored(vs, stored, spec, harmonics)
+    for line in lines:
         print(line)
     rows = []
     for v in vs:
@@ -1322,7 +1369,7 @@ def cmd_verify(args):
     h1 = sum(bool(np.isnan(v.single).any()) for v in vs)
     hm = sum(bool(np.isnan(v.multi).any()) for v in vs)
     if h1 or hm:
-        print(f"harmonic balance not converged: H = 1 at {h1}, H = {args.harmonics} at {hm} "
+        print(f"harmonic balance not converged: H = 1 at {h1}, H = {harmonics} at {hm} "
               f"of {len(vs)} frequencies (NaN in the table and the CSV, no difference)")
     print(f"csv: {out}")
     if not args.no_figure:

@@ -19,7 +19,7 @@ from .core.aft import harmonic_orders
 from .core.friction import describing_function
 from .core.receptance import contact_space
 from .core.time_integration import integrate
-from .hbm import check_harmonics, solve
+from .hbm import MAX_N_TIME, check_harmonics, solve
 from .model import Model
 from .validators import fraction, integer
 from .validators import frequencies as check_frequencies
@@ -223,7 +223,7 @@ def _single_harmonic_state(model, omega, mu0, kc, N0, s):
 
 def verify(model, freq_hz, mu0, kc, N0=0.5, *, harmonics=9, start="single", tol=TOL,
            settle=SETTLE, max_periods=MAX_PERIODS, steps=None, progress=False,
-           hb_tol=None, hb_max_iter=None):
+           hb_tol=None, hb_max_iter=None, hb_n_time=None):
     """Integrate to a periodic state at each frequency and compare with harmonic balance.
 
     Parameters
@@ -250,9 +250,10 @@ def verify(model, freq_hz, mu0, kc, N0=0.5, *, harmonics=9, start="single", tol=
         Time steps per period (default from the fastest mode; at least 64).
     progress : bool
         Show a tqdm bar over the frequencies on stderr (an integration takes seconds).
-    hb_tol, hb_max_iter : float, int, optional
-        The harmonic-balance solver's residual tolerance and Newton iterations (default:
-        :func:`mcfric.solve`'s), e.g. a results file's, to solve its points as its run did.
+    hb_tol, hb_max_iter, hb_n_time : float, int, int, optional
+        The harmonic-balance solver's residual tolerance, Newton iterations and AFT
+        samples per period (default: :func:`mcfric.solve`'s), e.g. a results file's, to
+        solve its points as its run did.
 
     Returns
     -------
@@ -285,6 +286,8 @@ def verify(model, freq_hz, mu0, kc, N0=0.5, *, harmonics=9, start="single", tol=
         fraction("hb_tol", hb_tol)
     if hb_max_iter is not None:
         integer(1, 10000)(hb_max_iter, "hb_max_iter")
+    if hb_n_time is not None:
+        integer(4 * harmonics + 4, MAX_N_TIME)(hb_n_time, "hb_n_time")
     f, n_steps_at = time_steps(model, freq_hz, kc, steps)
     orders = harmonic_orders(harmonics)
     # the mean and the 2nd harmonic are projected (and settled) too: a state that breaks
@@ -294,7 +297,7 @@ def verify(model, freq_hz, mu0, kc, N0=0.5, *, harmonics=9, start="single", tol=
     hb = {k: v for k, v in (("tol", hb_tol), ("max_iter", hb_max_iter)) if v is not None}
     shb = solve(model, f, mu0[None], kc[None], N0[None], **hb)
     mhb = solve(model, f, mu0[None], kc[None], N0[None], harmonics=harmonics,
-                store_harmonics=True, **hb) if harmonics > 1 else None
+                n_time=hb_n_time, store_harmonics=True, **hb) if harmonics > 1 else None
     fr, z, u = model.modal_arrays()
     w = 2 * np.pi * fr
     uc, uo, ud = (np.ascontiguousarray(u[:, :, i]) for i in range(3))

@@ -460,6 +460,9 @@ def test_verify_takes_a_member_of_a_results_file(tmp_path, capsys):
     assert f"at {f[5]:.10g} Hz the run did not converge (no value stored)" in text
     assert "30 Hz is not a grid frequency of the run" in text
     assert "solved afresh" in text
+    # the single-harmonic run's own balance, solved again, is the stored solution
+    assert (f"at {f[3]:.10g} Hz the single-harmonic balance solved here gives M = {m:.6g}, "
+            f"the stored value's solution") in text
     np.testing.assert_allclose(np.genfromtxt(out, delimiter=",", names=True)["frequency_hz"],
                                np.repeat([f[3], f[5], 30.0], 2), rtol=1e-9)   # verified there
     # a member not done holds zeros, not NaN: refused by its done flag
@@ -539,6 +542,49 @@ def test_verify_solves_a_members_points_with_the_runs_solver_settings(tmp_path, 
                      "--no-figure", "-o", str(tmp_path / "v.csv")]) == 0
     assert len(seen) == 2 and all(k["tol"] == 1e-8 and k["max_iter"] == 30 for k in seen)
     assert "the run's tolerance and iterations" in capsys.readouterr().out
+
+
+def test_verify_balances_a_multi_harmonic_files_own_truncation(tmp_path, capsys,
+                                                               monkeypatch):
+    """``verify FILE`` of a run with H = 5 and its own AFT samples balances H = 5 with
+    them by default (it balanced H = 9, whatever the run's H): its multi-harmonic columns
+    are the stored fundamentals, and a line says so; with another ``--harmonics`` a line
+    says the columns are another truncation."""
+    import h5py
+
+    from mcfric import verify as verify_module
+
+    cfg = tmp_path / "c.toml"
+    cfg.write_text('model.preset = "two-beam"\nsolver.harmonics = 5\nsolver.n_time = 48\n')
+    res = tmp_path / "r.h5"
+    assert cli.main(["run", str(cfg), "--samples", "3", "--n-freq", "20", "-o", str(res),
+                     "--no-progress", "--no-figure", "--no-bounds"]) == 0
+    with h5py.File(res, "r") as h:
+        f = h["frequency"][()]
+        y = h["response"][1, 7]
+        assert h["converged"][1, 7]
+    seen = []
+    solve = verify_module.solve
+    monkeypatch.setattr(verify_module, "solve", lambda *a, **k: seen.append(k) or solve(*a, **k))
+    capsys.readouterr()
+    out = tmp_path / "v.csv"
+    assert cli.main(["verify", str(res), "--member", "1", "--f", f"{f[7]:.10g}",
+                     "--no-figure", "-o", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert seen[1]["harmonics"] == 5 and seen[1]["n_time"] == 48
+    assert "time integration against harmonic balance (H = 1 and H = 5)" in text
+    assert f"at {f[7]:.10g} Hz the H = 5 balance solved here gives M = " in text
+    assert "the stored value's solution" in text
+    table = np.genfromtxt(out, delimiter=",", names=True)
+    np.testing.assert_allclose(table["mhb_abs_y1_m"], np.abs(y), rtol=1e-8)
+    seen.clear()
+    assert cli.main(["verify", str(res), "--member", "1", "--f", f"{f[7]:.10g}",
+                     "--harmonics", "3", "--no-figure", "-o", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert seen[1]["harmonics"] == 3 and seen[1]["n_time"] is None
+    assert ("the run balanced H = 5, verify H = 3 (--harmonics): its multi-harmonic "
+            "columns are another truncation, not the file's values") in text
+    assert "balance solved here gives" not in text
 
 
 def test_a_multi_harmonic_run_says_its_bounds_are_the_single_harmonic_models(tmp_path,
