@@ -61,7 +61,10 @@ class HBMResult:
         (3): converged only from the solution at the next frequency, sweeping back down
         (on an upward grid the branch reached from above, which may differ from the one
         continued from below where there are several); there, 0 also marks a point
-        converged after the sweep by continuation in frequency from the point below.
+        converged after the sweep by continuation in frequency from the point below; and
+        4 (:data:`~mcfric.core.multi_harmonic.FROM_REST`) one converged after the sweep
+        only by continuation in the drive from rest, at its own frequency (where no
+        neighbour converged).
     iterations : ndarray of int16, shape (n_s, n_f)
     residual : ndarray, shape (n_s, n_f)
         Single harmonic: ``max_j |s_j kc_j A_j / (mu0_j N0_j) - 1|`` of the returned
@@ -155,7 +158,8 @@ def solve(model, freq_hz, mu0, kc, N0=0.5, *, modal_freq_hz=None, tol=TOL,
     ``harmonics > 1`` or ``aft``, a point the sweep cannot reach is tried again from the
     converged solution at the next frequency (status :data:`FROM_ABOVE`), directly or by
     continuation in frequency, then by continuation in frequency from the converged one
-    before it (status 0).
+    before it (status 0), last by continuation in the drive from rest (status
+    4, :data:`~mcfric.core.multi_harmonic.FROM_REST`).
 
     Parameters
     ----------

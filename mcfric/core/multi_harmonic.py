@@ -28,9 +28,13 @@ grid: from the converged solution at the next frequency of the sweep (the one ab
 an upward grid), predicted as in the sweep, then from that solution itself, then by
 continuation in frequency from it (the receptances and the drive moved from that
 frequency's to the point's on a straight line, :func:`_continuation`). Such a point lies
-on the branch continued from the other side, and its status says so (3). Last, by
+on the branch continued from the other side, and its status says so (3). Then by
 continuation in frequency from the converged solution below (status 0: continued from
-below, as the sweep's points are; only the lowest point of a run of failures has one).
+below, as the sweep's points are). Last, where nothing else converged (no neighbour did,
+e.g. on a band across a resonance), by continuation in the drive, from rest (``Q = 0`` at
+zero drive) up to the point's (status 4). A point below one reached so starts from it
+in the same pass; the points above it get one more pass up the grid, by continuation in
+frequency from the point below where that converged only after the sweep (status 0).
 
 Arguments
 ---------
@@ -57,7 +61,8 @@ status, iterations, residual
     by continuation in frequency from the point below), 1 from the single-harmonic
     start, 2 by continuation in the higher harmonics' coupling from the single-harmonic
     start, 3 only from the converged solution at the next frequency (continued back down
-    the grid), -1 not converged (``y``, ``y_peak`` and ``s`` NaN);
+    the grid), 4 after the sweep by continuation in the drive from rest, -1 not
+    converged (``y``, ``y_peak`` and ``s`` NaN);
     iterations of all attempts; the final ``max |R| / max_j |Q_j1|`` (of the sweep's
     attempts where the point did not converge).
 """
@@ -77,6 +82,9 @@ from .sweep import _dense_G, _q0
 #: Status of a point that converged only from the solution at the next frequency,
 #: sweeping back down the grid (on the branch reached from above).
 FROM_ABOVE = 3
+#: Status of a point that converged only from rest, by raising the drive at its own
+#: frequency after the sweep (no neighbour converged).
+FROM_REST = 4
 _MAX_HALVINGS = 10
 #: Watchdog: after ``_CRAWL_ITERS`` iterations in a row whose accepted step was at most
 #: ``_CRAWL_STEP``, a rejected full step is followed by up to ``_WATCHDOG_STEPS`` undamped
@@ -741,17 +749,25 @@ def _sample(i, rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, tol, m
                 Qall[k, j, h] = Q[j, h]
         _outputs(i, k, Q, F, rech, r_base, force, a, b, orders, kci, fs, y, y_peak, s, yh,
                  yt, pc, ps)
-    if n_failed == 0 or n_failed == n_f:
+    if n_failed == 0:
         return
     # back down the grid: a failed point next to a converged one starts from it: from the
     # one above (predicted, itself, by continuation in frequency), then by continuation
-    # in frequency from the one below (the sweep tried it directly)
-    for k in range(n_f - 1, -1, -1):
+    # in frequency from the one below (the sweep tried it directly); last, from rest by
+    # raising the drive at its own frequency (where no neighbour converged, e.g. on a
+    # band that starts on a resonance, the only way in). Then up the grid again: a point
+    # whose neighbour below converged only in that pass, by continuation from it (a run
+    # of failures above a point the drive reached). Every other attempt of the pass up
+    # would repeat one of the pass down with the same data.
+    late = np.zeros(n_f, dtype=np.bool_)         # converged after the sweep
+    for p in range(2 * n_f):
+        up = p >= n_f
+        k = p - n_f if up else n_f - 1 - p
         if status[i, k] >= 0:
             continue
-        above = k + 1 < n_f and status[i, k + 1] >= 0
+        above = not up and k + 1 < n_f and status[i, k + 1] >= 0
         below = k > 0 and status[i, k - 1] >= 0
-        if not (above or below):
+        if up and not (below and late[k - 1]):
             continue
         for h in range(n_h):
             _dense_G(rech, r_base + h, k, a, b, G[h], nd)
@@ -773,9 +789,11 @@ def _sample(i, rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, tol, m
         st = FROM_ABOVE
         # one call site each of _newton and _continuation: every copy adds to the
         # compile time
-        for attempt in range(4):
+        for attempt in range(5):
             if attempt < 3 and not above or attempt == 3 and not below:
                 continue
+            if up and attempt == 4:
+                continue                 # tried on the way down, with the same data
             if attempt == 0 and not ((sh and sh_next) or next2):
                 continue                 # no prediction: the solution above alone
             if attempt < 2:
@@ -798,9 +816,18 @@ def _sample(i, rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, tol, m
                         _dense_G(rech, r_base + h, kn, a, b, G0[h], nd)
                     for j in range(nd):
                         q0n[j] = _q0(rech, r_base, kn, force, a, b, j)
+                if attempt == 4:
+                    # the point's own receptances, the drive from 0 (solved by Q = 0) up
+                    st = FROM_REST
+                    for h in range(n_h):
+                        for j in range(nd):
+                            for m in range(nd):
+                                G0[h, j, m] = G[h, j, m]
+                    for j in range(nd):
+                        q0n[j] = 0.0j
                 for j in range(nd):
                     for h in range(n_h):
-                        Q[j, h] = Qall[kn, j, h]
+                        Q[j, h] = Qall[kn, j, h] if attempt < 4 else 0.0j
                 ok, it, rel = _continuation(Q, Qc, orders, G, Gs, G0, q0, q0s, q0n, kci, fs,
                                             n_time, tol, max_iter, F, dF, R, J, piv, dx, dw,
                                             Qt, work, nd, n_h, chain)
@@ -812,6 +839,7 @@ def _sample(i, rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, tol, m
             continue
         status[i, k] = st
         residual[i, k] = rel
+        late[k] = True
         for j in range(nd):
             for h in range(n_h):
                 Qall[k, j, h] = Q[j, h]
