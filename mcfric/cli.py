@@ -393,6 +393,9 @@ def _output_path(args, suffix, prefix="", figure=False):
         if not out.parent.is_dir():
             out.parent.mkdir(parents=True, exist_ok=True)
             _MADE_DIRS.append(out.parent)
+    if not os.access(out.parent, os.W_OK | os.X_OK):
+        # found now, not after the work
+        raise UsageError(f"-o: directory {out.parent} is not writable")
     what = "results file" if suffix == ".h5" else f"{suffix[1:].upper()} output"
     if suffix == ".h5" and out.name.endswith(".partial"):
         raise UsageError(f"-o: {out.name} ends in .partial, the name of an interrupted "
@@ -584,7 +587,7 @@ def cmd_run(args):
 
 def _run_one(args, cfg, out, resume_as=None):
     """One ensemble run into ``out``; ``resume_as``: the -o to give ``--resume``."""
-    from . import ensemble, plot
+    from . import ensemble
     from .distributed import ClusterError
     from .memory import MemoryRefused
     from .store import partial_path
@@ -619,6 +622,23 @@ def _run_one(args, cfg, out, resume_as=None):
                 f"free" if partial_path(out).exists() else "")
         print(f"mcfric: error: {_one_line(e)}{kept}", file=sys.stderr)
         return EXIT_FAIL
+    try:
+        _report_run(args, cfg, out, summary)
+    except KeyboardInterrupt:
+        if not summary.complete:
+            raise
+        # the file is whole: only the summary's checks or the figure were cut short
+        print(f"interrupted: {out} is complete; the checks or the figure after it were "
+              f"cut short (`mcfric info {out}`, `mcfric plot {out}`)", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    return EXIT_OK
+
+
+def _report_run(args, cfg, out, summary):
+    """What ``mcfric run`` prints and draws once the run is over: the summary, the bounds'
+    lines, the members' check against them, the figure."""
+    from . import plot
+
     if summary.already_complete:
         print(f"{out} already holds this run (same configuration, [run] and [bounds] "
               f"aside, and seed): nothing to do; --force recomputes it")
@@ -654,7 +674,6 @@ def _run_one(args, cfg, out, resume_as=None):
         png = out.with_suffix(".png")
         plot.results_figure(out, png)
         print(f"figure: {png}")
-    return EXIT_OK
 
 
 def cmd_bounds(args):
@@ -726,6 +745,8 @@ def cmd_plot(args):
         raise UsageError(f"-o: directory {out.parent} does not exist")
     if out.is_dir():
         raise UsageError(f"-o: {out} is a directory")
+    if not os.access(out.parent, os.W_OK | os.X_OK):
+        raise UsageError(f"-o: directory {out.parent} is not writable")
     _not_replacing_hdf5(out, "figure")
     window = None
     if args.f_min is not None or args.f_max is not None:
@@ -1102,7 +1123,10 @@ def cmd_hbm(args):
         table = np.column_stack([table, res.response_peak[0],
                                  res.from_above[0].astype(float)])
         fmt += ["%.10e"] * model.n_beams + ["%d"]
-    np.savetxt(out, table, delimiter=",", header=",".join(header), comments="", fmt=fmt)
+    from .store import replacing
+
+    with replacing(out, "CSV") as tmp:
+        np.savetxt(tmp, table, delimiter=",", header=",".join(header), comments="", fmt=fmt)
     bad = int(np.count_nonzero(~conv))
     print(f"mcfric hbm: {model.name}, mu0 = {args.mu0:g}, kc = {args.kc:g} N/m, "
           f"N0 = {args.N0:g} N, F0 = {model.excitation.F0:g} N; {len(f)} frequencies "
@@ -1143,7 +1167,10 @@ def _verify_source(args):
     # by content: run writes any -o name (out.H5, x)
     if src is not None and (src.endswith((".h5", ".h5.partial"))
                             or (Path(src).is_file() and _is_hdf5(src))):
-        from .store import read
+        from .store import partial_path, read
+        if not Path(src).exists() and partial_path(src).exists():
+            raise UsageError(f"{src}: no such file; {partial_path(src).name} holds the "
+                             f"interrupted run (give that name to verify its members done)")
         if args.member is None:
             raise UsageError("--member: a results file needs --member I (0-based)")
         for flag in ("mu0", "kc", "N0", "F0"):
@@ -1360,8 +1387,11 @@ def cmd_verify(args):
               + [f"time_abs_y{n}_m" for n in orders]
               + ["time_even_m", "time_peak_m", "h1_abs_y1_m", "mhb_abs_y1_m", "mhb_peak_m",
                  "diff_h1", "diff_mhb", "diff_mhb_y3"])
-    np.savetxt(out, np.array(rows), delimiter=",", header=",".join(header), comments="",
-               fmt="%.10g")
+    from .store import replacing
+
+    with replacing(out, "CSV") as tmp:
+        np.savetxt(tmp, np.array(rows), delimiter=",", header=",".join(header),
+                   comments="", fmt="%.10g")
     bad = sum(not v.periodic for v in vs)
     if bad:
         print(f"not periodic: {bad} of {len(vs)} frequencies (reported, not averaged)")

@@ -561,8 +561,10 @@ def check_space(spec, final, resume):
         need = max(0, need - part.stat().st_blocks * 512)
     free = shutil.disk_usage(final.parent).free
     # 1 % and 1 MB of headroom for the metadata and the figure
-    if need + need // 100 + (1 << 20) > free:
-        raise RunError(f"the results file needs {human(need)} but {final.parent} has "
+    room = need + need // 100 + (1 << 20)
+    if room > free:
+        raise RunError(f"the results file needs {human(need)} ({human(room)} with room for "
+                       f"its metadata and the figure) but {final.parent} has "
                        f"{human(free)} free: use fewer samples or frequencies, "
                        f"[output] keep_response = false (metric only), another -o, or "
                        f"--skip-space-check if the estimate is wrong")

@@ -15,7 +15,7 @@ from .hbm import INDICATOR_THRESHOLD
 from .metric import METRIC_UNITS, omega_power
 from .peaks import GRID as PEAK_GRID
 from .peaks import cut_by_band, nominal_bounds
-from .store import dataset_names, iter_records, read, read_attrs, read_group
+from .store import dataset_names, iter_records, read, read_attrs, read_group, replacing
 
 
 def _figure(size=(8, 4.5)):
@@ -291,7 +291,8 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
         labels.append("share flagged (right axis; rerun with --harmonics)")
     # below the axes: with ten entries or more no corner of the axes is free of data
     fig.legend(handles, labels, loc="outside lower center", ncol=2, fontsize=7)
-    fig.savefig(out, dpi=150)
+    with replacing(out, "figure") as tmp:
+        fig.savefig(tmp, dpi=150)
     return {"n_members": n if drawn else 0, "n_drawn": drawn, "has_bounds": B is not None,
             "n_flagged": int(flagged_at.sum()), "n_not_converged": n_failed,
             "n_peaks_unrefined": n_unrefined, "bound_peaks": marked,
@@ -338,7 +339,8 @@ def hbm_figure(freq_hz, amplitude, metric, converged, png_path, title="",
     ax.set_title(title, fontsize=9)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7, ncol=2 if amp.shape[1] > 4 else 1)
-    fig.savefig(png_path, dpi=120)
+    with replacing(png_path, "figure") as tmp:
+        fig.savefig(tmp, dpi=120)
     return png_path
 
 
@@ -376,5 +378,6 @@ def verify_figure(verifications, png_path, title=""):
             ax.legend(fontsize=7)
     fig.axes[-1].set_xlabel("time over one period [ms]")
     fig.suptitle(title, fontsize=9)
-    fig.savefig(png_path, dpi=110)
+    with replacing(png_path, "figure") as tmp:
+        fig.savefig(tmp, dpi=110)
     return png_path

@@ -130,10 +130,13 @@ def test_the_size_estimate_is_the_file_size(tmp_path):
     assert 0.85 * size <= ensemble.output_bytes(spec) <= size
 
 
-def test_a_run_too_large_for_memory_is_refused(tmp_path, capsys):
+def test_a_run_too_large_for_memory_is_refused(tmp_path, capsys, monkeypatch):
+    from mcfric import memory
+
+    monkeypatch.setattr(memory, "available", lambda: 10**9)       # 1 GB free
     cfg = tmp_path / "big.toml"
     assert cli.main(["config", "eight-beam"]) == 0
-    text = capsys.readouterr().out.replace("n_beams = 8", "n_beams = 100000", 1)
+    text = capsys.readouterr().out.replace("n_beams = 8", "n_beams = 8000", 1)
     cfg.write_text(text)
     out = tmp_path / "big.h5"
     assert cli.main(["run", str(cfg), "--samples", "4", "--n-freq", "4", "-o", str(out),
@@ -671,3 +674,92 @@ def test_a_disk_that_fills_mid_run_leaves_a_resumable_partial(small_fs, tmp_path
     with h5py.File(out) as a, h5py.File(straight) as b:
         for name in ("response", "metric", "converged", "done", "mu0", "kc", "N0"):
             assert a[name][...].tobytes() == b[name][...].tobytes(), name
+
+
+def test_an_interrupted_csv_leaves_the_old_file_and_nothing_else(tmp_path, capsys,
+                                                                  monkeypatch):
+    """`mcfric hbm -o keep.csv` cut short while the CSV is written (here: Ctrl-C after
+    part of it): the old keep.csv stays as it was, and no partial file is left."""
+    out = tmp_path / "keep.csv"
+    out.write_text("old\n")
+
+    def cut(path, *a, **k):
+        with open(path, "w") as fh:
+            fh.write("frequency_hz,half a row")
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(np, "savetxt", cut)
+    rc = cli.main(["hbm", "two-beam", "--n-freq", "20", "--no-figure", "-o", str(out)])
+    assert rc == 130
+    assert out.read_text() == "old\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["keep.csv"]
+
+
+def test_a_figure_that_cannot_be_written_is_named_and_leaves_no_partial(tmp_path, capsys,
+                                                                         monkeypatch):
+    """A full disk while the figure of `mcfric hbm` is saved: one line naming the
+    figure, exit 1, the old figure unchanged, no partial file; the CSV is complete."""
+    from matplotlib.figure import Figure
+
+    out = tmp_path / "h.csv"
+    png = tmp_path / "h.png"
+    png.write_bytes(b"old")
+
+    def full(self, path, *a, **k):
+        with open(path, "wb") as fh:
+            fh.write(b"\x89PNG half")
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.setattr(Figure, "savefig", full)
+    rc = cli.main(["hbm", "two-beam", "--n-freq", "20", "-o", str(out)])
+    err = capsys.readouterr().err
+    assert rc == 1 and len(err.strip().splitlines()) == 1, err
+    assert f"figure {png}: No space left on device" in err
+    assert png.read_bytes() == b"old"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["h.csv", "h.png"]
+    assert len(np.genfromtxt(out, delimiter=",", names=True)) == 20
+
+
+def test_an_interrupt_after_the_results_are_complete_says_so(tmp_path, capsys,
+                                                             monkeypatch):
+    """Ctrl-C while a run draws its figure: the results file is complete, and the
+    message says so and how to draw the figure (not a lost run)."""
+    from mcfric import plot
+
+    def interrupted(*a, **k):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(plot, "results_figure", interrupted)
+    out = tmp_path / "r.h5"
+    rc = cli.main(["run", *SMALL[:-1], "--no-bounds", "-o", str(out)])
+    err = capsys.readouterr().err
+    assert rc == 130
+    assert f"interrupted: {out} is complete" in err and f"mcfric plot {out}" in err, err
+    assert store.read_attrs(out)["complete"] == 1
+
+
+def test_an_output_directory_that_cannot_be_written_is_refused_before_the_work(
+        tmp_path, capsys, monkeypatch):
+    """A directory the user may not write (a read-only mount): refused in one line
+    before anything is solved, not after."""
+    real = os.access
+    monkeypatch.setattr(cli.os, "access",
+                        lambda p, mode: False if str(p) == str(tmp_path) else real(p, mode))
+    rc = cli.main(["hbm", "two-beam", "--n-freq", "20", "-o", str(tmp_path / "h.csv")])
+    err = capsys.readouterr().err
+    assert rc == 2 and f"-o: directory {tmp_path} is not writable" in err, err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_verify_of_an_interrupted_run_names_its_partial_file(tmp_path, capsys):
+    """`verify FILE` where only FILE.partial exists (an interrupted run) points to it, as
+    `plot` does, instead of "no such file" alone."""
+    res = tmp_path / "r.h5"
+    assert cli.main(["run", *SMALL, "--no-bounds", "-o", str(res)]) == 0
+    res.rename(tmp_path / "r.h5.partial")
+    capsys.readouterr()
+    rc = cli.main(["verify", str(res), "--member", "0", "--f", "30", "--no-figure",
+                   "-o", str(tmp_path / "v.csv")])
+    err = capsys.readouterr().err
+    assert rc == 2 and "r.h5.partial holds the interrupted run" in err, err
+    assert not (tmp_path / "v.csv").exists()

@@ -115,7 +115,8 @@ SPEC = {
     "model": {
         "preset": (choice(*PRESETS), "base rig; every other key overrides it"),
         "name": (string(nonblank=True), "free text, shown in plots and in `mcfric info`"),
-        "n_beams": (integer(2, 100000), "number of beams (>= 2)"),
+        "n_beams": (integer(2, 8000), "number of beams (2..8000: a results file keeps the "
+                                      "beams of every damper in 64 kB)"),
         "topology": (choice(*TOPOLOGIES), '"linear": n_beams - 1 dampers between '
                                           'neighbours; "circular": also last-first'),
         "contact": (integer(), "position label of the friction contacts"),

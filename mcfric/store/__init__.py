@@ -11,7 +11,7 @@ small files of coordinates and groups), :mod:`.reader` (attributes, records in b
 groups, xarray).
 """
 
-from .files import LAYOUT_VERSION, StoreError, partial_path
+from .files import LAYOUT_VERSION, StoreError, partial_path, replacing
 from .groups import add_group, write_file
 from .reader import (
                      dataset_names,
@@ -24,6 +24,6 @@ from .reader import (
 )
 from .writer import Store, allocated_bytes
 
-__all__ = ["LAYOUT_VERSION", "StoreError", "partial_path", "add_group", "write_file",
+__all__ = ["LAYOUT_VERSION", "StoreError", "partial_path", "replacing", "add_group", "write_file",
            "dataset_names", "describe", "iter_records", "open_results", "read", "read_attrs",
            "read_group", "Store", "allocated_bytes"]

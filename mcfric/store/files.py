@@ -1,13 +1,16 @@
-"""Names and durability of results files: the ``.partial`` suffix, errors, fsync.
+"""Names and durability of output files: the ``.partial`` suffix, errors, fsync, and
+the replacement of a small output (a CSV, a figure) in one step.
 
 A run writes ``FILE.partial`` and renames it to ``FILE`` only when it is complete, after
 everything is on disk (:func:`fsync_path`, then ``os.replace`` and :func:`fsync_dir`):
-a file named ``FILE`` is always complete.
+a file named ``FILE`` is always complete. Smaller outputs are written beside their name
+and renamed when complete (:func:`replacing`).
 """
 
 from __future__ import annotations
 
 import os
+from contextlib import contextmanager
 from pathlib import Path
 
 SUFFIX = ".partial"
@@ -32,6 +35,38 @@ def fsync_path(path):
         os.fsync(fd)   # flushes every dirty page of the file, whoever wrote it
     finally:
         os.close(fd)
+
+
+@contextmanager
+def replacing(path, what):
+    """Write an output through a temporary file beside ``path``, renamed to ``path`` only
+    when the ``with`` block ends without error: an interrupted or failed write (Ctrl-C,
+    a full disk) leaves ``path`` as it was, and no partial file.
+
+    Parameters
+    ----------
+    path : str or Path
+        The output's name.
+    what : str
+        What it is (``"figure"``, ``"CSV"``): an ``OSError`` names it and ``path``.
+
+    Yields
+    ------
+    Path
+        The temporary file to write (hidden, with ``path``'s suffix, which writers such
+        as matplotlib read the format from).
+    """
+    path = Path(path)
+    tmp = path.with_name(f".{path.stem}.{os.getpid()}.tmp{path.suffix}")
+    try:
+        yield tmp
+        os.replace(tmp, path)
+    except BaseException as e:
+        tmp.unlink(missing_ok=True)
+        if isinstance(e, OSError) and not isinstance(e, BrokenPipeError):
+            reason = e.strerror or str(e)
+            raise OSError(e.errno, f"{what} {path}: {reason}") from None
+        raise
 
 
 def fsync_dir(path):

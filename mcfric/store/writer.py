@@ -40,6 +40,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from ..memory import human
 from .files import DONE, LAYOUT_VERSION, StoreError, fsync_dir, fsync_path, partial_path
 from .groups import write_group
 
@@ -107,8 +108,8 @@ def reserve(path):
     except OSError as e:
         if e.errno in (errno.ENOSPC, errno.EDQUOT):
             free = shutil.disk_usage(Path(path).resolve().parent).free
-            raise StoreError(f"{path}: no space for the results file ({size / 1e9:.3g} GB "
-                             f"needed, {free / 1e9:.3g} GB free)") from None
+            raise StoreError(f"{path}: no space for the results file ({human(size)} "
+                             f"needed, {human(free)} free)") from None
         if e.errno not in (errno.EOPNOTSUPP, errno.EINVAL, errno.ENOSYS):
             raise
     finally:
