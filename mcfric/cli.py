@@ -628,8 +628,10 @@ def _run_one(args, cfg, out, resume_as=None):
         if not summary.complete:
             raise
         # the file is whole: only the summary's checks or the figure were cut short
+        rest = f"; the sweep's other engine orders: {resume}" if resume_as else ""
         print(f"interrupted: {out} is complete; the checks or the figure after it were "
-              f"cut short (`mcfric info {out}`, `mcfric plot {out}`)", file=sys.stderr)
+              f"cut short (`mcfric info {out}`, `mcfric plot {out}`){rest}",
+              file=sys.stderr)
         return EXIT_INTERRUPTED
     return EXIT_OK
 
@@ -1309,8 +1311,12 @@ def _compared_with_stored(vs, stored, spec, harmonics):
             lines.append(f"file: at {v.freq_hz:.10g} Hz the {what} balance solved here did "
                          f"not converge: the stored value is not checked against it")
             continue
-        rel = abs(m - stored[v.freq_hz]) / stored[v.freq_hz]
-        same = (f"the stored value's solution ({rel:.1e} from it)" if rel <= 1e-6 else
+        ref = stored[v.freq_hz]
+        rel = abs(m - ref) / max(abs(ref), abs(m)) if max(abs(ref), abs(m)) > 0 else 0.0
+        # both solve the equations to the solver's tolerance: closer than that (with a
+        # floor for rounding) is one solution
+        same = (f"the stored value's solution ({rel:.1e} from it)"
+                if rel <= max(1e-6, 10 * spec.solver.tol) else
                 f"{100 * rel:.3g} % from the stored value: a solution (branch) of the same "
                 f"equations other than the run's")
         lines.append(f"file: at {v.freq_hz:.10g} Hz the {what} balance solved here gives "

@@ -64,7 +64,7 @@ class HBMResult:
         converged after the sweep by continuation in frequency from the point below; and
         4 (:data:`~mcfric.core.multi_harmonic.FROM_REST`) one converged after the sweep
         only by continuation in the drive from rest, at its own frequency (where no
-        neighbour converged).
+        retry from a neighbour converged; the only way in where no neighbour did).
     iterations : ndarray of int16, shape (n_s, n_f)
     residual : ndarray, shape (n_s, n_f)
         Single harmonic: ``max_j |s_j kc_j A_j / (mu0_j N0_j) - 1|`` of the returned

@@ -363,10 +363,6 @@ def bound_peak(path):
 def report_text(report, unit):
     """The lines ``mcfric info`` and the run summary print about the peaks."""
     st = report["statistics"]
-    if not st["members"]:
-        # a partial file with no sample done yet, or no member converged at its peaks:
-        # statistics of nothing would print as NaN
-        return ["peaks:       no member's peak to count (none done yet, or none converged)"]
     k = report.get("unresolved", 0)
     e = report.get("at_end", 0)
     share = (f"the grid's maximum is {report['grid_ratio']:.3g} of the refined peak, median"
@@ -388,7 +384,11 @@ def report_text(report, unit):
              f"one steady state near a peak"
              + (f" ({report['unchecked']} could not be checked)" if report["unchecked"]
                 else "")]
-    return lines + bound_peak_lines(report, unit, st["max"])
+    if not st["members"]:
+        # a partial file with no sample done yet, or no member converged at its peaks:
+        # statistics of nothing would print as NaN
+        lines[0] = "peaks:       no member's peak to count (none done yet, or none converged)"
+    return lines + bound_peak_lines(report, unit, st["max"] if st["members"] else None)
 
 
 def _interval(st, key, lower_only=False):

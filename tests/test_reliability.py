@@ -714,7 +714,7 @@ def test_a_figure_that_cannot_be_written_is_named_and_leaves_no_partial(tmp_path
     rc = cli.main(["hbm", "two-beam", "--n-freq", "20", "-o", str(out)])
     err = capsys.readouterr().err
     assert rc == 1 and len(err.strip().splitlines()) == 1, err
-    assert f"figure {png}: No space left on device" in err
+    assert f"mcfric: error: figure {png}: No space left on device" in err
     assert png.read_bytes() == b"old"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["h.csv", "h.png"]
     assert len(np.genfromtxt(out, delimiter=",", names=True)) == 20
@@ -763,3 +763,22 @@ def test_verify_of_an_interrupted_run_names_its_partial_file(tmp_path, capsys):
     err = capsys.readouterr().err
     assert rc == 2 and "r.h5.partial holds the interrupted run" in err, err
     assert not (tmp_path / "v.csv").exists()
+
+
+def test_replacing_keeps_permissions_and_writes_through_a_symlink(tmp_path):
+    """A CSV or figure written over a symbolic link replaces the link's target, not the
+    link, and an existing file keeps its permission bits (0600 stays private)."""
+    import stat
+
+    from mcfric.store import replacing
+
+    target = tmp_path / "target.csv"
+    target.write_text("old")
+    os.chmod(target, 0o600)
+    link = tmp_path / "link.csv"
+    link.symlink_to(target)
+    with replacing(link, "CSV") as tmp:
+        tmp.write_text("new")
+    assert link.is_symlink() and target.read_text() == "new"
+    assert stat.S_IMODE(target.stat().st_mode) == 0o600
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["link.csv", "target.csv"]

@@ -30,11 +30,14 @@ continuation in frequency from it (the receptances and the drive moved from that
 frequency's to the point's on a straight line, :func:`_continuation`). Such a point lies
 on the branch continued from the other side, and its status says so (3). Then by
 continuation in frequency from the converged solution below (status 0: continued from
-below, as the sweep's points are). Last, where nothing else converged (no neighbour did,
-e.g. on a band across a resonance), by continuation in the drive, from rest (``Q = 0`` at
-zero drive) up to the point's (status 4). A point below one reached so starts from it
-in the same pass; the points above it get one more pass up the grid, by continuation in
-frequency from the point below where that converged only after the sweep (status 0).
+below, as the sweep's points are). A point that pass leaves is tried in a second pass
+down the grid, from rest: by continuation in the drive at its own frequency (``Q = 0`` at
+zero drive, up to the point's drive; status 4), after retries from any neighbour that
+converged since its first visit; on a band across a resonance, where no neighbour
+converged, the only way in. The points below one reached so follow from it in that pass;
+those above it get a third pass, up the grid, by continuation in frequency from a point
+below that converged in the second or third (status 0). No attempt is repeated with the
+same data, and the first pass alone decides what it converges, as without the others.
 
 Arguments
 ---------
@@ -751,23 +754,32 @@ def _sample(i, rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, tol, m
                  yt, pc, ps)
     if n_failed == 0:
         return
-    # back down the grid: a failed point next to a converged one starts from it: from the
-    # one above (predicted, itself, by continuation in frequency), then by continuation
-    # in frequency from the one below (the sweep tried it directly); last, from rest by
-    # raising the drive at its own frequency (where no neighbour converged, e.g. on a
-    # band that starts on a resonance, the only way in). Then up the grid again: a point
-    # whose neighbour below converged only in that pass, by continuation from it (a run
-    # of failures above a point the drive reached). Every other attempt of the pass up
-    # would repeat one of the pass down with the same data.
-    late = np.zeros(n_f, dtype=np.bool_)         # converged after the sweep
-    for p in range(2 * n_f):
-        up = p >= n_f
-        k = p - n_f if up else n_f - 1 - p
+    # Three passes over the points the sweep missed. Pass 0, back down the grid: a failed
+    # point next to a converged one starts from it: from the one above (predicted,
+    # itself, by continuation in frequency), then by continuation in frequency from the
+    # one below (the sweep tried it directly). Pass 1, down again: from rest by raising
+    # the drive at the point's own frequency (where no neighbour converged, e.g. on a
+    # band across a resonance, the only way in), after the retries from neighbours that
+    # converged since the point's visit in pass 0. Pass 2, up the grid: from a neighbour
+    # below that converged since the point's visit in pass 1 (a run of failures above a
+    # point the drive reached). An attempt with the same data as before is not repeated;
+    # pass 0 runs to its end first, so what it converges does not depend on the others.
+    when = np.full(n_f, -1, dtype=np.int64)      # the pass that converged the point
+    for p in range(3 * n_f):
+        phase = p // n_f
+        k = p % n_f if phase == 2 else n_f - 1 - p % n_f
         if status[i, k] >= 0:
             continue
-        above = not up and k + 1 < n_f and status[i, k + 1] >= 0
+        above = phase < 2 and k + 1 < n_f and status[i, k + 1] >= 0
         below = k > 0 and status[i, k - 1] >= 0
-        if up and not (below and late[k - 1]):
+        if phase == 1:
+            # pass 0 visited the point above before this one, the one below after it
+            above = above and when[k + 1] == 1
+            below = below and when[k - 1] == 0
+        elif phase == 2:
+            below = below and when[k - 1] >= 1
+        drive = phase == 1
+        if not (above or below or drive):
             continue
         for h in range(n_h):
             _dense_G(rech, r_base + h, k, a, b, G[h], nd)
@@ -792,8 +804,8 @@ def _sample(i, rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, tol, m
         for attempt in range(5):
             if attempt < 3 and not above or attempt == 3 and not below:
                 continue
-            if up and attempt == 4:
-                continue                 # tried on the way down, with the same data
+            if attempt == 4 and not drive:
+                continue
             if attempt == 0 and not ((sh and sh_next) or next2):
                 continue                 # no prediction: the solution above alone
             if attempt < 2:
@@ -839,7 +851,7 @@ def _sample(i, rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, tol, m
             continue
         status[i, k] = st
         residual[i, k] = rel
-        late[k] = True
+        when[k] = phase
         for j in range(nd):
             for h in range(n_h):
                 Qall[k, j, h] = Q[j, h]

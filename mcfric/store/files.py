@@ -10,6 +10,7 @@ and renamed when complete (:func:`replacing`).
 from __future__ import annotations
 
 import os
+import stat
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -55,17 +56,29 @@ def replacing(path, what):
     Path
         The temporary file to write (hidden, with ``path``'s suffix, which writers such
         as matplotlib read the format from).
+
+    Notes
+    -----
+    A symbolic link at ``path`` is written through (its target is replaced), and an
+    existing file's permission bits are kept; hard links to the old file keep the old
+    contents.
     """
     path = Path(path)
+    if path.is_symlink():
+        path = Path(os.path.realpath(path))
     tmp = path.with_name(f".{path.stem}.{os.getpid()}.tmp{path.suffix}")
     try:
         yield tmp
+        if path.exists():
+            os.chmod(tmp, stat.S_IMODE(path.stat().st_mode))
         os.replace(tmp, path)
     except BaseException as e:
         tmp.unlink(missing_ok=True)
         if isinstance(e, OSError) and not isinstance(e, BrokenPipeError):
-            reason = e.strerror or str(e)
-            raise OSError(e.errno, f"{what} {path}: {reason}") from None
+            # the message alone, without "[Errno N]"; the number stays on the error
+            err = OSError(f"{what} {path}: {e.strerror or e}")
+            err.errno = e.errno
+            raise err from None
         raise
 
 
