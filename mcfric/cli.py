@@ -436,6 +436,21 @@ def _not_replacing_hdf5(path, what):
                          f"choose another -o")
 
 
+def _no_such_file(path):
+    """The line for a results file that does not exist; it names the files an
+    engine-order sweep writes for that ``-o`` (``FILE-eoE.h5``), where there are any."""
+    import glob
+
+    p = Path(path)
+    names = sorted(q.name for q in p.parent.glob(f"{glob.escape(p.stem)}-eo*{p.suffix}")
+                   if q.stem[len(p.stem) + 3:].isdigit()) if p.suffix else []
+    if not names:
+        return f"{path}: no such file"
+    shown = ", ".join(names[:4]) + (", ..." if len(names) > 4 else "")
+    return (f"{path}: no such file; an engine-order sweep wrote {shown} (one file per "
+            f"order): give one of them")
+
+
 def _checked_file(path):
     """:func:`~mcfric.results_check.check_file` of ``path``, then the keys of its stored
     configuration that the readers use (an edited file: one line, exit 2)."""
@@ -445,6 +460,8 @@ def _checked_file(path):
 
     if Path(path).is_dir():
         raise UsageError(f"{path}: a directory, not a results file")
+    if not Path(path).exists():
+        raise UsageError(_no_such_file(path))
     try:
         attrs, cfg = check_file(path)
     except StoreError as e:
@@ -734,7 +751,7 @@ def cmd_plot(args):
         if partial_path(path).exists():
             raise UsageError(f"{path}: the run is not complete ({partial_path(path).name} "
                              f"holds it; continue it with --resume)")
-        raise UsageError(f"{path}: no such file")
+        raise UsageError(_no_such_file(path))
     attrs = _checked_file(path)[0]
     if attrs.get("complete") != 1:
         raise UsageError(f"{path}: the run is not complete (continue it with --resume)")

@@ -782,3 +782,18 @@ def test_replacing_keeps_permissions_and_writes_through_a_symlink(tmp_path):
     assert link.is_symlink() and target.read_text() == "new"
     assert stat.S_IMODE(target.stat().st_mode) == 0o600
     assert sorted(p.name for p in tmp_path.iterdir()) == ["link.csv", "target.csv"]
+
+
+def test_a_missing_file_names_the_files_of_an_engine_order_sweep(tmp_path, capsys):
+    """`mcfric run ... -o x.h5` with `engine_orders` writes x-eo1.h5, x-eo2.h5: `info`,
+    `plot` and `verify` of x.h5 name them instead of "no such file" alone."""
+    for name in ("x-eo1.h5", "x-eo2.h5", "x-eox.h5"):
+        (tmp_path / name).write_bytes(b"")
+    x = str(tmp_path / "x.h5")
+    for argv in (["info", x], ["plot", x], ["verify", x, "--member", "0", "--f", "30"]):
+        assert cli.main(argv) == 2
+        err = capsys.readouterr().err
+        assert (f"{x}: no such file; an engine-order sweep wrote x-eo1.h5, x-eo2.h5 (one "
+                f"file per order)") in err, (argv, err)
+    assert cli.main(["info", str(tmp_path / "y.h5")]) == 2
+    assert capsys.readouterr().err.strip().endswith("y.h5: no such file")
