@@ -393,9 +393,7 @@ def _output_path(args, suffix, prefix="", figure=False):
         if not out.parent.is_dir():
             out.parent.mkdir(parents=True, exist_ok=True)
             _MADE_DIRS.append(out.parent)
-    if not os.access(out.parent, os.W_OK | os.X_OK):
-        # found now, not after the work
-        raise UsageError(f"-o: directory {out.parent} is not writable")
+    _writable_dir(out)
     what = "results file" if suffix == ".h5" else f"{suffix[1:].upper()} output"
     if suffix == ".h5" and out.name.endswith(".partial"):
         raise UsageError(f"-o: {out.name} ends in .partial, the name of an interrupted "
@@ -422,6 +420,13 @@ def _output_path(args, suffix, prefix="", figure=False):
     return out
 
 
+def _writable_dir(out):
+    """An output is renamed into its directory when complete: one that cannot be written
+    is refused now, not after the work."""
+    if not os.access(out.parent, os.W_OK | os.X_OK):
+        raise UsageError(f"-o: directory {out.parent} is not writable")
+
+
 def _not_replacing_input(args, path, what):
     """No output replaces the configuration (or file) the command reads."""
     src = getattr(args, "source", None)
@@ -442,8 +447,10 @@ def _no_such_file(path):
     import glob
 
     p = Path(path)
-    names = sorted(q.name for q in p.parent.glob(f"{glob.escape(p.stem)}-eo*{p.suffix}")
-                   if q.stem[len(p.stem) + 3:].isdigit()) if p.suffix else []
+    # order_path's names, any order (its "-eo" and then digits: engine orders are >= 0)
+    pattern = order_path(Path(glob.escape(str(p))), "*")
+    names = sorted(Path(q).name for q in glob.glob(str(pattern))
+                   if Path(q).stem[len(p.stem) + 3:].isdigit()) if p.suffix else []
     if not names:
         return f"{path}: no such file"
     shown = ", ".join(names[:4]) + (", ..." if len(names) > 4 else "")
@@ -764,8 +771,7 @@ def cmd_plot(args):
         raise UsageError(f"-o: directory {out.parent} does not exist")
     if out.is_dir():
         raise UsageError(f"-o: {out} is a directory")
-    if not os.access(out.parent, os.W_OK | os.X_OK):
-        raise UsageError(f"-o: directory {out.parent} is not writable")
+    _writable_dir(out)
     _not_replacing_hdf5(out, "figure")
     window = None
     if args.f_min is not None or args.f_max is not None:

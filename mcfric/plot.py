@@ -27,6 +27,12 @@ def _figure(size=(8, 4.5)):
     return fig
 
 
+def _save(fig, path, dpi):
+    """Write ``fig`` to ``path`` in one step (the old file stays until it is complete)."""
+    with replacing(path, "figure") as tmp:
+        fig.savefig(tmp, dpi=dpi)
+
+
 def _mathtext(text):
     """``m/s^2`` with the exponent drawn as a superscript."""
     return text.replace("^2", "$^2$")
@@ -291,8 +297,7 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
         labels.append("share flagged (right axis; rerun with --harmonics)")
     # below the axes: with ten entries or more no corner of the axes is free of data
     fig.legend(handles, labels, loc="outside lower center", ncol=2, fontsize=7)
-    with replacing(out, "figure") as tmp:
-        fig.savefig(tmp, dpi=150)
+    _save(fig, out, 150)
     return {"n_members": n if drawn else 0, "n_drawn": drawn, "has_bounds": B is not None,
             "n_flagged": int(flagged_at.sum()), "n_not_converged": n_failed,
             "n_peaks_unrefined": n_unrefined, "bound_peaks": marked,
@@ -339,8 +344,7 @@ def hbm_figure(freq_hz, amplitude, metric, converged, png_path, title="",
     ax.set_title(title, fontsize=9)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7, ncol=2 if amp.shape[1] > 4 else 1)
-    with replacing(png_path, "figure") as tmp:
-        fig.savefig(tmp, dpi=120)
+    _save(fig, png_path, 120)
     return png_path
 
 
@@ -378,6 +382,5 @@ def verify_figure(verifications, png_path, title=""):
             ax.legend(fontsize=7)
     fig.axes[-1].set_xlabel("time over one period [ms]")
     fig.suptitle(title, fontsize=9)
-    with replacing(png_path, "figure") as tmp:
-        fig.savefig(tmp, dpi=110)
+    _save(fig, png_path, 110)
     return png_path
