@@ -17,6 +17,7 @@ Two kinds of check live here:
 
 from __future__ import annotations
 
+import datetime
 import json
 import math
 import re
@@ -57,6 +58,8 @@ def show(v):
     if isinstance(v, list):
         s = "[" + ", ".join(show(x) for x in v) + "]"
         return s if len(s) <= 60 else s[:57] + "...]"
+    if isinstance(v, (datetime.date, datetime.time)):    # TOML dates and times
+        return f"the date or time {v.isoformat()}"
     return repr(v)
 
 
@@ -188,7 +191,8 @@ def scheduler_address():
         m = re.fullmatch(r"local:(\d+)", v)
         if m and 1 <= int(m.group(1)) <= 1024:
             return v
-        if not m and re.fullmatch(r"[a-z][a-z0-9+.-]*://[^\s/]+(/\S*)?", v):
+        # Dask's own schemes: others pass here and fail only when the run connects
+        if not m and re.fullmatch(r"(tcp|tls|ucx|ws|wss)://[^\s/]+(/\S*)?", v):
             return v
         raise InputError(key, f"expected {what}, got {show(v)}")
     check.what = what

@@ -181,6 +181,7 @@ def test_config_json_round_trips_floats_exactly():
     ({"metric": {"beams": [1, 1]}}, "metric.beams"),
     ({"excitation": {"mode": -1}}, "excitation.mode"),
     ({"run": {"threads": 10 ** 6}}, "run.threads"),
+    ({"run": {"scheduler": "http://10.0.0.5:8786"}}, "run.scheduler"),
     ({"bounds": {"certify_budget": "many"}}, "bounds.certify_budget"),
     ({"bounds": {"certify_budget": 0}}, "bounds.certify_budget"),
     ({"model": "eight-beam"}, "model"),
@@ -197,6 +198,15 @@ def test_errors_name_the_key(raw, key):
         config.load(raw)
     assert e.value.key == key
     assert "\n" not in str(e.value)
+
+
+def test_a_toml_date_is_named_as_written(tmp_path):
+    path = tmp_path / "d.toml"
+    path.write_text("[model]\nname = 1979-05-27\n")
+    with pytest.raises(ConfigError) as e:
+        config.load(path)
+    assert e.value.key == "model.name"
+    assert str(e.value).endswith("got the date or time 1979-05-27")
 
 
 def test_validate_without_defaults_reports_missing_keys():
