@@ -1118,6 +1118,7 @@ def cmd_hbm(args):
 
     from . import hbm, plot
     from .metric import METRIC_UNITS, omega_power
+    from .threads import interruptible
 
     spec = _load(args).spec
     for flag, v in (("mu0", args.mu0), ("kc", args.kc), ("N0", args.N0)):
@@ -1126,9 +1127,10 @@ def cmd_hbm(args):
     model, f = spec.model, spec.freq_hz
     H = spec.solver.harmonics
     try:
-        res = hbm.solve(model, f, args.mu0, args.kc, args.N0, tol=spec.solver.tol,
-                        max_iter=spec.solver.max_iter, n_threads=spec.execution.threads,
-                        harmonics=H, n_time=spec.solver.n_time)
+        res = interruptible(hbm.solve, model, f, args.mu0, args.kc, args.N0,
+                            tol=spec.solver.tol, max_iter=spec.solver.max_iter,
+                            n_threads=spec.execution.threads, harmonics=H,
+                            n_time=spec.solver.n_time)
     except ValueError as e:
         raise UsageError(str(e).splitlines()[0]) from None
     q = spec.metric.quantity

@@ -39,7 +39,7 @@ from .peaks import report_text
 from .provenance import software_attrs
 from .store import Store, StoreError, allocated_bytes, iter_records, partial_path, read_attrs
 from .store.lock import LockError, OutputLock
-from .threads import threads
+from .threads import interruptible, threads
 
 RECORD = "sample"
 #: Names of the stop signals (SIGTERM, SIGHUP) the command line received during this run:
@@ -747,7 +747,9 @@ def local_chunks(spec, chunks, timing):
             nxt = (prefetch.submit(spec.sampler.draw, np.arange(*chunks[n + 1]))
                    if n + 1 < len(chunks) else None)
             t0 = time.perf_counter()
-            res = solve_chunk(spec, d)
+            # a stop signal ends the wait for a chunk at once; the chunk is dropped (its
+            # kernel runs on until the process exits) and solved again on resume
+            res = interruptible(solve_chunk, spec, d)
             timing["kernel_s"] += time.perf_counter() - t0
             yield a, (lambda d=d, res=res: record_arrays(spec, d, res))
             del res, d

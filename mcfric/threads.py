@@ -1,11 +1,13 @@
-"""Threads: how many numba uses, and a pool that runs ``nogil`` kernels over work items.
+"""Threads: how many numba uses, a pool that runs ``nogil`` kernels over work items, and
+a call that Ctrl-C can leave while its kernel runs.
 
-Results never depend on either: the kernels write disjoint parts of their outputs.
+Results never depend on any of them: the kernels write disjoint parts of their outputs.
 """
 
 from __future__ import annotations
 
 import contextlib
+import threading
 from concurrent.futures import ThreadPoolExecutor
 
 import numba
@@ -56,3 +58,55 @@ def in_threads(task, items):
     finally:
         # on an error or Ctrl-C the queued tasks are dropped, not run to the end
         pool.shutdown(wait=True, cancel_futures=True)
+
+
+#: Held by the call :func:`interruptible` runs: one abandoned by an interrupt holds it
+#: until its kernel returns, and the next call waits for it, so that two parallel
+#: kernels never run at once.
+_KERNEL_BUSY = threading.Lock()
+
+
+def interruptible(fn, *args, **kwargs):
+    """``fn(*args, **kwargs)`` on a thread of its own while the main thread waits.
+
+    A signal's handler runs only in the main thread, and only between Python steps: while
+    a kernel runs there, Ctrl-C or SIGTERM waits for the kernel to return (minutes for a
+    chunk of a large model). Waiting here instead, the main thread raises the
+    ``KeyboardInterrupt`` within a tenth of a second. The abandoned call runs on in the
+    background (``nogil`` kernels cannot be stopped from outside) and its result is
+    dropped; a process that exits ends it, and the next call waits for it first.
+
+    Parameters
+    ----------
+    fn : callable
+        Calls ``nogil`` kernels (the ``parallel`` ones use this thread's count of numba
+        threads, as the caller's).
+    *args, **kwargs
+        Passed to ``fn``.
+
+    Returns
+    -------
+    object
+        What ``fn`` returns; what it raises is raised here. Off the main thread (where no
+        signal arrives) ``fn`` is simply called.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        return fn(*args, **kwargs)
+    n = numba.get_num_threads()      # thread-local in numba: the new thread starts at all
+    out = {}
+
+    def call():
+        with _KERNEL_BUSY:
+            try:
+                numba.set_num_threads(n)
+                out["value"] = fn(*args, **kwargs)
+            except BaseException as e:   # re-raised by the caller
+                out["error"] = e
+
+    worker = threading.Thread(target=call, name="mcfric-kernel", daemon=True)
+    worker.start()
+    while worker.is_alive():
+        worker.join(0.1)             # a signal's handler runs between these waits
+    if "error" in out:
+        raise out.pop("error")
+    return out["value"]

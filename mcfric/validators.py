@@ -192,7 +192,7 @@ def scheduler_address():
         if m and 1 <= int(m.group(1)) <= 1024:
             return v
         # Dask's own schemes: others pass here and fail only when the run connects
-        if not m and re.fullmatch(r"(tcp|tls|ucx|ws|wss)://[^\s/]+(/\S*)?", v):
+        if not m and re.fullmatch(r"(tcp|tls|ucx|ws|wss|inproc)://[^\s/]+(/\S*)?", v):
             return v
         raise InputError(key, f"expected {what}, got {show(v)}")
     check.what = what

@@ -454,6 +454,73 @@ def test_sigterm_stops_a_run_resumably(tmp_path):
         assert h5.attrs["complete"] == 1 and h5["done"][...].all()
 
 
+def test_sigterm_stops_a_run_inside_a_long_chunk(tmp_path):
+    """A chunk of a large model runs for minutes (1500 beams: over ten before the wait
+    became interruptible); SIGTERM during it ends the run within seconds, resumably."""
+    import time
+
+    cfg = tmp_path / "big.toml"
+    cfg.write_text('[model]\npreset = "two-beam"\nn_beams = 1500\n'
+                   '[sampling]\nsamples = 2\n[frequency]\nn = 10\n')
+    out = tmp_path / "big.h5"
+    p = subprocess.Popen([sys.executable, "-m", "mcfric", "run", str(cfg), "--no-bounds",
+                          "--no-progress", "--no-figure", "-o", str(out)],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    partial = tmp_path / "big.h5.partial"
+    deadline = time.monotonic() + 600
+    while not partial.exists() and time.monotonic() < deadline and p.poll() is None:
+        time.sleep(0.1)
+    time.sleep(3)                   # inside the first chunk (or compiling it)
+    assert p.poll() is None
+    t0 = time.monotonic()
+    p.send_signal(15)
+    try:
+        _, err = p.communicate(timeout=60)
+    finally:
+        p.kill()                    # a run that ignored the signal does not live on
+    assert p.returncode == 130, err
+    assert time.monotonic() - t0 < 15
+    assert "0 of 2 samples saved" in err and "--resume" in err
+    assert partial.exists() and not out.exists()
+
+
+def test_an_interruptible_call_returns_raises_and_keeps_the_thread_count():
+    import numba
+
+    from mcfric.threads import interruptible, threads
+
+    with threads(1):
+        assert interruptible(numba.get_num_threads) == 1
+    assert interruptible(lambda a, b=0: a + b, 2, b=3) == 5
+    with pytest.raises(ValueError, match="bad"):
+        interruptible(lambda: (_ for _ in ()).throw(ValueError("bad")))
+
+
+def test_an_interrupted_call_is_left_and_the_next_waits_for_it():
+    """Ctrl-C reaches the caller at once; the abandoned call finishes in the background
+    before the next one starts (two parallel kernels never run at once)."""
+    import _thread
+    import threading
+    import time
+
+    from mcfric.threads import interruptible
+
+    release, order = threading.Event(), []
+
+    def slow():
+        release.wait(30)
+        order.append("slow")
+
+    threading.Timer(0.3, _thread.interrupt_main).start()
+    t0 = time.monotonic()
+    with pytest.raises(KeyboardInterrupt):
+        interruptible(slow)
+    assert time.monotonic() - t0 < 5 and order == []
+    threading.Timer(0.5, release.set).start()
+    interruptible(lambda: order.append("next"))
+    assert order == ["slow", "next"]
+
+
 def test_F_lim_none_on_the_command_line_as_in_toml(tmp_path, capsys):
     out = tmp_path / "b.h5"
     assert cli.main(["bounds", "two-beam", "--n-freq", "10", "--F-lim", "none", "-o",
