@@ -72,6 +72,24 @@ def test_aft_multi_harmonic_against_a_dense_time_loop_and_finite_differences():
             assert np.allclose(dF[1::2, m], col.imag, rtol=0, atol=1e-5 * kc)
 
 
+@pytest.mark.parametrize("fs", [1e-16, 1e-18, 1e-22, 0.0])
+def test_aft_a_slip_distance_below_rounding_is_coulomb_friction(fs):
+    """With 2 fs / kc below the rounding of q the element slips but for instants: the
+    force is fs sign(q'), every harmonic below 4 fs / pi. The crossing search found no
+    sign change there and walked a long stick phase: |F_1| = 0.10 N at fs = 1e-18 N."""
+    orders = aft.harmonic_orders(5)
+    F = np.zeros(3, complex)
+    dF = np.zeros((6, 6))
+    w = np.zeros(aft.work_size(3, 40))
+    Q = np.array([1e-5 + 2e-6j, 3e-7 - 1e-7j, 1e-8])
+    assert aft.jenkins(Q, orders, 6000.0, fs, 40, F, dF, w) >= 0
+    # the dense loop places the reversals to within its step (1e-4 of fs); the stick
+    # phases' integrals round to about kc |Q| eps (6e-18 N here), whatever fs
+    rounding = 1e-4 * fs + 1e-13 * 6000.0 * abs(Q[0])
+    assert np.all(abs(F) <= 4 / np.pi * fs + rounding)
+    assert np.max(abs(F - sampled_jenkins(Q, orders, 6000.0, fs))) <= rounding
+
+
 @pytest.mark.parametrize("c, phi", [(-0.114, 0.1486), (-0.114, 0.1731), (-0.115, 0.181),
                                     (-0.117, np.pi / 16)])
 def test_aft_tells_apart_extrema_closer_than_the_samples(c, phi):

@@ -51,6 +51,7 @@ import numpy as np
 from ._jit import inline_jit, jit
 
 _TWO_OVER_PI = 2.0 / math.pi
+_FOUR_OVER_PI = 4.0 / math.pi
 #: Event location stops when the Newton step is below this, rad.
 _THETA_TOL = 1e-13
 _EVENT_ITER = 60
@@ -286,8 +287,9 @@ def jenkins(Q, orders, kc, fs, n_time, F, dF, work):
     -------
     int
         Number of events on the loop (0: stuck throughout, or no force), or -1 if the
-        extrema of ``q`` could not be bracketed (``n_time`` too small) or ``work`` is
-        too short.
+        extrema of ``q`` could not be bracketed (``n_time`` too small), ``work`` is too
+        short, or a harmonic came out above ``4 fs / pi``, which no force bounded by
+        ``fs`` has (a loop walked wrongly: a failure, not a number).
     """
     n_h = orders.shape[0]
     for h in range(n_h):
@@ -457,19 +459,25 @@ def jenkins(Q, orders, kc, fs, n_time, F, dF, work):
             hi = b
             flo = q_s - level
             fhi = q_b - level
-            ks = int(math.floor(a / step)) + 1
-            while ks * step < b:
-                js = ks // n_half
-                v = qs[ks - js * n_half]
-                v = (v if js % 2 == 0 else -v) - level
-                if (v > 0.0) != (flo > 0.0):
-                    hi = ks * step
-                    fhi = v
-                    break
-                lo = ks * step
-                flo = v
-                ks += 1
-            th_s = _root(Q, orders, n_h, lo, hi, flo, fhi, level, np.bool_(False))
+            if (flo < 0.0) if up else (flo > 0.0):
+                ks = int(math.floor(a / step)) + 1
+                while ks * step < b:
+                    js = ks // n_half
+                    v = qs[ks - js * n_half]
+                    v = (v if js % 2 == 0 else -v) - level
+                    if (v > 0.0) != (flo > 0.0):
+                        hi = ks * step
+                        fhi = v
+                        break
+                    lo = ks * step
+                    flo = v
+                    ks += 1
+                th_s = _root(Q, orders, n_h, lo, hi, flo, fhi, level, np.bool_(False))
+            else:
+                # the slip distance 2 fs / kc is below the rounding of q: the crossing
+                # is the extremum itself (a bracket of no sign change gave a long stick
+                # phase, a force of about kc Q instead of at most fs)
+                th_s = a
             _powers(th_s, p_max, zr, zi, o_s)
             _powers(b, p_max, zr, zi, o_b)
             _segment(Q, orders, n_h, stick_from, th_s, np.bool_(True), f_a, q_a, kc, 0.0, F, dF,
@@ -490,6 +498,13 @@ def jenkins(Q, orders, kc, fs, n_time, F, dF, work):
         _powers(th0 + math.pi, p_max, zr, zi, o_b)
         _segment(Q, orders, n_h, stick_from, th0 + math.pi, np.bool_(True), f_a, q_a, kc,
                  0.0, F, dF, zr, zi, o_f, o_b, p_max, tr, ti)
+    # |f| <= fs at every instant bounds every harmonic by 4 fs / pi (a square wave's):
+    # a loop that breaks it was walked wrongly, and fails rather than gives a number.
+    # The stick phases' integrals carry rounding of about kc q_max eps, whatever fs.
+    cap = _FOUR_OVER_PI * fs * (1.0 + 1e-9) + 1e-12 * kc * q_max
+    for h in range(n_h):
+        if not abs(F[h]) <= cap:
+            return -1
     return 2 * n_events
 
 
