@@ -503,8 +503,10 @@ def _only_replacing_bounds(out):
 
 
 def _check_members(path):
-    """Count converged ensemble points outside the stored bounds (a validity check):
-    ``(outside, total, outside_certified)``, the last None if not certified."""
+    """Count converged ensemble points outside the stored bounds (a validity check), on
+    the members the bounds' constraints admit (:meth:`Bounds.admits`): ``(outside, total,
+    outside_certified, left_out)``, ``outside_certified`` None if not certified,
+    ``left_out`` the members not admitted (not checked)."""
     import numpy as np
 
     from .bounds import read_bounds
@@ -514,14 +516,26 @@ def _check_members(path):
     if B is None:
         return None
     C = B.certificate
-    outside = total = outside_cert = 0
-    for _, arr in iter_records(path, ["metric", "converged"]):
-        ok = arr["converged"]
+    outside = total = outside_cert = left_out = 0
+    for _, arr in iter_records(path, ["metric", "converged", "mu0", "kc", "N0"]):
+        admitted = B.admits(arr["mu0"], arr["kc"], arr["N0"])
+        left_out += int(np.count_nonzero(~admitted))
+        ok = arr["converged"] & admitted[:, None]
         outside += int(np.count_nonzero(~B.contains(arr["metric"]) & ok))
         if C is not None:
             outside_cert += int(np.count_nonzero(~C.contains(arr["metric"]) & ok))
         total += int(np.count_nonzero(ok))
-    return outside, total, None if C is None else outside_cert
+    return outside, total, None if C is None else outside_cert, left_out
+
+
+def _shortfall_note(cfg):
+    """A note where ``[bounds]``' constraints leave out friction the sampling draws (a
+    limit given in kN/m, say): the bounds then need not hold for every member."""
+    short = cfg.bounds_shortfalls()
+    if short:
+        print(f"note: the bounds' constraints leave out members the sampling draws "
+              f"({'; '.join(short)}): the bounds need not hold for them, and the check "
+              f"against the members leaves them out", flush=True)
 
 
 def _kept_bounds_note(cfg, out):
@@ -624,6 +638,7 @@ def _run_one(args, cfg, out, resume_as=None):
         print(f"mcfric run: {model.name}, {spec.samples} samples x {len(spec.freq_hz)} "
               f"frequencies, {model.n_beams} beams, F0 = {model.excitation.F0:g} N, "
               f"seed {spec.seed}", flush=True)
+        _shortfall_note(cfg)
         summary = ensemble.run(cfg, out, resume=args.resume, force=args.force,
                                progress=not args.no_progress,
                                space_check=not args.skip_space_check)
@@ -684,11 +699,15 @@ def _report_run(args, cfg, out, summary):
     if summary.complete:
         check = _check_members(out)
         if check is not None:
-            outside, total, outside_cert = check
+            outside, total, outside_cert, left_out = check
             from .store import read_attrs
 
             H = int(read_attrs(out).get("harmonics", 1))
             mis = cfg.data["sampling"]["mistuning"] > 0
+            if left_out:
+                print(f"bounds check: {left_out:,} of {summary.samples:,} members have "
+                      f"friction outside the bounds' constraints ([bounds] k_max, k_max_im, "
+                      f"F_lim), for which the bounds need not hold: left out of the checks")
             print(f"searched bounds check: {outside} of {total:,} converged member points "
                   f"outside [lower, upper]"
                   + _outside_note(outside, H, "the bounds search missed them", mis))
@@ -723,6 +742,7 @@ def cmd_bounds(args):
         print(f"mcfric bounds: {model.name}, {len(f)} frequencies {f[0]:g}-{f[-1]:g} Hz, "
               f"F0 = {model.excitation.F0:g} N; box 0 <= Re K <= {lim.k_max_re:g} N/m, "
               f"0 <= Im K <= {lim.k_max_im:g} N/m, F_lim = {lim.F_lim:g} N", flush=True)
+        _shortfall_note(cfg)
         t = time.perf_counter()
         B = bounds.from_spec(spec, progress=False if args.no_progress else None)
         print(f"{B.summary()} ({time.perf_counter() - t:.1f} s)")

@@ -323,6 +323,35 @@ def test_a_stop_signal_dropped_while_compiling_still_stops_the_run(tmp_path, mon
     assert ensemble.STOP_SIGNALS == ["SIGTERM"]
 
 
+@pytest.mark.parametrize("limit, admitted", [("k_max = 15.0", "none"),   # kN/m for N/m
+                                             ("F_lim = 0.2", "some")])
+def test_members_outside_the_bounds_constraints_are_named_and_left_out(tmp_path, capsys,
+                                                                        limit, admitted):
+    """Bounds over a box narrower than the sampling hold for the members inside it: those
+    are checked (none may be outside), the others are counted and left out, said up front;
+    no "please report" for a limit the user gave."""
+    cfg = tmp_path / "k.toml"
+    cfg.write_text(f'[model]\npreset = "two-beam"\n[bounds]\n{limit}\n')
+    out = tmp_path / "k.h5"
+    rc, text, _ = call(["run", str(cfg), "--samples", "40", "--n-freq", "60", "-o", str(out),
+                        "--no-progress", "--no-figure", "--first-order"], capsys)
+    assert rc == 0 and "please report" not in text
+    assert "note: the bounds' constraints leave out members" in text
+    assert limit.split(" = ")[0] in text.split("note:")[1].splitlines()[0]
+    with h5py.File(out) as h:
+        mu0, kc, N0 = h["mu0"][...], h["kc"][...], h["N0"][...]
+        a = h["bounds"].attrs
+        k_re, k_im, F_lim = float(a["k_max_re"]), float(a["k_max_im"]), float(a["F_lim"])
+    inside = ((kc <= k_re) & (kc / np.pi <= k_im) & (4 / np.pi * mu0 * N0 <= F_lim)).all(-1)
+    left = int(np.count_nonzero(~inside))
+    assert (left == 40) if admitted == "none" else (0 < left < 40)
+    m = re.search(r"bounds check: (\d+) of 40 members have friction outside", text)
+    assert m and int(m.group(1)) == left
+    m = re.search(r"searched bounds check: (\d+) of ([\d,]+) converged", text)
+    assert m.group(1) == "0" and int(m.group(2).replace(",", "")) <= 60 * (40 - left)
+    assert re.search(r"certified bounds check: 0 outside", text)
+
+
 def test_no_arguments_runs_the_embedded_default(tmp_path, monkeypatch, capsys):
     seen = {}
 

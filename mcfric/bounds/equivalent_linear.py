@@ -128,6 +128,29 @@ class Bounds:
             text += "\n" + self.certificate.summary(self.freq_hz)
         return text
 
+    def admits(self, mu0, kc, N0):
+        """Boolean mask of the members whose friction lies inside the bounds' constraints.
+
+        A Jenkins element of stiffness ``kc`` and slip force ``mu0 N0`` has ``0 <= Re K
+        <= kc``, ``0 <= Im K <= kc / pi`` and ``|K| A <= 4 / pi mu0 N0`` at any amplitude
+        ``A``: the bounds hold for a member whose every damper keeps ``kc <= k_max_re``,
+        ``kc / pi <= k_max_im`` and ``4 / pi mu0 N0 <= F_lim``, and need not for others.
+
+        Parameters
+        ----------
+        mu0, kc, N0 : array_like, shape (..., nd)
+            Friction coefficient (1), contact stiffness (N/m), preload (N) per damper.
+
+        Returns
+        -------
+        ndarray of bool, shape (...)
+        """
+        mu0, kc, N0 = (np.asarray(x, float) for x in (mu0, kc, N0))
+        slack = 1.0 + 1e-12               # "auto" limits are these very products
+        ok = (kc <= self.k_max_re * slack) & (kc / np.pi <= self.k_max_im * slack)
+        ok &= 4.0 / np.pi * mu0 * N0 <= self.F_lim * slack
+        return ok.all(axis=-1)
+
     def contains(self, metric, rtol=1e-9):
         """Boolean mask ``lower (1 - rtol) <= metric <= upper (1 + rtol)`` (NaN -> False).
 

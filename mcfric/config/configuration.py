@@ -109,6 +109,11 @@ class Config:
         (``F_lim`` inf: no force constraint)."""
         return validation.bounds_limits(self.data)
 
+    def bounds_shortfalls(self):
+        """Phrases naming the ``[bounds]`` constraints that leave out friction the
+        sampling draws (empty: every member is admitted)."""
+        return validation.bounds_shortfalls(self.data)
+
     def metric_beams(self):
         """0-based beams of the metric, or None for all."""
         b = self.spec.metric.beams

@@ -297,6 +297,33 @@ def _draw_max(t):
     return _dist_max(t)
 
 
+def bounds_shortfalls(c):
+    """Where ``[bounds]``' constraints leave out friction the sampling draws: one phrase
+    per constraint (empty where they cover every member, or the bounds are off).
+
+    The bounds hold for the members whose dampers keep ``kc <= k_max``, ``kc / pi <=
+    k_max_im`` and ``4 / pi mu0 N0 <= F_lim`` (:meth:`Bounds.admits
+    <mcfric.bounds.Bounds.admits>`); ``"auto"`` limits cover the sampling by
+    construction, given ones may not (a unit slip: 15 for 15 kN/m).
+    """
+    if not c["bounds"]["enabled"]:
+        return []
+    k_max, k_im, F_lim = bounds_limits(c)
+    s = c["sampling"]
+    kc, mu, n0 = _draw_max(s["kc"]), _draw_max(s["mu0"]), _draw_max(s["N0"])
+    slack = 1.0 + 1e-12
+    out = []
+    if kc > k_max * slack:
+        out.append(f"k_max = {k_max:g} N/m is below the largest kc drawn, {kc:g} N/m")
+    if kc / math.pi > k_im * slack:
+        out.append(f"k_max_im = {k_im:g} N/m is below the largest kc / pi drawn, "
+                   f"{kc / math.pi:g} N/m")
+    if 4.0 / math.pi * mu * n0 > F_lim * slack:
+        out.append(f"F_lim = {F_lim:g} N is below the largest 4/pi mu0 N0 drawn, "
+                   f"{4.0 / math.pi * mu * n0:g} N")
+    return out
+
+
 def bounds_limits(c):
     """(k_max_re, k_max_im, F_lim) in N/m, N/m, N from ``[bounds]`` and ``[sampling]``."""
     b, s = c["bounds"], c["sampling"]
