@@ -1102,8 +1102,10 @@ def cmd_info(args):
     elif B is not None:
         lines.append("bounds:      searched only, not certified (--no-certify)")
     if a.get("complete") == 1 and "wall_time_s" in a:
-        lines.append(f"run time:    {a['wall_time_s']:.1f} s "
-                     f"(kernel {a.get('kernel_time_s', float('nan')):.1f} s) in the session "
+        b = float(a.get("bounds_time_s", 0.0))    # files before 2026-11-30 have none
+        of = f"bounds {b:.1f} s, " if b > 0 else ""
+        lines.append(f"run time:    {a['wall_time_s']:.1f} s ({of}kernel "
+                     f"{a.get('kernel_time_s', float('nan')):.1f} s) in the session "
                      f"that completed it")
     # what wrote the file (bounds files before 2026-11-30 record the mcfric version only)
     lines.append(f"written by:  mcfric {a.get('mcfric_version')}" + "".join(

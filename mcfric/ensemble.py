@@ -84,6 +84,9 @@ class Summary:
     wall_s, kernel_s : float
         Time of this call, and of it the time spent in the kernel, s (on a cluster: the
         workers' time in their chunks, summed).
+    bounds_s : float
+        Of ``wall_s``, the bounds' computation (certification included), s; 0 where they
+        were not computed in this call.
     complete, already_complete : bool
     cluster : str
         The Dask scheduler of this call (``"local:N"`` or an address); "" for none.
@@ -109,6 +112,7 @@ class Summary:
     cluster: str = ""
     startup_s: float = 0.0
     bounds_computed: bool = False
+    bounds_s: float = 0.0
 
     @property
     def points(self):
@@ -119,13 +123,17 @@ class Summary:
         """The summary printed at the end of a run, several lines."""
         pts = self.points
         pct = 100.0 * self.not_converged / max(pts, 1)
-        rate = self.samples_this_session * self.n_freq / max(self.wall_s, 1e-9)
+        ens_s = self.wall_s - self.bounds_s
+        rate = self.samples_this_session * self.n_freq / max(ens_s, 1e-9)
         lines = [f"samples: {self.samples_done} of {self.samples}, "
                  f"{self.n_freq} frequencies each: {pts:,} points",
                  f"not converged: {self.not_converged:,} points ({pct:.3g} %)"]
         if self.samples_this_session:
+            of = (f"bounds {self.bounds_s:.2f} s, ensemble {ens_s:.2f} s"
+                  if self.bounds_s else f"ensemble {ens_s:.2f} s")
             lines.append(f"wall time: {self.wall_s:.2f} s for {self.samples_this_session} "
-                         f"samples (kernel {self.kernel_s:.2f} s), {rate:,.0f} points/s")
+                         f"samples: {of} (kernel {self.kernel_s:.2f} s), {rate:,.0f} "
+                         f"points/s in the ensemble")
             if self.cluster:
                 lines.append(f"cluster:   {self.cluster}; start-up {self.startup_s:.2f} s "
                              f"of the wall time; kernel time summed over the workers")
@@ -314,7 +322,7 @@ def layout(spec):
         **software_attrs(),
     }
     placeholders = {"n_not_converged": np.int64(-1), "wall_time_s": np.float64(np.nan),
-                    "kernel_time_s": np.float64(np.nan),
+                    "kernel_time_s": np.float64(np.nan), "bounds_time_s": np.float64(np.nan),
                     "finished_unix": np.float64(np.nan)}
     return coords, variables, attrs, placeholders
 
@@ -606,9 +614,10 @@ def _connect(spec, verbose):
 
 
 def _run_store(spec, final, what, found, progress, groups, t_start, cluster):
+    timing = {"bounds_s": 0.0}
     if what == "new":
         if groups == "auto":
-            groups = _bounds_groups(spec, progress) if spec.bounds else None
+            groups = _bounds_groups(spec, progress, timing) if spec.bounds else None
         coords, variables, attrs, placeholders = layout(spec)
         store = Store.create(final, record_dim=RECORD, n_records=spec.samples, coords=coords,
                              variables=variables, attrs=attrs, placeholders=placeholders,
@@ -619,16 +628,18 @@ def _run_store(spec, final, what, found, progress, groups, t_start, cluster):
         store, not_conv_before = found
         done = store.done()
     try:
-        summary = _drive(spec, store, done, not_conv_before, progress, t_start, cluster)
+        summary = _drive(spec, store, done, not_conv_before, progress, t_start, cluster,
+                         bounds_s=timing["bounds_s"])
         summary.bounds_computed = what == "new" and bool(groups)
         return summary
     finally:
         store.close()
 
 
-def _bounds_groups(spec, verbose):
+def _bounds_groups(spec, verbose, timing):
     """A callable giving ``{"bounds": (variables, attrs)}``: the bounds of the nominal
-    model, computed when called (before the ensemble)."""
+    model, computed when called (before the ensemble); their time, s, is added to
+    ``timing["bounds_s"]``."""
     def group():
         from .bounds import from_spec, to_group
 
@@ -642,8 +653,9 @@ def _bounds_groups(spec, verbose):
             from .bounds.peak import peak_attrs
 
             attrs.update(peak_attrs(spec.model, B, spec.peaks.rtol))
+        timing["bounds_s"] += time.perf_counter() - t
         if verbose:
-            print(f"{B.summary()} ({time.perf_counter() - t:.1f} s)", flush=True)
+            print(f"{B.summary()} ({timing['bounds_s']:.1f} s)", flush=True)
         return {"bounds": (variables, attrs)}
     return group
 
@@ -757,7 +769,8 @@ def local_chunks(spec, chunks, timing):
         prefetch.shutdown(wait=True, cancel_futures=True)
 
 
-def _drive(spec, store, done, not_conv_before, progress, t_start, cluster=None):
+def _drive(spec, store, done, not_conv_before, progress, t_start, cluster=None,
+           bounds_s=0.0):
     """Solve the pending chunks (here, or on ``cluster``), write and commit them."""
     from tqdm import tqdm
 
@@ -843,17 +856,18 @@ def _drive(spec, store, done, not_conv_before, progress, t_start, cluster=None):
     wall = time.perf_counter() - t_start
     if interrupted or n_done < spec.samples:
         s = Summary(store.path, spec.samples, n_f, n_done, stats["written"], not_conv, wall,
-                    kernel_s, False, **on_cluster)
+                    kernel_s, False, bounds_s=bounds_s, **on_cluster)
         if interrupted:
             raise Interrupted(s)
         return s
     final = store.finish({"n_not_converged": np.int64(not_conv),
                           "wall_time_s": np.float64(wall),
                           "kernel_time_s": np.float64(kernel_s),
+                          "bounds_time_s": np.float64(bounds_s),
                           "finished_unix": np.float64(time.time())})
     report = peak_report(final) if spec.peaks else None
     return Summary(final, spec.samples, n_f, n_done, stats["written"], not_conv,
-                   time.perf_counter() - t_start, kernel_s, True,
+                   wall, kernel_s, True, bounds_s=bounds_s,
                    peaks=report_text(report, METRIC_UNITS[spec.metric.quantity])
                    if report else None, harmonics=indicator_report(final), **on_cluster)
 

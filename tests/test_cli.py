@@ -121,11 +121,19 @@ def test_run_info_and_figure(tmp_path, monkeypatch, capsys):
                  # the certificate's summary, without the progress output too
                  "upper within 1 % of its witness at"):
         assert text in out
+    # the points per second are the ensemble's, the bounds' time apart (as stored)
+    m = re.search(r"wall time: ([\d.]+) s for 40 samples: bounds ([\d.]+) s, ensemble "
+                  r"([\d.]+) s \(kernel [\d.]+ s\), ([\d,]+) points/s in the ensemble", out)
+    wall, b, ens, rate = (float(g.replace(",", "")) for g in m.groups())
+    assert abs(wall - b - ens) <= 0.011 and b > 0
+    assert rate == pytest.approx(1000 / ens, rel=0.05, abs=1)
     assert (tmp_path / "r.png").stat().st_size > 10000
     with h5py.File(tmp_path / "r.h5") as h5:
         cfg = config.validate(tomllib.loads(h5.attrs["config"]))
         assert cfg.model().excitation.F0 == 0.72 and cfg.seed == 3
         assert h5.attrs["numba_version"] == numba.__version__
+        assert h5.attrs["bounds_time_s"] == pytest.approx(b, abs=0.006)
+        assert h5.attrs["wall_time_s"] == pytest.approx(wall, abs=0.006)
     rc, out, _ = call(["info", "r.h5"], capsys)
     assert rc == 0
     assert "(complete)" in out and "two-beam: 2 beams, 1 damper, linear" in out
