@@ -40,6 +40,7 @@ from .provenance import software_attrs
 from .store import Store, StoreError, allocated_bytes, iter_records, partial_path, read_attrs
 from .store.lock import LockError, OutputLock
 from .threads import interruptible, threads
+from .validators import show
 
 RECORD = "sample"
 #: Names of the stop signals (SIGTERM, SIGHUP) the command line received during this run:
@@ -335,9 +336,20 @@ def _stored_config(attrs, path):
 
 
 def _same_run(spec, attrs, path):
-    """None if ``attrs`` describe the same run as ``spec``, else the first differing key."""
-    stored = _stored_config(attrs, path)
-    return first_difference(spec.identity, json.loads(json.dumps(identity(stored))))
+    """None if ``attrs`` describe the same run as ``spec``, else the first differing key
+    with both values: ``"sampling.samples = 20000 there, 2000 here"``."""
+    stored = json.loads(json.dumps(identity(_stored_config(attrs, path))))
+    key = first_difference(spec.identity, stored)
+    if key is None:
+        return None
+
+    def at(d):
+        for k in key.split("."):
+            if not isinstance(d, dict) or k not in d:
+                return "unset"
+            d = d[k]
+        return show(d)
+    return f"{key} = {at(stored)} there, {at(spec.identity)} here"
 
 
 def _count_not_converged(path):
@@ -411,9 +423,10 @@ def prepare(spec, path, *, resume=False, force=False):
                            f"continue it, or --force to start again")
         diff = _same_run(spec, attrs, part)
         if diff is not None:
-            raise RunError(f"cannot resume {part}: it was started with a different "
-                           f"configuration (first difference: {diff}); use --force to "
-                           f"start again")
+            raise RunError(f"cannot resume {part}: it was started with another "
+                           f"configuration ({diff}); continue it with its own (`mcfric "
+                           f"config {part} > run.toml`, then `mcfric run run.toml -o "
+                           f"{final} --resume`), or discard its samples with --force")
         _check_fingerprint(attrs, f"cannot resume {part}: the solver code, numpy/scipy/"
                                   f"numba/llvmlite or this machine's kind of CPU changed "
                                   f"since it was started",

@@ -268,7 +268,10 @@ def test_a_run_with_overrides_resumes_from_its_own_configuration(tmp_path, monke
     capsys.readouterr()
     # the preset alone is another run: refused
     assert cli.main(["run", "two-beam", "-o", str(out), "--resume", "--no-figure"]) == 2
-    assert "different configuration" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    # both values, and the remedy (the one the next lines follow) before --force
+    assert "another configuration (frequency.n = 10 there, 1000 here)" in err
+    assert err.index(f"mcfric config {partial_path(out)}") < err.index("--force")
     assert cli.main(["config", str(partial_path(out))]) == 0
     toml = tmp_path / "run.toml"
     toml.write_text(capsys.readouterr().out)
@@ -282,7 +285,8 @@ def test_resume_refuses_other_config_or_other_solver_code(tmp_path, monkeypatch)
     cfg = two_beam(samples=50, n=10, run__chunk=10, run__checkpoint_s=0.0)
     out = tmp_path / "r.h5"
     interrupt_at_chunk_3(monkeypatch, cfg, out)
-    with pytest.raises(RunError, match="different configuration.*frequency.n"):
+    with pytest.raises(RunError,
+                       match=r"another configuration \(frequency.n = 10 there, 11 here\)"):
         run(cfg.replace("frequency.n", 11), out, resume=True)
     monkeypatch.setattr(ensemble, "fingerprint", lambda: "0000")
     with pytest.raises(RunError, match=r"cannot resume .*solver code.*\(fingerprint "
