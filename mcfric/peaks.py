@@ -176,7 +176,7 @@ def refine(model, result, omega, modal_freq_hz, settings, mu0, N0, kc, tol, max_
                  take(out_md, order, 1))
 
 
-def statistics(largest, confidence=CONFIDENCE):
+def statistics(largest, confidence=CONFIDENCE, raised=0):
     """Median, 95th percentile and maximum of the members' largest peaks (NaN ignored),
     with distribution-free confidence intervals of the first two.
 
@@ -186,6 +186,9 @@ def statistics(largest, confidence=CONFIDENCE):
         Each member's largest peak of the metric.
     confidence : float
         Least coverage of the intervals (:func:`mcfric.quantiles.quantile_interval`).
+    raised : int
+        How many of the values are lower estimates (a peak not refined): the intervals'
+        upper ends move up by that many members.
 
     Returns
     -------
@@ -203,8 +206,9 @@ def statistics(largest, confidence=CONFIDENCE):
                 "median_ci": nan2, "p95_ci": nan2, "confidence": confidence}
     return {"members": int(v.size), "median": float(np.median(v)),
             "p95": float(np.percentile(v, 95)), "max": float(v.max()),
-            "median_ci": quantile_interval(v, 0.5, confidence),
-            "p95_ci": quantile_interval(v, 0.95, confidence), "confidence": confidence}
+            "median_ci": quantile_interval(v, 0.5, confidence, raised),
+            "p95_ci": quantile_interval(v, 0.95, confidence, raised),
+            "confidence": confidence}
 
 
 def at_band_end(freq_hz, f_pk):
@@ -309,7 +313,8 @@ def file_report(path):
                                            & (arr["peak_status"] != NONE)).any(axis=1)))
     largest = np.concatenate(largest) if largest else np.empty(0)
     ratio = np.concatenate(ratio) if ratio else np.empty(0)
-    out = {"statistics": statistics(largest), "members": int(largest.size),
+    out = {"statistics": statistics(largest, raised=n_unresolved),
+           "members": int(largest.size),
            "grid_ratio": float(np.nanmedian(ratio)) if np.isfinite(ratio).any() else np.nan,
            "folds": folds, "unchecked": unchecked, "unresolved": n_unresolved,
            "at_end": n_end}
@@ -369,11 +374,10 @@ def report_text(report, unit):
              + (f" of the {st['members'] - k - e} fully refined inside the band" if k or e
                 else "")
              if st["members"] > k + e else "none fully refined inside the band")
-    # lower estimates among the members: the true statistics lie higher, so only the
-    # lower ends of the confidence intervals still hold
+    # lower estimates among the members: statistics() moved the intervals' upper ends
     lines = [f"peaks:       each member's largest, refined: median {st['median']:.4g}"
-             f"{_interval(st, 'median_ci', bool(k))}, 95th percentile {st['p95']:.4g}"
-             f"{_interval(st, 'p95_ci', bool(k))}, max {st['max']:.4g} {unit} "
+             f"{_interval(st, 'median_ci')}, 95th percentile {st['p95']:.4g}"
+             f"{_interval(st, 'p95_ci')}, max {st['max']:.4g} {unit} "
              f"({st['members']} members; {share})"
              + (f"; {k} of these {'is a lower estimate' if k == 1 else 'are lower estimates'}"
                 f": a peak of the member was not refined (a solver failed near it, or the "
@@ -391,14 +395,11 @@ def report_text(report, unit):
     return lines + bound_peak_lines(report, unit, st["max"] if st["members"] else None)
 
 
-def _interval(st, key, lower_only=False):
+def _interval(st, key):
     """`` (lo to hi, 95 % conf.)``: the confidence interval of a statistic as the summary
-    prints it (``above lo`` where too few members close its upper side, or where
-    ``lower_only``: some members' values are lower estimates; empty where there is
-    none)."""
+    prints it (``above lo`` where too few members close its upper side; empty where there
+    is none)."""
     lo, hi = st.get(key, (np.nan, np.nan))
-    if lower_only:
-        hi = np.inf
     pct = f"{100 * st.get('confidence', CONFIDENCE):g} % conf."
     if not np.isfinite(lo):
         return ""

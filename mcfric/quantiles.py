@@ -13,6 +13,11 @@ or not. No
 shape is assumed; the members must be independent draws (each member of an ensemble has
 its own random stream). Where the sample is too small for a side (``l < 1`` or
 ``u > n``), that side is open (``-inf`` or ``inf``).
+
+Where ``k`` of the values are lower estimates (each true value at or above the one
+given), the true ``u``-th order statistic is at most ``x_(u + k)``: of the ``u + k``
+smallest values at least ``u`` are exact. The interval ``x_(l)`` to ``x_(u + k)`` holds
+the quantile with the same confidence (``x_(l)`` lies below the true ``l``-th anyway).
 """
 
 from __future__ import annotations
@@ -20,7 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 
-def quantile_interval(values, p, confidence=0.95):
+def quantile_interval(values, p, confidence=0.95, raised=0):
     """Confidence interval of the ``p``-quantile of the population behind ``values``.
 
     Parameters
@@ -31,6 +36,9 @@ def quantile_interval(values, p, confidence=0.95):
         Probability of the quantile, ``0 < p < 1`` (0.95: the 95th percentile).
     confidence : float
         Least coverage of the interval, ``0 < confidence < 1``.
+    raised : int
+        How many of the values are lower estimates (their true values lie at or above):
+        the upper end moves up by that many order statistics.
 
     Returns
     -------
@@ -58,6 +66,6 @@ def quantile_interval(values, p, confidence=0.95):
     l_ok = np.flatnonzero(below <= tail)
     u_ok = np.flatnonzero(above <= tail)
     lo = int(l_ok[-1]) if l_ok.size else 0
-    hi = int(u_ok[0]) if u_ok.size else n + 1
+    hi = (int(u_ok[0]) if u_ok.size else n + 1) + int(raised)
     return (float(x[lo - 1]) if lo >= 1 else -np.inf,
             float(x[hi - 1]) if hi <= n else np.inf)

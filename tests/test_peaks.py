@@ -411,17 +411,25 @@ def test_band_ends_and_coarse_grids_are_not_called_refined_peaks(tmp_path):
     assert grid_too_coarse(grid60.model(), grid60.frequencies()) is None
 
 
-def test_lower_estimates_keep_only_the_lower_ends_of_the_intervals():
-    """Members whose largest is a lower estimate: the true median and 95th percentile lie
-    higher, so only the lower ends of their confidence intervals are printed."""
+def test_lower_estimates_move_the_upper_ends_of_the_intervals_up():
+    """Members whose largest is a lower estimate: the true median and 95th percentile may
+    lie higher, so the intervals' upper ends move up by as many members; the lower ends
+    stay."""
     from mcfric.peaks import report_text, statistics
 
     x = np.random.default_rng(5).lognormal(-5.0, 0.3, 2000)
-    rep = {"statistics": statistics(x), "grid_ratio": 0.7, "unresolved": 3,
+    xs = np.sort(x)
+    rep = {"statistics": statistics(x, raised=3), "grid_ratio": 0.7, "unresolved": 3,
            "members": 2000, "folds": 0, "unchecked": 0}
     line = report_text(rep, "m")[0]
-    assert re.search(r"median \S+ \(above \S+, 95 % conf\.\), 95th percentile \S+ "
-                     r"\(above \S+, 95 % conf\.\)", line), line
+    exact = statistics(x)
+    for name, key in (("median", "median_ci"), ("95th percentile", "p95_ci")):
+        m = re.search(rf"{name} \S+ \((\S+) to (\S+), 95 % conf\.\)", line)
+        assert m, line
+        lo, hi = exact[key]
+        assert float(m[1]) == pytest.approx(lo, rel=1e-3)
+        u = int(np.flatnonzero(xs == hi)[0])
+        assert float(m[2]) == pytest.approx(xs[u + 3], rel=1e-3)
 
 
 def test_a_mistuned_runs_bound_peak_says_it_is_the_nominal_rigs(tmp_path):
