@@ -1494,11 +1494,31 @@ def _one_line(e):
     return " ".join(str(e).split())
 
 
+def _command_typo(word):
+    """A message where ``word``, the first argument, is no command, preset or file but
+    close to a command's name (``runn``: read as ``mcfric run runn`` it failed on the
+    arguments after it, or as a missing file), else None."""
+    import difflib
+
+    from .presets import PRESETS
+
+    if (word in COMMANDS or word.startswith("-") or word in PRESETS or os.path.exists(word)
+            or any(c in word for c in "./\\")):       # a file's name: "no such file" says it
+        return None
+    close = difflib.get_close_matches(word, COMMANDS, n=1, cutoff=0.6)
+    return (f"unknown command {word!r} (did you mean {close[0]!r}? commands: "
+            f"{', '.join(COMMANDS)})" if close else None)
+
+
 def main(argv=None):
     """Entry point of ``mcfric``; returns the exit code."""
     from .store import StoreError
 
     argv = list(sys.argv[1:] if argv is None else argv)
+    typo = _command_typo(argv[0]) if argv else None
+    if typo:
+        print(f"mcfric: error: {typo}", file=sys.stderr)
+        return EXIT_USAGE
     if not argv or (argv[0] not in COMMANDS and argv[0] not in ("-h", "--help", "--version")):
         argv = ["run"] + argv        # `mcfric` alone (or `mcfric two-beam`) means `mcfric run`
     import signal

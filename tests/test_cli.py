@@ -360,6 +360,19 @@ def test_members_outside_the_bounds_constraints_are_named_and_left_out(tmp_path,
     assert re.search(r"certified bounds check: 0 outside", text)
 
 
+@pytest.mark.parametrize("argv, close", [(["runn", "two-beam"], "run"), (["inf", "x.h5"], "info"),
+                                         (["bound"], "bounds"), (["verfy"], "verify")])
+def test_a_misspelt_command_is_named(argv, close, tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    rc, out, err = call(argv, capsys)
+    assert rc == 2 and out == "" and err.count("\n") == 1
+    assert f"unknown command {argv[0]!r} (did you mean {close!r}?" in err
+    assert list(tmp_path.iterdir()) == []
+    # a file's name is no command: its absence is said as before
+    rc, _, err = call(["plot.toml"], capsys)
+    assert rc == 2 and "unknown command" not in err and "plot.toml" in err
+
+
 def test_no_arguments_runs_the_embedded_default(tmp_path, monkeypatch, capsys):
     seen = {}
 
