@@ -885,7 +885,13 @@ def _read_measured(args, attrs):
                                        force_n=args.measured_force,
                                        direction=args.measured_direction)
         except (ValueError, ImportError) as e:
-            raise UsageError(str(e).splitlines()[0]) from None
+            msg = str(e).splitlines()[0]
+            if nodes is None and "pass nodes=" in msg:
+                # the API's words (nodes={102: 1}) said as the command line's flag
+                found = msg[msg.find("(response nodes"):]
+                msg = (f"{data}: give --nodes N1,N2,... (the UFF response node of beam 1, "
+                       f"2, ...) {found}")
+            raise UsageError(msg) from None
         for m in ms_list:
             extra = [b for b in m.beams if n_beams and b > n_beams]
             if extra:

@@ -285,6 +285,10 @@ def test_a_triaxial_uff_file_takes_the_measured_direction(results, tmp_path, cap
             "102,202"]
     rc, _, err = call(base, capsys)
     assert rc == 2 and "--measured-direction" in err, err
+    # without --nodes: the flag to give, not the API's nodes= (the file's nodes named)
+    rc, _, err = call(base[:-2] + ["--measured-direction", "3"], capsys)
+    assert rc == 2 and "give --nodes N1,N2,..." in err and "102" in err, err
+    assert "nodes=" not in err and err.count("\n") == 1
     rc, out, err = call(base + ["--measured-direction", "3"], capsys)
     assert rc == 0 and all(p == 100.0 for p, _, _ in _fractions(out)), out
     rc, out, err = call(base + ["--measured-direction", "1"], capsys)
