@@ -64,6 +64,17 @@ class _Parser(argparse.ArgumentParser):
     def error(self, message):
         raise UsageError(f"{message} (see `{self.prog} --help`)")
 
+    def parse_args(self, args=None, namespace=None):
+        # the top-level parser reports a subcommand's unknown options: its help lists
+        # the commands, not their options, so the pointer names the command's own help
+        ns, extra = self.parse_known_args(args, namespace)
+        if extra:
+            cmd = getattr(ns, "command", None)
+            prog = f"{self.prog} {cmd}" if cmd else self.prog
+            raise UsageError(f"unrecognized arguments: {' '.join(extra)} (see `{prog} "
+                             f"--help`)")
+        return ns
+
 
 def _source_help():
     return "a preset (two-beam, eight-beam, disk-24, disk-72) or a TOML configuration file"
