@@ -373,6 +373,12 @@ def test_a_misspelt_command_is_named(argv, close, tmp_path, monkeypatch, capsys)
     assert rc == 2 and "unknown command" not in err and "plot.toml" in err
 
 
+@pytest.mark.parametrize("cmd", ["hbm", "run", "plot"])
+def test_an_unknown_option_points_to_its_commands_help(cmd, capsys):
+    rc, _, err = call([cmd] + (["x.h5"] if cmd == "plot" else []) + ["--bogus"], capsys)
+    assert rc == 2 and f"unrecognized arguments: --bogus (see `mcfric {cmd} --help`)" in err
+
+
 def test_no_arguments_runs_the_embedded_default(tmp_path, monkeypatch, capsys):
     seen = {}
 
