@@ -1237,21 +1237,22 @@ def _verify_source(args):
         if not Path(src).exists() and partial_path(src).exists():
             raise UsageError(f"{src}: no such file; {partial_path(src).name} holds the "
                              f"interrupted run (give that name to verify its members done)")
+        attrs = _checked_file(src)[0]       # a damaged or foreign file: one line, exit 2
+        n = int(attrs.get("samples", 0))
+        if n == 0:
+            # said first: asking for --member would send the user to a second refusal
+            raise UsageError(f"{src}: no members (a bounds file); give a results file of a run")
         if args.member is None:
             raise UsageError("--member: a results file needs --member I (0-based)")
         for flag in ("mu0", "kc", "N0", "F0"):
             if getattr(args, flag) is not None:
                 raise UsageError(f"--{flag}: taken from the results file; not with a FILE")
-        attrs = _checked_file(src)[0]       # a damaged or foreign file: one line, exit 2
         try:
             spec = config.validate(json.loads(attrs["config_json"])).spec
         except config.ConfigError as e:
             raise UsageError(f"{src}: stored configuration: {e}") from None
         if spec.mistuned:
             raise UsageError(f"{src}: verify does not take mistuned members yet")
-        n = int(attrs.get("samples", 0))
-        if n == 0:
-            raise UsageError(f"{src}: no members (a bounds file); give a results file of a run")
         if not 0 <= args.member < n:
             raise UsageError(f"--member: expected an integer in 0..{n - 1}, got {args.member}")
         # a member not done holds the fill value (0), not NaN: ``done`` says which are

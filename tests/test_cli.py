@@ -195,6 +195,10 @@ def test_bounds_file_holds_the_bound_peak_as_a_run_does(tmp_path, capsys):
     # a bounds file holds no members: info says so rather than '0 of 0 points'
     assert "sampling:    none (a bounds file: no members)" in info
     assert "converged:" not in info and "metric:      displacement m\n" in info
+    # verify says it is a bounds file first, not "needs --member" and then that
+    for extra in ([], ["--member", "0"]):
+        rc, _, err = call(["verify", str(out), "--f", "60"] + extra, capsys)
+        assert rc == 2 and "no members (a bounds file)" in err, err
     # what wrote it, as a run's file says (versions and time)
     with h5py.File(out) as h:
         root = dict(h.attrs)
