@@ -1048,6 +1048,7 @@ def cmd_info(args):
     from .peaks import file_report as peak_report
     from .peaks import report_text
     from .store import StoreError, describe, iter_records, partial_path
+    from .store.lock import holder
 
     path = Path(args.file)
     if not path.exists() and partial_path(path).exists():
@@ -1071,10 +1072,14 @@ def cmd_info(args):
     done = d.get("done", 0)
     m, ex, fr, sa = cfg["model"], cfg["excitation"], cfg["frequency"], cfg["sampling"]
     nd = m["n_beams"] - (1 if m["topology"] == "linear" else 0)
+    final = str(path).removesuffix(".partial")
+    writer = None if a.get("complete") == 1 else holder(final)
     state = ("complete" if a.get("complete") == 1 else
+             f"INCOMPLETE: {done} of {n} samples done; being written now by {writer}"
+             if writer else
              f"INCOMPLETE: {done} of {n} samples done; continue it with the command "
              f"that started it and --resume, or with `mcfric config {path} > run.toml` "
-             f"and `mcfric run run.toml -o {str(path).removesuffix('.partial')} --resume`")
+             f"and `mcfric run run.toml -o {final} --resume`")
 
     def dist(t):
         from .sampling import DISTRIBUTIONS

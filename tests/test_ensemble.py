@@ -281,6 +281,35 @@ def test_a_run_with_overrides_resumes_from_its_own_configuration(tmp_path, monke
     assert_bitwise(load(out), load(tmp_path / "straight.h5"))
 
 
+def test_info_on_a_partial_names_its_live_writer(tmp_path, monkeypatch, capsys):
+    """`mcfric info FILE.partial` told to continue with --resume even while a run was
+    writing it (the lock would refuse that run): it names the writer instead."""
+    from mcfric import cli
+
+    cfg = two_beam(samples=50, n=10, run__chunk=10)
+    out = tmp_path / "r.h5"
+    interrupt_at_chunk_3(monkeypatch, cfg, out)
+    assert cli.main(["info", str(partial_path(out))]) == 0
+    assert "--resume" in capsys.readouterr().out
+    code = ("import time\nfrom mcfric.store.lock import OutputLock\n"
+            f"OutputLock({str(out)!r}, 'mcfric run').acquire()\n"
+            "print('holding', flush=True)\ntime.sleep(120)\n")
+    p = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True)
+    try:
+        assert p.stdout.readline().strip() == "holding"
+        assert cli.main(["info", str(partial_path(out))]) == 0
+        text = capsys.readouterr().out
+        assert f"being written now by PID {p.pid} on " in text and "(mcfric run)" in text
+        assert "--resume" not in text
+    finally:
+        p.kill()
+        p.wait()
+        p.stdout.close()
+    # a lock whose owner ended blocks nothing and names no one
+    assert cli.main(["info", str(partial_path(out))]) == 0
+    assert "--resume" in capsys.readouterr().out
+
+
 def test_resume_refuses_other_config_or_other_solver_code(tmp_path, monkeypatch):
     cfg = two_beam(samples=50, n=10, run__chunk=10, run__checkpoint_s=0.0)
     out = tmp_path / "r.h5"

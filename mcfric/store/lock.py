@@ -48,6 +48,26 @@ def _owner(fd):
         return "another process (owner unknown)"
 
 
+def holder(path):
+    """Who writes the output ``path`` now: the owner line of a live lock, or None (no
+    lock file, or one left by a process that ended). Reads only: never creates the
+    lock file, and holds nothing after it returns."""
+    import fcntl
+
+    try:
+        fd = os.open(lock_path(path), os.O_RDONLY)
+    except OSError:
+        return None
+    try:
+        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+    except OSError as e:
+        return _owner(fd) if e.errno in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES) \
+            else None
+    finally:
+        os.close(fd)                 # closing releases a shared lock taken just now
+    return None
+
+
 class OutputLock:
     """The lock of one output file, held from :meth:`acquire` to :meth:`release`.
 
