@@ -1452,17 +1452,18 @@ def cmd_verify(args):
     rows = []
     for v in vs:
         print(v.table())
-        d1, dm, d3 = v.differences()
+        d1, dm, d3 = v.differences()       # NaN where not periodic
         for bb in range(model.n_beams):
             rows.append([v.freq_hz, bb + 1, int(v.periodic), v.periods,
                          *np.abs(v.harmonics[:, bb]), v.even[bb], v.peak[bb],
                          abs(v.single[bb]),
                          abs(v.multi[0, bb]), v.multi_peak[bb], d1[bb], dm[bb], d3[bb]])
     orders = vs[0].orders
+    # one row per beam: columns named by harmonic (hbm's CSV names its beams y1, y2, ...)
     header = (["frequency_hz", "beam", "periodic", "periods"]
-              + [f"time_abs_y{n}_m" for n in orders]
-              + ["time_even_m", "time_peak_m", "h1_abs_y1_m", "mhb_abs_y1_m", "mhb_peak_m",
-                 "diff_h1", "diff_mhb", "diff_mhb_y3"])
+              + [f"time_harmonic{n}_m" for n in orders]
+              + ["time_even_m", "time_peak_m", "h1_fundamental_m", "mhb_fundamental_m",
+                 "mhb_peak_m", "diff_h1", "diff_mhb", "diff_mhb_harmonic3"])
     from .store import replacing
 
     with replacing(out, "CSV") as tmp:

@@ -97,7 +97,11 @@ class Verification:
         amplitude against the integration's, and the multi-harmonic 3rd harmonic against
         the integration's (NaN without a 3rd harmonic, and where the integration's is 0
         or rounding noise, below ``NOISE`` times the largest fundamental: a beam at rest,
-        or stuck contacts, have no relative difference)."""
+        or stuck contacts, have no relative difference; all NaN where the integration is
+        not periodic: no steady state to compare with)."""
+        if not self.periodic:
+            nan = np.full(self.harmonics.shape[1], np.nan)
+            return nan, nan.copy(), nan.copy()
         td1 = np.abs(self.harmonics[0])
         d1 = _ratio(np.abs(self.single), td1) - 1.0
         dm = _ratio(np.abs(self.multi[0]), td1) - 1.0
