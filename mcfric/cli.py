@@ -1190,10 +1190,12 @@ def cmd_hbm(args):
     fmt = ["%.10g"] + ["%.10e"] * (model.n_beams + 1) + ["%d"] + ["%.10e"] * model.n_dampers
     if H > 1:
         # the fundamental above; the full-period peak (all harmonics) after
-        header += [f"peak_y{b + 1}_m" for b in range(model.n_beams)] + ["from_above"]
+        header += ([f"peak_y{b + 1}_m" for b in range(model.n_beams)]
+                   + ["from_above", "from_rest"])
         table = np.column_stack([table, res.response_peak[0],
-                                 res.from_above[0].astype(float)])
-        fmt += ["%.10e"] * model.n_beams + ["%d"]
+                                 res.from_above[0].astype(float),
+                                 res.from_rest[0].astype(float)])
+        fmt += ["%.10e"] * model.n_beams + ["%d", "%d"]
     from .store import replacing
 
     with replacing(out, "CSV") as tmp:
@@ -1210,6 +1212,10 @@ def cmd_hbm(args):
     if up:
         print(f"from above: {up} points converged only from the next frequency's solution "
               f"(column from_above)")
+    rest = int(np.count_nonzero(res.from_rest[0]))
+    if rest:
+        print(f"from rest: {rest} points converged only from rest, raising the drive at "
+              f"their frequency (column from_rest)")
     print(f"csv: {out}")
     if not args.no_figure:
         png = out.with_suffix(".png")
@@ -1303,8 +1309,8 @@ def _stored_points(path, member, freqs, quantity):
     conv = read(path, "converged", member)
     metric = read(path, "metric", member)
     names = dataset_names(path)
-    above = (read(path, "from_above", member) if "from_above" in names
-             else np.zeros(len(f), bool))
+    above, rest = (read(path, name, member) if name in names else np.zeros(len(f), bool)
+                   for name in ("from_above", "from_rest"))
     lines = [f"file: member {member}'s harmonic balance here is solved afresh (the run's "
              f"tolerance and iterations, a short sweep over the frequencies given, each "
              f"started from the one before, a failed one again from its neighbours: near "
@@ -1353,6 +1359,9 @@ def _stored_points(path, member, freqs, quantity):
                        else "")
                 lines.append(f"file: the run reached {fk:.10g} Hz only from its solution at "
                              f"the next grid frequency (from_above){nxt}")
+            if rest[k]:
+                lines.append(f"file: the run reached {fk:.10g} Hz only from rest, raising "
+                             f"the drive there (from_rest): on the branch connected to rest")
     return out, lines, stored
 
 

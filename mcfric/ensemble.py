@@ -290,6 +290,10 @@ def layout(spec):
         variables["from_above"] = ((RECORD, "frequency"), np.bool_, {
             "long_name": "true where the balance converged only from the solution at the "
             "next frequency, sweeping back down: on the branch reached from above"})
+        variables["from_rest"] = ((RECORD, "frequency"), np.bool_, {
+            "long_name": "true where the balance converged only from rest, raising the "
+            "drive at its own frequency (no neighbour's solution converged there): on the "
+            "branch connected to rest"})
     if spec.solver.harmonics > 1 and spec.keep_response:
         amp = spec.response_format == "amplitude"
         variables["response_peak"] = ((RECORD, "frequency", "beam"),
@@ -717,6 +721,7 @@ def record_arrays(spec, d, res):
         arrays["harmonic_indicator"] = res.harmonic_indicator.astype(np.float32)
     if spec.solver.harmonics > 1:
         arrays["from_above"] = res.from_above
+        arrays["from_rest"] = res.from_rest
     if spec.keep_response:
         amp = spec.response_format == "amplitude"
         if amp:

@@ -17,7 +17,7 @@ from .core import harmonic_indicator as _indicator
 from .core import multi_harmonic as _multi_harmonic
 from .core import sweep as _sweep
 from .core.aft import harmonic_orders
-from .core.multi_harmonic import FROM_ABOVE
+from .core.multi_harmonic import FROM_ABOVE, FROM_REST
 from .core.newton import NOT_CONVERGED
 from .core.receptance import D21
 from .memory import MemoryRefused, check_fits
@@ -117,6 +117,13 @@ class HBMResult:
         return self.status == FROM_ABOVE
 
     @property
+    def from_rest(self):
+        """Boolean mask (n_s, n_f) of points that converged only from rest, by raising the
+        drive at their own frequency, no neighbour's solution converging there
+        (multi-harmonic runs; all false otherwise)."""
+        return self.status == FROM_REST
+
+    @property
     def n_not_converged(self):
         """Number of points that did not converge."""
         return int(np.count_nonzero(~self.converged))
@@ -140,10 +147,13 @@ class HBMResult:
         n = self.status.size
         bad = self.n_not_converged
         up = int(np.count_nonzero(self.from_above))
+        rest = int(np.count_nonzero(self.from_rest))
         return (f"{self.status.shape[0]} samples x {self.status.shape[1]} frequencies = {n} "
                 f"points; not converged: {bad} ({100.0 * bad / max(n, 1):.4g} %)"
                 + (f"; {up} converged only from the next frequency's solution (from_above)"
-                   if up else ""))
+                   if up else "")
+                + (f"; {rest} only from rest, raising the drive (from_rest)" if rest
+                   else ""))
 
 
 def solve(model, freq_hz, mu0, kc, N0=0.5, *, modal_freq_hz=None, tol=TOL,

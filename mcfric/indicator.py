@@ -49,6 +49,12 @@ def file_report(path):
             if n:
                 lines.append(f"from above:  {n:,} points converged only from the next "
                              "frequency's solution, sweeping down (dataset from_above)")
+        if "from_rest" in names:        # files before 2026-11-30 have none
+            n = sum(int(np.count_nonzero(arr["from_rest"]))
+                    for _, arr in iter_records(path, ["from_rest"]))
+            if n:
+                lines.append(f"from rest:   {n:,} points converged only from rest, raising "
+                             "the drive at their frequency (dataset from_rest)")
         return lines
     if "harmonic_indicator" not in names:
         return []

@@ -21,6 +21,7 @@ KINDS = {
     "N0": "f",
     "harmonic_indicator": "f", "response_peak": "f", "response_harmonics": "c",
     "from_above": "b",
+    "from_rest": "b",
     "peak_metric": "f", "peak_frequency": "f", "peak_status": "i", "fold": "i",
     "peak_metric_down": "f", "peak_frequency_down": "f", "peak_response": "c",
     "modal_freq_hz": "f", "done": "iu", "sample": "iu", "frequency": "f",

@@ -285,6 +285,8 @@ def test_a_point_the_upward_sweep_misses_converges_from_the_one_above():
     # the sweep, on the same solution
     alone = hbm.solve(model, f[:1], mu0[None], kc[None], 0.5, harmonics=7, n_threads=1)
     assert alone.status[0, 0] == FROM_REST, alone.status
+    assert alone.from_rest[0, 0] and not alone.from_above[0, 0]
+    assert "1 only from rest, raising the drive (from_rest)" in alone.summary()
     assert np.all(abs(alone.response[0, 0] - res.response[0, 0])
                   <= 1e-9 * abs(res.response[0, 0]).max())
     v = verify(model, f[0], mu0, kc, 0.5, harmonics=7)[0]
@@ -467,8 +469,11 @@ def test_multi_harmonic_run_is_identical_for_any_threads_and_chunks(tmp_path, ca
     text = capsys.readouterr().out
     assert "odd harmonics 1..5 balanced" in text
     with mcfric.open_results(runs[0]) as A, mcfric.open_results(runs[1]) as B:
-        for name in ("response", "response_peak", "converged", "from_above"):
+        for name in ("response", "response_peak", "converged", "from_above", "from_rest"):
             assert A[name].values.tobytes() == B[name].values.tobytes()
+        conv, up, rest = (A[n].values for n in ("converged", "from_above", "from_rest"))
+        # how a point was reached: one way at most, and only for converged points
+        assert not (up & rest).any() and not ((up | rest) & ~conv).any()
         assert int(A.attrs["harmonics"]) == 5
         assert "peak_metric" not in A and "harmonic_indicator" not in A
 
