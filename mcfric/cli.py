@@ -649,7 +649,12 @@ def _run_one(args, cfg, out, resume_as=None):
         print(f"mcfric run: {model.name}, {spec.samples} samples x {len(spec.freq_hz)} "
               f"frequencies, {model.n_beams} beams, F0 = {model.excitation.F0:g} N, "
               f"seed {spec.seed}", flush=True)
-        _shortfall_note(cfg)
+        from .store import partial_path
+
+        if args.force or not (out.exists() or partial_path(out).exists()):
+            # only where this run computes its bounds: a file resumed or complete keeps
+            # the bounds it was made with ([bounds] is no part of a run's identity)
+            _shortfall_note(cfg)
         summary = ensemble.run(cfg, out, resume=args.resume, force=args.force,
                                progress=not args.no_progress,
                                space_check=not args.skip_space_check)
@@ -1561,9 +1566,13 @@ def main(argv=None):
         # inside: Ctrl-C while the solver's modules load is an interrupt like any other
         previous = _stop_signals_interrupt()
         args = _parser().parse_args(argv)
-        rc = {"run": cmd_run, "config": cmd_config, "info": cmd_info, "hbm": cmd_hbm,
-              "bounds": cmd_bounds, "plot": cmd_plot,
-              "verify": cmd_verify}[args.command](args)
+        from .threads import leaving_on_interrupt
+
+        # the process ends after an interrupt: a chunk's kernel may be left running
+        with leaving_on_interrupt():
+            rc = {"run": cmd_run, "config": cmd_config, "info": cmd_info, "hbm": cmd_hbm,
+                  "bounds": cmd_bounds, "plot": cmd_plot,
+                  "verify": cmd_verify}[args.command](args)
         sys.stdout.flush()           # a closed pipe shows here, not at interpreter exit
         return rc
     except UsageError as e:

@@ -61,20 +61,38 @@ def in_threads(task, items):
 
 
 #: Held by the call :func:`interruptible` runs: one abandoned by an interrupt holds it
-#: until its kernel returns, and the next call waits for it, so that two parallel
-#: kernels never run at once.
+#: until its kernel returns, and the next call waits for it.
 _KERNEL_BUSY = threading.Lock()
+#: Whether :func:`interruptible` may leave a call behind: only where the process ends
+#: after an interrupt (the command line, :func:`leaving_on_interrupt`).
+_LEAVE = [False]
+
+
+@contextlib.contextmanager
+def leaving_on_interrupt():
+    """Within the block, :func:`interruptible` calls run on a thread of their own, and an
+    interrupt leaves them behind: for a process that exits after an interrupt (the
+    command line). Elsewhere a kernel left running could meet the next one (other entry
+    points, numba's workqueue layer aborts on two parallel kernels at once)."""
+    old = _LEAVE[0]
+    _LEAVE[0] = True
+    try:
+        yield
+    finally:
+        _LEAVE[0] = old
 
 
 def interruptible(fn, *args, **kwargs):
-    """``fn(*args, **kwargs)`` on a thread of its own while the main thread waits.
+    """``fn(*args, **kwargs)``; within :func:`leaving_on_interrupt`, on a thread of its own
+    while the main thread waits.
 
     A signal's handler runs only in the main thread, and only between Python steps: while
     a kernel runs there, Ctrl-C or SIGTERM waits for the kernel to return (minutes for a
     chunk of a large model). Waiting here instead, the main thread raises the
     ``KeyboardInterrupt`` within a tenth of a second. The abandoned call runs on in the
     background (``nogil`` kernels cannot be stopped from outside) and its result is
-    dropped; a process that exits ends it, and the next call waits for it first.
+    dropped; the process, which exits after the interrupt, ends it (another call through
+    here would wait for it first).
 
     Parameters
     ----------
@@ -87,10 +105,11 @@ def interruptible(fn, *args, **kwargs):
     Returns
     -------
     object
-        What ``fn`` returns; what it raises is raised here. Off the main thread (where no
-        signal arrives) ``fn`` is simply called.
+        What ``fn`` returns; what it raises is raised here. Outside
+        :func:`leaving_on_interrupt`, or off the main thread (where no signal arrives),
+        ``fn`` is simply called.
     """
-    if threading.current_thread() is not threading.main_thread():
+    if not _LEAVE[0] or threading.current_thread() is not threading.main_thread():
         return fn(*args, **kwargs)
     n = numba.get_num_threads()      # thread-local in numba: the new thread starts at all
     out = {}

@@ -364,6 +364,26 @@ def test_members_outside_the_bounds_constraints_are_named_and_left_out(tmp_path,
     assert re.search(r"certified bounds check: 0 outside", text)
 
 
+def test_the_bounds_note_only_where_a_limit_falls_short_of_the_run_computing_them(tmp_path,
+                                                                                 capsys):
+    """No note for an unbounded distribution's tail (the check after the run counts any
+    member left out), nor for a complete file, which keeps the bounds it was made with."""
+    cfg = tmp_path / "n.toml"
+    cfg.write_text('[model]\npreset = "two-beam"\n[sampling]\n'
+                   'kc = {dist = "normal", mean = 6000.0, std = 500.0}\n'
+                   '[bounds]\nk_max = 9000.0\nF_lim = "none"\n')
+    out = tmp_path / "n.h5"
+    argv = ["run", str(cfg), "--samples", "4", "--n-freq", "20", "-o", str(out),
+            "--no-progress", "--no-figure", "--no-certify"]
+    rc, text, _ = call(argv, capsys)
+    assert rc == 0 and "note: the bounds' constraints" not in text
+    assert "members have friction outside" not in text
+    cfg.write_text(cfg.read_text().replace("k_max = 9000.0", "k_max = 15.0"))
+    rc, text, _ = call(argv, capsys)
+    assert rc == 0 and "already holds this run" in text
+    assert "note: the bounds' constraints" not in text
+
+
 @pytest.mark.parametrize("argv, close", [(["runn", "two-beam"], "run"), (["inf", "x.h5"], "info"),
                                          (["bound"], "bounds"), (["verfy"], "verify")])
 def test_a_misspelt_command_is_named(argv, close, tmp_path, monkeypatch, capsys):

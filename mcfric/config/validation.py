@@ -304,13 +304,18 @@ def bounds_shortfalls(c):
     The bounds hold for the members whose dampers keep ``kc <= k_max``, ``kc / pi <=
     k_max_im`` and ``4 / pi mu0 N0 <= F_lim`` (:meth:`Bounds.admits
     <mcfric.bounds.Bounds.admits>`); ``"auto"`` limits cover the sampling by
-    construction, given ones may not (a unit slip: 15 for 15 kN/m).
+    construction, given ones may not (a unit slip: 15 for 15 kN/m). Unbounded
+    distributions (normal, lognormal) are not looked at: their tails are counted after
+    the run.
     """
     if not c["bounds"]["enabled"]:
         return []
     k_max, k_im, F_lim = bounds_limits(c)
     s = c["sampling"]
-    kc, mu, n0 = _draw_max(s["kc"]), _draw_max(s["mu0"]), _draw_max(s["N0"])
+    # upper limits only: an unbounded distribution's tail past a given limit is left to
+    # the check after the run, which counts the members it left out
+    kc, mu, n0 = (_dist_max(s[k]) for k in ("kc", "mu0", "N0"))
+    kc, mu, n0 = (x if math.isfinite(x) else 0.0 for x in (kc, mu, n0))
     slack = 1.0 + 1e-12
     out = []
     if kc > k_max * slack:

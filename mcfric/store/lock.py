@@ -68,6 +68,21 @@ def holder(path):
     return None
 
 
+def _lock_briefly_retried(fd):
+    """``flock(fd, LOCK_EX | LOCK_NB)``, tried again for about 50 ms: :func:`holder` (an
+    ``mcfric info``) holds a shared lock for microseconds, which must not refuse a run."""
+    import fcntl
+
+    for attempt in range(6):
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            return
+        except OSError as e:
+            if attempt == 5 or e.errno not in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
+                raise
+            time.sleep(0.01)
+
+
 class OutputLock:
     """The lock of one output file, held from :meth:`acquire` to :meth:`release`.
 
@@ -87,8 +102,6 @@ class OutputLock:
 
     def acquire(self):
         """Take the lock or raise :class:`LockError` naming the owner (nothing changed)."""
-        import fcntl
-
         while True:
             try:
                 fd = os.open(self.lock_path, os.O_RDWR | os.O_CREAT, 0o644)
@@ -96,7 +109,7 @@ class OutputLock:
                 raise LockError(f"{self.lock_path}: cannot create the lock file "
                                 f"({e.strerror})") from None
             try:
-                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                _lock_briefly_retried(fd)
             except OSError as e:
                 owner = _owner(fd)
                 os.close(fd)
