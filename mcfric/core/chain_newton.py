@@ -32,7 +32,7 @@ import numpy as np
 from ._jit import inline_jit, jit
 from .friction import kappa_logs
 from .linalg import LANES, cinv
-from .newton import _ARMIJO, _MAX_HALVINGS, _MAX_STEP, _TARGET
+from .newton import _ARMIJO, _MAX_HALVINGS, _MAX_STEP, _TARGET, log_abs, reciprocal
 
 #: fastmath flags of the chain kernels: none. Fused multiply-add (``contract``) and
 #: ``x * (1 / y)`` for ``x / y`` (``arcp``) gave eight beams 1.06-1.07x, but they make the
@@ -160,7 +160,7 @@ def _eval(C, R, V, M, nd, ring):
                 continue
             if M[ACT_ + j, l]:
                 qq = C[QT_, j, l]
-                lq = 0.5 * math.log(qq.real * qq.real + qq.imag * qq.imag)
+                lq = log_abs(qq, qq.real * qq.real + qq.imag * qq.imag)
                 if R[XT_, j, l] >= 0.0:
                     t = R[CC_, j, l] - lq   # log s that makes damper j consistent with q
                     if t > 0.0:
@@ -210,10 +210,9 @@ def _step(C, R, B, M, nd, ring):
             if M[RUN_, l]:
                 qq = C[Q_, j, l]
                 q2 = qq.real * qq.real + qq.imag * qq.imag
-                if M[ACT_ + j, l] and q2 > 0.0:
+                if M[ACT_ + j, l] and qq != 0.0:
                     C[H_, j, l] = C[KP_, j, l] * qq
-                    r2 = 1.0 / q2
-                    C[E_, j, l] = complex(qq.real * r2, -qq.imag * r2)
+                    C[E_, j, l] = reciprocal(qq, q2)
                 else:
                     C[H_, j, l] = 0.0j
                     C[E_, j, l] = 0.0j

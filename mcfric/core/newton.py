@@ -44,6 +44,43 @@ _LM_MAX_ITER = 200
 _TARGET = 1e-1
 
 
+#: Below this ``|q|^2`` (``|q| < 1e-140`` m: a response that died out along a long array)
+#: the square loses its digits (subnormal from 2e-308, 0 below 5e-324): ``log|q|`` and
+#: ``1/q`` are then taken from ``q`` scaled by its larger component instead.
+_TINY_Q2 = 1e-280
+#: Below this larger component ``q`` counts as 0 (its reciprocal would overflow).
+_TINY_Q = 1e-300
+
+
+@inline_jit
+def log_abs(q, q2):
+    """``log|q|`` given ``q2 = |q|^2``; finite for every ``q != 0`` (``-inf`` for 0)."""
+    if q2 >= _TINY_Q2:
+        return 0.5 * math.log(q2)
+    a = max(abs(q.real), abs(q.imag))
+    if a == 0.0:
+        return -math.inf
+    u = q.real / a
+    v = q.imag / a
+    return math.log(a) + 0.5 * math.log(u * u + v * v)
+
+
+@inline_jit
+def reciprocal(q, q2):
+    """``1 / q = conj(q) / |q|^2`` given ``q2 = |q|^2``, without the overflow of
+    ``1 / q2`` where ``q2`` is subnormal; 0 where ``q`` counts as 0."""
+    if q2 >= _TINY_Q2:
+        r2 = 1.0 / q2
+        return complex(q.real * r2, -q.imag * r2)
+    a = max(abs(q.real), abs(q.imag))
+    if a < _TINY_Q:
+        return 0.0j
+    u = q.real / a
+    v = q.imag / a
+    r = 1.0 / (a * (u * u + v * v))
+    return complex(u * r, -v * r)
+
+
 @inline_jit
 def _log_residual(x, c, active, q, f, nd, law):
     """Residual ``f`` from ``q``; solves stuck Coulomb dampers exactly (updates ``x``).
@@ -56,7 +93,7 @@ def _log_residual(x, c, active, q, f, nd, law):
             f[j] = 0.0
             continue
         q2 = q[j].real * q[j].real + q[j].imag * q[j].imag
-        lq = 0.5 * math.log(q2)
+        lq = log_abs(q[j], q2)
         if x[j] >= 0.0 and law == LAW_COULOMB:
             t = c[j] - lq           # log s that makes damper j consistent with this q
             if t >= 0.0:
@@ -93,10 +130,9 @@ def _sensitivities(x, kc, active, q, h, e, nd, law):
     """``h_j = dK_j/dx_j q_j`` and ``e_j = conj(q_j)/|q_j|^2`` (0 where undefined)."""
     for j in range(nd):
         q2 = q[j].real * q[j].real + q[j].imag * q[j].imag
-        if active[j] and q2 > 0.0:
+        if active[j] and q[j] != 0.0:
             h[j] = kc[j] * kappa_law_logs(x[j], law)[1] * q[j]
-            r2 = 1.0 / q2
-            e[j] = complex(q[j].real * r2, -q[j].imag * r2)
+            e[j] = reciprocal(q[j], q2)
         else:
             h[j] = 0.0j
             e[j] = 0.0j
