@@ -539,14 +539,18 @@ def output_bytes(spec):
 
 def peak_memory_bytes(spec):
     """A rough upper estimate of a run's peak memory, bytes: three chunks of output (in
-    the kernel, in the queue, in the writer), the receptances, and the bounds' dense
-    contact-space matrices."""
+    the kernel, in the queue, in the writer), the receptances, each thread's scratch of
+    the dense fallback, and the bounds' dense contact-space matrices."""
     nb, nd = spec.model.n_beams, spec.model.n_dampers
     n_f = len(spec.freq_hz)
     n_h = (spec.solver.harmonics + 1) // 2
     chunk = chunk_samples(spec)
     est = 3 * chunk * (output_bytes(spec) / spec.samples)
     est += n_f * 4 * nb * 16 * n_h * (chunk if spec.mistuned else 1)
+    import numba
+
+    n_threads = spec.execution.threads or numba.config.NUMBA_NUM_THREADS
+    est += n_threads * 40 * nd * nd          # as hbm.check_output_memory counts it
     if spec.bounds:
         est += 3 * 8 * nb * nd
     return int(est)

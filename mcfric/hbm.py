@@ -334,9 +334,10 @@ def check_harmonic_memory(model, harmonics, n_time, n_f, n_r, per="call"):
 
 
 def check_output_memory(model, n_s, n_f, harmonics, store_harmonics, n_r):
-    """Refuse a solve whose results (and receptances) would not fit in the memory
-    available: numpy's allocation error names no argument, and a request just below the
-    machine's memory would end in the system killing the process.
+    """Refuse a solve whose results (with the receptances and each thread's scratch of the
+    dense fallback) would not fit in the memory available: numpy's allocation error
+    names no argument, and a request just below the machine's memory would end in the
+    system killing the process.
 
     Parameters
     ----------
@@ -361,6 +362,9 @@ def check_output_memory(model, n_s, n_f, harmonics, store_harmonics, n_r):
     if harmonics > 1:
         per_point += 8 * nb + 8 * nd + 16 * nb * (n_h if store_harmonics else 1)
     need = float(n_s) * n_f * per_point + 16.0 * n_r * n_f * 4 * nb
+    # each thread's batch holds the dense fallback's scratch (workspace(nd) and G: 40
+    # bytes per damper pair): 5 GB for two threads on an 8000-blade ring
+    need += numba.get_num_threads() * 40.0 * nd * nd
     check_fits(need, f"the solve of {n_s:,} samples x {n_f:,} frequencies",
                "solve fewer samples or frequencies per call")
 

@@ -130,6 +130,19 @@ def test_the_size_estimate_is_the_file_size(tmp_path):
     assert 0.85 * size <= ensemble.output_bytes(spec) <= size
 
 
+def test_the_memory_check_counts_the_dense_fallbacks_scratch(monkeypatch):
+    """One point of a 3000-blade ring: its output is kilobytes, but each thread's batch
+    holds the dense fallback's scratch, 40 bytes per damper pair (0.36 GB each here),
+    which the check did not count."""
+    import mcfric
+    from mcfric import config, memory
+
+    model = config.load("disk-72").replace("model.n_beams", 3000).spec.model
+    monkeypatch.setattr(memory, "available", lambda: 3 * 10**8)      # 0.3 GB free
+    with pytest.raises(memory.MemoryRefused, match="of memory"):
+        mcfric.solve(model, [50.0], 0.3, 6000.0, n_threads=1)
+
+
 def test_a_run_too_large_for_memory_is_refused(tmp_path, capsys, monkeypatch):
     from mcfric import memory
 
