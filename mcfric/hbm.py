@@ -362,11 +362,13 @@ def check_output_memory(model, n_s, n_f, harmonics, store_harmonics, n_r):
     if harmonics > 1:
         per_point += 8 * nb + 8 * nd + 16 * nb * (n_h if store_harmonics else 1)
     need = float(n_s) * n_f * per_point + 16.0 * n_r * n_f * 4 * nb
-    # each thread's batch holds the dense fallback's scratch (workspace(nd) and G: 40
-    # bytes per damper pair): 5 GB for two threads on an 8000-blade ring
-    need += numba.get_num_threads() * 40.0 * nd * nd
-    check_fits(need, f"the solve of {n_s:,} samples x {n_f:,} frequencies",
-               "solve fewer samples or frequencies per call")
+    # each batch in flight holds the dense fallback's scratch (workspace(nd) and G: 40
+    # bytes per damper pair), at most one per thread and per sample: 5 GB for two
+    # threads on an 8000-blade ring
+    scratch = min(numba.get_num_threads(), n_s) * 40.0 * nd * nd
+    check_fits(need + scratch, f"the solve of {n_s:,} samples x {n_f:,} frequencies",
+               "solve fewer samples or frequencies per call"
+               + (", or on fewer threads" if scratch > need else ""))
 
 
 def harmonic_indicator(model, result, omega, modal_freq_hz, params):

@@ -139,8 +139,17 @@ def test_the_memory_check_counts_the_dense_fallbacks_scratch(monkeypatch):
 
     model = config.load("disk-72").replace("model.n_beams", 3000).spec.model
     monkeypatch.setattr(memory, "available", lambda: 3 * 10**8)      # 0.3 GB free
-    with pytest.raises(memory.MemoryRefused, match="of memory"):
+    with pytest.raises(memory.MemoryRefused, match="of memory.*or on fewer threads"):
         mcfric.solve(model, [50.0], 0.3, 6000.0, n_threads=1)
+    # a batch per thread, but no more batches than samples: one sample on two threads
+    # holds 0.36 GB (it was counted twice), two samples on two threads 0.72 GB
+    import numba
+
+    if numba.config.NUMBA_NUM_THREADS >= 2:
+        monkeypatch.setattr(memory, "available", lambda: 5 * 10**8)
+        assert mcfric.solve(model, [50.0], 0.3, 6000.0, n_threads=2).converged.all()
+        with pytest.raises(memory.MemoryRefused, match="of memory"):
+            mcfric.solve(model, [50.0], [[0.3], [0.4]], 6000.0, n_threads=2)
 
 
 def test_a_run_too_large_for_memory_is_refused(tmp_path, capsys, monkeypatch):

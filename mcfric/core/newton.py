@@ -55,7 +55,7 @@ _TINY_Q = 1e-300
 @inline_jit
 def log_abs(q, q2):
     """``log|q|`` given ``q2 = |q|^2``; finite for every ``q != 0`` (``-inf`` for 0)."""
-    if q2 >= _TINY_Q2:
+    if not q2 < _TINY_Q2:            # NaN and inf too: they stay NaN and inf
         return 0.5 * math.log(q2)
     a = max(abs(q.real), abs(q.imag))
     if a == 0.0:
@@ -66,10 +66,19 @@ def log_abs(q, q2):
 
 
 @inline_jit
+def abs_q(q, q2):
+    """``|q|`` given ``q2 = |q|^2``: ``sqrt(q2)``, or where that lost its digits the
+    scaled ``hypot`` (the slip ratio of a stuck damper far down a long array)."""
+    if not q2 < _TINY_Q2:
+        return math.sqrt(q2)
+    return math.hypot(q.real, q.imag)
+
+
+@inline_jit
 def reciprocal(q, q2):
     """``1 / q = conj(q) / |q|^2`` given ``q2 = |q|^2``, without the overflow of
     ``1 / q2`` where ``q2`` is subnormal; 0 where ``q`` counts as 0."""
-    if q2 >= _TINY_Q2:
+    if not q2 < _TINY_Q2:            # NaN and inf too: they stay NaN and 0
         r2 = 1.0 / q2
         return complex(q.real * r2, -q.imag * r2)
     a = max(abs(q.real), abs(q.imag))

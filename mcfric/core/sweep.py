@@ -67,6 +67,7 @@ from .newton import (
     CONVERGED_LM,
     CONVERGED_RESTART,
     NOT_CONVERGED,
+    abs_q,
     bracket_scalar,
     levenberg_marquardt,
     newton,
@@ -254,7 +255,7 @@ def _write_point(rec, r, k, force, a, b, K, q, f, x, active, s_off, sq, l, ok, s
         elif x[j, l] > 0.0:
             # stuck, x = log(mu0 N0 / (kc |q|)) exactly: s without a call to exp
             qq = q[j, l]
-            s[i, k, j] = sq[j, l] / math.sqrt(qq.real * qq.real + qq.imag * qq.imag)
+            s[i, k, j] = sq[j, l] / abs_q(qq, qq.real * qq.real + qq.imag * qq.imag)
         else:
             s[i, k, j] = math.exp(x[j, l])
 
@@ -416,7 +417,7 @@ def _chain_batch(g, rec, force, a, b, W, mu0, N0, kc, tol, max_iter,
                     s[i, k, j] = s_off[j, l]
                 elif x[j, l] > 0.0:
                     qq = q[j, l]
-                    s[i, k, j] = sq[j, l] / math.sqrt(qq.real * qq.real + qq.imag * qq.imag)
+                    s[i, k, j] = sq[j, l] / abs_q(qq, qq.real * qq.real + qq.imag * qq.imag)
                 else:
                     s[i, k, j] = math.exp(x[j, l])
             for m in range(N_PREDICT - 1, 0, -1):
