@@ -348,3 +348,31 @@ def test_a_long_chain_whose_response_dies_out_converges():
     y = res.response[0, 3, :10]
     assert len(roots) == 1
     assert np.max(np.abs(roots[0]["y_output"][:10] - y)) <= 1e-6 * np.abs(y).max()
+
+
+def test_a_restart_from_the_stick_limit_stays_on_the_fast_path():
+    """Where the warm-started Newton fails (member 0 of the 300-beam chain above at
+    17.0 Hz: the cubic prediction throws far stuck dampers into slip), the restart from
+    s = 1 runs on the O(nd) chain Newton before the dense fallback (O(nd^3) a step:
+    seconds here). Status 1 as before; the answer solves the equations, checked plainly:
+    the physical-space response of the array at the returned describing functions, and
+    every slipping damper's force at mu0 N0."""
+    from mcfric import config
+    from mcfric.core.newton import CONVERGED_RESTART
+
+    spec = (config.load("two-beam").replace("model.n_beams", 300)
+            .replace("sampling.samples", 4).replace("frequency.n", 200)).spec
+    d = spec.sampler.draw(np.arange(4))
+    res = mcfric.solve(spec.model, spec.freq_hz[:20], d.mu0[:1], d.kc[:1], d.N0[:1],
+                       n_threads=1)
+    assert res.converged.all() and res.status[0, 10] == CONVERGED_RESTART, res.status
+    s, kc, fs = res.s[0, 10], d.kc[0], d.mu0[0] * d.N0[0]
+    K = np.array([naive.describing_function(sj, kj) for sj, kj in zip(s, kc)])
+    model = spec.model
+    ref = naive.beam_space_response(2 * np.pi * spec.freq_hz[10], naive_beams(model),
+                                    naive_pairs(model), model.force, K)
+    y = res.response[0, 10]
+    assert np.max(np.abs(ref["y_output"] - y)) <= 1e-9 * np.abs(y).max()
+    slip = s < 1.0
+    assert slip.any()
+    np.testing.assert_allclose((s * kc * np.abs(ref["q"]))[slip], fs[slip], rtol=1e-8)

@@ -305,6 +305,10 @@ def _chain_batch(g, rec, force, a, b, W, mu0, N0, kc, tol, max_iter,
     xp = np.zeros((N_PREDICT, nd, LANES))
     have = np.zeros(LANES, dtype=np.int64)
     rl = np.zeros(LANES, dtype=np.int64)
+    ok0 = np.zeros(LANES, dtype=np.bool_)
+    need0 = np.zeros(LANES, dtype=np.bool_)
+    its0 = np.zeros(LANES)
+    restarted = np.zeros(LANES, dtype=np.bool_)
     # one sample's copy for the dense fallback
     wd = workspace(nd)
     G = np.zeros((nd, nd), dtype=np.complex128)
@@ -362,12 +366,38 @@ def _chain_batch(g, rec, force, a, b, W, mu0, N0, kc, tol, max_iter,
                     v += W[h, k, m] * xp[m, j, l]
                 x[j, l] = v if math.isfinite(v) else 0.0
         chain_newton.newton_lanes(tol, max_iter, C, R, B, V, M, nd, ring)
+        # a failed lane is restarted from s = 1 on this O(nd) Newton before the dense
+        # fallback, whose first attempt is that very restart at O(nd^3) a step (seconds
+        # on hundreds of dampers); the other lanes keep their solutions (newton_lanes
+        # writes only the lanes it runs, but resets every lane's OK_ and ITS_)
+        n_fail = 0
+        for l in range(LANES):
+            restarted[l] = False
+            n_fail += need[l] and not ok[l]
+        if n_fail > 0:
+            for l in range(LANES):
+                ok0[l] = ok[l]
+                its0[l] = V[chain_newton.ITS_, l]
+                need0[l] = need[l]
+                need[l] = need0[l] and not ok0[l]
+                if need[l]:
+                    for j in range(nd):
+                        x[j, l] = 0.0
+            chain_newton.newton_lanes(tol, max_iter, C, R, B, V, M, nd, ring)
+            for l in range(LANES):
+                if need[l]:
+                    V[chain_newton.ITS_, l] += its0[l]
+                    restarted[l] = ok[l]
+                else:
+                    ok[l] = ok0[l]
+                    V[chain_newton.ITS_, l] = its0[l]
+                need[l] = need0[l]
         for l in range(LANES):
             if not need[l]:
                 continue
             i = g * LANES + l
             r = rl[l]
-            st = CONVERGED
+            st = CONVERGED_RESTART if restarted[l] else CONVERGED
             n_it = int(V[chain_newton.ITS_, l])
             good = ok[l]
             if not good:            # rare: one sample's copy through the dense solvers
