@@ -46,7 +46,7 @@ import numpy as np
 from numba import prange
 
 from . import chain_newton as cn
-from ._jit import jit
+from ._jit import inline_jit, jit
 from .friction import LAW_COULOMB
 from .newton import levenberg_marquardt, newton, workspace
 from .receptance import CONTACT, D11, D13, D21, D23, DRIVE, OUTPUT
@@ -126,35 +126,54 @@ def _lane_newton(x, kc, c, act, G, q0, tol, max_iter, L, ring):
     return True
 
 
+@inline_jit
+def _g_entry(rec1, a, b, j, m):
+    """Entry ``(j, m)`` of ``G = B D11 B^T``: damper ``m``'s force at damper ``j``'s
+    relative displacement (m/N)."""
+    g = 0.0j
+    if a[j] == a[m]:
+        g += rec1[D11, a[j]]
+    if a[j] == b[m]:
+        g -= rec1[D11, a[j]]
+    if b[j] == b[m]:
+        g += rec1[D11, b[j]]
+    if b[j] == a[m]:
+        g -= rec1[D11, b[j]]
+    return g
+
+
 @jit
 def _solve_at(omega, r, modal_f, zeta, u, force, a, b, kc, c, act, x, tol, max_iter, w,
               rec1, G, q0, y, law, L, lanes):
     """Solve one frequency from the guess ``x`` (log s); fills ``y`` (output amplitudes
     of every beam, m) and ``x``. With ``lanes`` (a chain or a ring of friction dampers)
-    the O(nd) Newton first; then Newton, Newton from ``s = 1`` and Levenberg-Marquardt,
-    dense; returns False if all fail."""
+    the O(nd) Newton first, from the guess and from ``s = 1``; then Newton, Newton from
+    ``s = 1`` and Levenberg-Marquardt, dense; returns False if all fail."""
     nd = a.shape[0]
     n_beams = force.shape[0]
     _receptances_at(omega, r, modal_f, zeta, u, rec1)
     for j in range(nd):
         q0[j] = rec1[D13, a[j]] * force[a[j]] - rec1[D13, b[j]] * force[b[j]]
-        for m in range(nd):
-            g = 0.0j
-            if a[j] == a[m]:
-                g += rec1[D11, a[j]]
-            if a[j] == b[m]:
-                g -= rec1[D11, a[j]]
-            if b[j] == b[m]:
-                g += rec1[D11, b[j]]
-            if b[j] == a[m]:
-                g -= rec1[D11, b[j]]
-            G[j, m] = g
     for j in range(nd):
         if not math.isfinite(x[j]):
             x[j] = 0.0
     if lanes:
+        # the O(nd) Newton reads G's diagonal and super-diagonal (and a ring's corner)
+        # alone: the full G, nd^2 entries, only where the dense solvers must run
+        for j in range(nd):
+            G[j, j] = _g_entry(rec1, a, b, j, j)
+            m = (j + 1) % nd
+            G[j, m] = _g_entry(rec1, a, b, j, m)
         x0 = x.copy()
-        if _lane_newton(x, kc, c, act, G, q0, tol, max_iter, L, nd == n_beams):
+        ring = nd == n_beams
+        # from the guess, then from s = 1 on the same Newton: the dense Newton from
+        # s = 1 below costs O(nd^3) a step (minutes a member on 1500 beams)
+        ok = _lane_newton(x, kc, c, act, G, q0, tol, max_iter, L, ring)
+        if not ok:
+            for j in range(nd):
+                x[j] = 0.0
+            ok = _lane_newton(x, kc, c, act, G, q0, tol, max_iter, L, ring)
+        if ok:
             for bb in range(n_beams):
                 y[bb] = rec1[D23, bb] * force[bb]
             for j in range(nd):
@@ -164,6 +183,9 @@ def _solve_at(omega, r, modal_f, zeta, u, force, a, b, kc, c, act, x, tol, max_i
             return True
         for j in range(nd):
             x[j] = x0[j]
+    for j in range(nd):
+        for m in range(nd):
+            G[j, m] = _g_entry(rec1, a, b, j, m)
     ok, _ = newton(x, kc, c, act, G, q0, tol, max_iter, w, law)
     if not ok:
         for j in range(nd):
