@@ -477,29 +477,31 @@ def test_sigterm_stops_a_run_resumably(tmp_path):
 
 
 def test_sigterm_stops_a_run_inside_a_long_chunk(tmp_path):
-    """A chunk of a large model runs for minutes (1500 beams: over ten before the wait
+    """A chunk can run for minutes (two members of a 200-blade ring at H = 5: about a
+    minute here; a 3000-beam chain's ignored SIGTERM for over ten minutes before the wait
     became interruptible); SIGTERM during it ends the run within seconds, resumably."""
     import time
 
-    cfg = tmp_path / "big.toml"
-    cfg.write_text('[model]\npreset = "two-beam"\nn_beams = 1500\n'
-                   '[sampling]\nsamples = 2\n[frequency]\nn = 10\n')
-    out = tmp_path / "big.h5"
+    cfg = tmp_path / "ring.toml"
+    cfg.write_text('[model]\npreset = "disk-72"\nn_beams = 200\n[sampling]\nsamples = 2\n'
+                   '[solver]\nharmonics = 5\n')
+    out = tmp_path / "mh.h5"
     p = subprocess.Popen([sys.executable, "-m", "mcfric", "run", str(cfg), "--no-bounds",
                           "--no-progress", "--no-figure", "-o", str(out)],
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    partial = tmp_path / "big.h5.partial"
-    deadline = time.monotonic() + 600
-    while not partial.exists() and time.monotonic() < deadline and p.poll() is None:
-        time.sleep(0.1)
-    time.sleep(3)                   # inside the first chunk (or compiling it)
-    assert p.poll() is None
-    t0 = time.monotonic()
-    p.send_signal(15)
+    partial = tmp_path / "mh.h5.partial"
     try:
+        deadline = time.monotonic() + 600
+        while not partial.exists() and time.monotonic() < deadline and p.poll() is None:
+            time.sleep(0.1)
+        time.sleep(3)               # inside the first chunk (or compiling it)
+        assert p.poll() is None
+        t0 = time.monotonic()
+        p.send_signal(15)
         _, err = p.communicate(timeout=60)
     finally:
         p.kill()                    # a run that ignored the signal does not live on
+        p.communicate()             # and its pipes are closed whatever happened
     assert p.returncode == 130, err
     assert time.monotonic() - t0 < 15
     assert "0 of 2 samples saved" in err and "--resume" in err
