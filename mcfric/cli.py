@@ -649,8 +649,6 @@ def _run_one(args, cfg, out, resume_as=None):
         print(f"mcfric run: {model.name}, {spec.samples} samples x {len(spec.freq_hz)} "
               f"frequencies, {model.n_beams} beams, F0 = {model.excitation.F0:g} N, "
               f"seed {spec.seed}", flush=True)
-        from .store import partial_path
-
         if args.force or not (out.exists() or partial_path(out).exists()):
             # only where this run computes its bounds: a file resumed or complete keeps
             # the bounds it was made with ([bounds] is no part of a run's identity)

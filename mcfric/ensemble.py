@@ -550,7 +550,7 @@ def peak_memory_bytes(spec):
     import numba
 
     n_threads = spec.execution.threads or numba.config.NUMBA_NUM_THREADS
-    est += min(n_threads, chunk) * 40 * nd * nd      # as hbm.check_output_memory counts it
+    est += min(n_threads, chunk) * hbm.DENSE_SCRATCH_BYTES * nd * nd   # as hbm counts it
     if spec.bounds:
         est += 3 * 8 * nb * nd
     return int(est)

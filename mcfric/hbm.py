@@ -333,6 +333,11 @@ def check_harmonic_memory(model, harmonics, n_time, n_f, n_r, per="call"):
                             f"GiB); use fewer harmonics, frequencies or samples per {per}")
 
 
+#: Bytes per damper pair of the dense fallback's scratch that each batch of the
+#: single-harmonic kernels holds (``core.newton.workspace``: 16 + 8, and G: 16).
+DENSE_SCRATCH_BYTES = 40
+
+
 def check_output_memory(model, n_s, n_f, harmonics, store_harmonics, n_r):
     """Refuse a solve whose results (with the receptances and each thread's scratch of the
     dense fallback) would not fit in the memory available: numpy's allocation error
@@ -362,10 +367,9 @@ def check_output_memory(model, n_s, n_f, harmonics, store_harmonics, n_r):
     if harmonics > 1:
         per_point += 8 * nb + 8 * nd + 16 * nb * (n_h if store_harmonics else 1)
     need = float(n_s) * n_f * per_point + 16.0 * n_r * n_f * 4 * nb
-    # each batch in flight holds the dense fallback's scratch (workspace(nd) and G: 40
-    # bytes per damper pair), at most one per thread and per sample: 5 GB for two
-    # threads on an 8000-blade ring
-    scratch = min(numba.get_num_threads(), n_s) * 40.0 * nd * nd
+    # each batch in flight holds the dense fallback's scratch, at most one per thread
+    # and per sample: 5 GB for two threads on an 8000-blade ring
+    scratch = min(numba.get_num_threads(), n_s) * DENSE_SCRATCH_BYTES * nd * nd
     check_fits(need + scratch, f"the solve of {n_s:,} samples x {n_f:,} frequencies",
                "solve fewer samples or frequencies per call"
                + (", or on fewer threads" if scratch > need else ""))
