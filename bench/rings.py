@@ -2,7 +2,7 @@
 
 Run: ``python bench/rings.py [--blades 8 16 32 64 128] [--repeat R] [--threads T]
 [--dense-max N] [--bounds 8 24 32] [--bounds-frequencies N] [--search-only] [--storage]
-[--memory 10000 100000] [--skip-rates]``.
+[--memory 10000 100000] [--skip-rates] [--harmonics H]``.
 
 For each blade count, in one run and alternating the variants (absolute times drift on a
 shared machine by tens of percent within minutes; ratios measured side by side do not):
@@ -11,6 +11,12 @@ shared machine by tens of percent within minutes; ratios measured side by side d
 * ``ring``: the same blades closed into a ring, the same kernel with the ring bordered;
 * ``dense``: the ring sent through the dense-LU kernel (every ring's path before the ring
   kernel existed), up to ``--dense-max`` blades (it costs O(n^3)).
+
+``--harmonics H`` (odd, > 1): the same table for the multi-harmonic balance of the odd
+harmonics up to ``H`` (its Newton step by block Thomas on a chain, bordered on a ring),
+``dense`` then the ring with its dampers numbered from the second, which the kernel takes
+for a graph of no known layout (the dense LU), on the ring's samples; 256 samples x blades
+per call (at least 2 samples).
 
 Every variant solves the same travelling-wave drive (engine order 1, 1.1 N), the paper's
 friction distributions (mu0 ~ U(0, 1), kc ~ U(0, 15000) N/m, N0 = 0.5 N) and 200
@@ -52,12 +58,14 @@ import time
 import numpy as np
 
 import mcfric
+from mcfric.core import multi_harmonic as _multi_harmonic
 from mcfric.core import sweep as _sweep
 from mcfric.model import TABLE_1, Excitation, Model
 
 F = np.linspace(10.0, 150.0, 200)
 N0 = 0.5
 WORK = 32000            # samples x blades per call
+WORK_HARMONICS = 256    # the same with --harmonics
 
 
 def model_for(n, topology):
@@ -71,16 +79,34 @@ def draw(model, n_s, seed):
     return rng.uniform(0, 1, (n_s, nd)), rng.uniform(0, 15000.0, (n_s, nd))
 
 
-def solve(variant, model, mu0, kc, threads):
+def _renumbered(kernel):
+    """``kernel`` (the multi-harmonic sweep) on the dampers numbered from the second: the
+    same ring, which the kernel no longer recognises as one (damper 0 not on beams 0, 1)."""
+    def call(rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, *rest):
+        def roll(x, axis):
+            return np.ascontiguousarray(np.roll(x, -1, axis=axis))
+        s = rest[-4]
+        s_rolled = np.empty_like(s)
+        kernel(rech, force, roll(a, 0), roll(b, 0), orders, omega, roll(mu0, 1), roll(N0, 1),
+               roll(kc, 1), n_time, roll(s1, 2), *rest[:-4], s_rolled, *rest[-3:])
+        s[...] = np.roll(s_rolled, 1, axis=2)
+    return call
+
+
+def solve(variant, model, mu0, kc, threads, harmonics=1):
     chain = _sweep.sweep_chain
-    if variant == "dense":
+    multi = _multi_harmonic.sweep_multi_harmonic
+    if variant == "dense" and harmonics > 1:
+        _multi_harmonic.sweep_multi_harmonic = _renumbered(multi)
+    elif variant == "dense":
         _sweep.sweep_chain = lambda *a: _sweep.sweep_dense(*a, np.int64(0))
     try:
         t = time.perf_counter()
-        r = mcfric.solve(model, F, mu0, kc, N0, n_threads=threads)
+        r = mcfric.solve(model, F, mu0, kc, N0, n_threads=threads, harmonics=harmonics)
         dt = time.perf_counter() - t
     finally:
         _sweep.sweep_chain = chain
+        _multi_harmonic.sweep_multi_harmonic = multi
     assert r.n_not_converged == 0, (variant, model.n_beams, r.n_not_converged)
     return r.status.size / dt
 
@@ -204,6 +230,8 @@ def main():
     p.add_argument("--memory", type=int, nargs="*", default=[],
                    help="sample counts of 128-blade runs whose peak memory is measured")
     p.add_argument("--skip-rates", action="store_true", help="skip the solves/s table")
+    p.add_argument("--harmonics", type=int, default=1,
+                   help="odd harmonics balanced in the solves/s table (default 1)")
     args = p.parse_args()
     results = {}
     slow = args.repeat or 3             # minutes per round at the larger rings
@@ -217,7 +245,8 @@ def main():
             results["memory"] = memory(args.memory, pathlib.Path(tmp))
     if not args.skip_rates:
         args.repeat = args.repeat or 5
-        results["rates"] = rates(args)
+        key = "rates" if args.harmonics == 1 else f"rates_H{args.harmonics}"
+        results[key] = rates(args)
     out = pathlib.Path(__file__).parent / "out"
     out.mkdir(exist_ok=True)
     path = out / "rings.json"
@@ -230,18 +259,19 @@ def main():
 def rates(args):
     cases = {}
     for n in args.blades:
-        n_s = max(8, WORK // n)
+        n_s = max(8, WORK // n) if args.harmonics == 1 else max(2, WORK_HARMONICS // n)
         variants = ["chain", "ring"] + (["dense"] if n <= args.dense_max else [])
         for v in variants:
             model = model_for(n, "linear" if v == "chain" else "circular")
             mu0, kc = draw(model, n_s, n)
-            if v == "dense":        # the dense kernel is slow: fewer samples
+            if v == "dense" and args.harmonics == 1:    # slow: fewer samples
                 mu0, kc = mu0[:max(4, n_s // n)], kc[:max(4, n_s // n)]
-            solve(v, model, mu0[:4], kc[:4], args.threads)   # compile or load the cache
+            # compile or load the cache
+            solve(v, model, mu0[:4], kc[:4], args.threads, args.harmonics)
             cases[n, v] = (model, mu0, kc, [])
     for _ in range(args.repeat):
         for (n, v), (model, mu0, kc, rates) in cases.items():
-            rates.append(solve(v, model, mu0, kc, args.threads))
+            rates.append(solve(v, model, mu0, kc, args.threads, args.harmonics))
 
     rows = []
     base = None

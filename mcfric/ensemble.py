@@ -539,8 +539,9 @@ def output_bytes(spec):
 
 def peak_memory_bytes(spec):
     """A rough upper estimate of a run's peak memory, bytes: three chunks of output (in
-    the kernel, in the queue, in the writer), the receptances, each thread's scratch of
-    the dense fallback, and the bounds' dense contact-space matrices."""
+    the kernel, in the queue, in the writer), the receptances, each thread's scratch (of
+    the dense fallback, or of the multi-harmonic kernel), and the bounds' dense
+    contact-space matrices."""
     nb, nd = spec.model.n_beams, spec.model.n_dampers
     n_f = len(spec.freq_hz)
     n_h = (spec.solver.harmonics + 1) // 2
@@ -550,7 +551,11 @@ def peak_memory_bytes(spec):
     import numba
 
     n_threads = spec.execution.threads or numba.config.NUMBA_NUM_THREADS
-    est += min(n_threads, chunk) * hbm.DENSE_SCRATCH_BYTES * nd * nd   # as hbm counts it
+    # as hbm counts them; a multi-harmonic solve's kernel runs after its single-harmonic one
+    scratch = hbm.DENSE_SCRATCH_BYTES * nd * nd
+    if n_h > 1:
+        scratch = max(scratch, hbm.multi_harmonic_scratch(nd, n_h, n_f))
+    est += min(n_threads, chunk) * scratch
     if spec.bounds:
         est += 3 * 8 * nb * nd
     return int(est)

@@ -318,15 +318,23 @@ def check_harmonics(harmonics, n_time=None):
     return harmonics, int(n_time)
 
 
+def multi_harmonic_scratch(nd, n_h, n_f):
+    """Bytes each thread of the multi-harmonic kernel holds for ``nd`` dampers, ``n_h``
+    harmonics and ``n_f`` frequencies: the receptance matrices (three of ``n_h nd^2``
+    complex: the point's, a neighbour's and the continuation's), the Newton step's blocks
+    (a ring's: three of ``2 n_h`` rows per damper; a chain holds two) and every
+    frequency's solution (for the pass back down)."""
+    n = 2 * nd * n_h
+    return 48.0 * n_h * nd * nd + 8.0 * (3 * n + 2 * n_h) * 2 * n_h + 16.0 * n_f * nd * n_h
+
+
 def check_harmonic_memory(model, harmonics, n_time, n_f, n_r, per="call"):
     """Refuse a multi-harmonic solve whose receptances would not fit in memory
     (``per``: what the message asks for fewer samples of, a ``"call"`` or a run's
     ``"chunk"``)."""
     n_h = (harmonics + 1) // 2
     need = 16.0 * n_r * n_h * n_f * 4 * model.n_beams
-    # per thread: the Jacobian, and every frequency's solution for the pass back down
-    need += (8.0 * (2 * model.n_dampers * n_h) ** 2
-             + 16.0 * n_f * model.n_dampers * n_h) * numba.get_num_threads()
+    need += multi_harmonic_scratch(model.n_dampers, n_h, n_f) * numba.get_num_threads()
     if need > MAX_HARMONIC_BYTES:
         raise MemoryRefused(f"harmonics: H = {harmonics} needs {need / 2**30:.3g} GiB for "
                             f"this model and grid (limit {MAX_HARMONIC_BYTES / 2**30:.0f} "

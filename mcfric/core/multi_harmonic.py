@@ -9,11 +9,13 @@ damper ``j``. The contact-space reduction holds per harmonic, at ``n_h omega``::
 with ``F_lh`` the harmonics of damper ``l``'s force from :func:`mcfric.core.aft.jenkins` and
 ``q0`` nonzero only at the fundamental (the drive is a pure harmonic). Newton works on
 the real and imaginary parts (the force is not complex-analytic in ``Q``) with the exact
-AFT Jacobian, a dense LU of size ``2 nd n_h``, and a halving line search. The residual is
-only piecewise smooth (a Jenkins loop gains or loses a slip phase as ``Q`` moves), and
-across such a kink the line search can crawl at steps of 1/64; after two short steps in a
-row a rejected full step is followed by a few undamped Newton steps (a watchdog), kept if
-they reach a smaller sum of squares than the iteration's start.
+AFT Jacobian (solved by block Thomas on a chain, bordered on a ring: O(nd) blocks of
+size ``2 n_h``; by a dense LU of size ``2 nd n_h`` on any other damper graph), and a
+halving line search. The residual is only piecewise smooth (a Jenkins loop gains or loses
+a slip phase as ``Q`` moves), and across such a kink the line search can crawl at steps
+of 1/64; after two short steps in a row a rejected full step is followed by a few
+undamped Newton steps (a watchdog), kept if they reach a smaller sum of squares than the
+iteration's start.
 
 Each sample sweeps the frequencies in order. A point starts from a prediction out of the
 previous frequencies: the higher harmonics extrapolated linearly from the last two
@@ -88,6 +90,11 @@ FROM_ABOVE = 3
 #: Status of a point that converged only from rest, by raising the drive at its own
 #: frequency after the sweep (no neighbour converged).
 FROM_REST = 4
+#: Layouts of the damper graph, each with its own Newton step: dense LU (any graph), block
+#: Thomas (a chain), bordered block Thomas (a ring).
+DENSE = 0
+CHAIN = 1
+RING = 2
 _MAX_HALVINGS = 10
 #: Watchdog: after ``_CRAWL_ITERS`` iterations in a row whose accepted step was at most
 #: ``_CRAWL_STEP``, a rejected full step is followed by up to ``_WATCHDOG_STEPS`` undamped
@@ -99,10 +106,27 @@ _WATCHDOG_STEPS = 5
 _WATCHDOG_TRIES = 2
 
 
+@inline_jit
+def _neighbour(j, t, nd, layout):
+    """The ``t``-th damper (ascending) that ``G`` couples to damper ``j`` in the layout, or
+    -1 past the last: all on any graph, ``j - 1 .. j + 1`` on a chain, and modulo ``nd``
+    on a ring (only the zero entries of ``G`` are left out, in the dense loop's order, so
+    the sums are the same)."""
+    if layout == DENSE or (layout == RING and nd <= 3):
+        return t if t < nd else -1
+    if layout == RING and j == 0:
+        return (0, 1, nd - 1)[t] if t < 3 else -1
+    if layout == RING and j == nd - 1:
+        return (0, nd - 2, nd - 1)[t] if t < 3 else -1
+    m = max(j - 1, 0) + t
+    return m if m <= min(j + 1, nd - 1) else -1
+
+
 @jit
-def _evaluate(Q, orders, G, q0, kc, fs, n_time, F, dF, R, work, nd, n_h):
+def _evaluate(Q, orders, G, q0, kc, fs, n_time, F, dF, R, work, nd, n_h, layout):
     """Force harmonics, their Jacobians and the residual; returns
-    ``(max |R|, sum |R|^2, ok)``."""
+    ``(max |R|, sum |R|^2, ok)``. ``G F`` over the layout's couplings only: O(nd) on a
+    chain or a ring."""
     ok = True
     for j in range(nd):
         if aft.jenkins(Q[j], orders, kc[j], fs[j], n_time, F[j], dF[j], work) < 0:
@@ -112,8 +136,12 @@ def _evaluate(Q, orders, G, q0, kc, fs, n_time, F, dF, R, work, nd, n_h):
     for j in range(nd):
         for h in range(n_h):
             r = Q[j, h]
-            for m in range(nd):
+            t = 0
+            m = _neighbour(j, t, nd, layout)
+            while m >= 0:
                 r += G[h, j, m] * F[m, h]
+                t += 1
+                m = _neighbour(j, t, nd, layout)
             if h == 0:
                 r -= q0[j]
             R[j, h] = r
@@ -276,6 +304,34 @@ def _stuck_correction(G, dF, W, x, j, p, n_h, rd):
         x[j * m2 + 2 * h + 1] -= y.imag
 
 
+@inline_jit
+def _solve_rows(D, p, W, r0, m2):
+    """``W[r0:r0 + m2] = D^-1 W[r0:r0 + m2]`` with the LU factors ``D``, ``p`` of
+    :func:`~mcfric.core.linalg.lu_factor`: all ``m2`` columns at once, row by row."""
+    for k in range(m2):
+        pk = p[k]
+        if pk != k:
+            for c in range(m2):
+                t = W[r0 + k, c]
+                W[r0 + k, c] = W[r0 + pk, c]
+                W[r0 + pk, c] = t
+    for r in range(1, m2):
+        for k in range(r):
+            lk = D[r, k]
+            if lk != 0.0:
+                for c in range(m2):
+                    W[r0 + r, c] -= lk * W[r0 + k, c]
+    for r in range(m2 - 1, -1, -1):
+        for k in range(r + 1, m2):
+            uk = D[r, k]
+            if uk != 0.0:
+                for c in range(m2):
+                    W[r0 + r, c] -= uk * W[r0 + k, c]
+        inv = 1.0 / D[r, r]
+        for c in range(m2):
+            W[r0 + r, c] *= inv
+
+
 @jit
 def _chain_step(G, dF, W, piv, x, nd, n_h):
     """Solve ``(I + G dF) dx = x`` in place for a chain (``G_h`` tridiagonal): block
@@ -367,29 +423,7 @@ def _chain_step(G, dF, W, piv, x, nd, n_h):
                     W[rx + r, c] = 0.0
             for h in range(n_h):
                 _couple(G, dF, h, j, j + 1, n_h, c_next, W, rx + 2 * h)
-            # X = D^-1 Up for all columns at once, row by row
-            for k in range(m2):
-                pk = p[k]
-                if pk != k:
-                    for c in range(m2):
-                        t = W[rx + k, c]
-                        W[rx + k, c] = W[rx + pk, c]
-                        W[rx + pk, c] = t
-            for r in range(1, m2):
-                for k in range(r):
-                    lk = D[r, k]
-                    if lk != 0.0:
-                        for c in range(m2):
-                            W[rx + r, c] -= lk * W[rx + k, c]
-            for r in range(m2 - 1, -1, -1):
-                for k in range(r + 1, m2):
-                    uk = D[r, k]
-                    if uk != 0.0:
-                        for c in range(m2):
-                            W[rx + r, c] -= uk * W[rx + k, c]
-                inv = 1.0 / D[r, r]
-                for c in range(m2):
-                    W[rx + r, c] *= inv
+            _solve_rows(D, p, W, rx, m2)    # X_j = D_j^-1 Up_j
         c_prev = c_cur
         c_cur = c_next
     for j in range(l - 1, f - 1, -1):
@@ -404,16 +438,117 @@ def _chain_step(G, dF, W, piv, x, nd, n_h):
     return True
 
 
+@inline_jit
+def _sub_product(W, rl, rm, rd, m2):
+    """``W[rd:rd + m2] -= W[rl:rl + m2] W[rm:rm + m2]`` (blocks of ``m2`` columns)."""
+    for r in range(m2):
+        for k in range(m2):
+            lk = W[rl + r, k]
+            if lk != 0.0:
+                for c in range(m2):
+                    W[rd + r, c] -= lk * W[rm + k, c]
+
+
+@inline_jit
+def _sub_vector(W, rl, x, o, j, m2):
+    """``x_j -= W[rl:rl + m2] x_o`` (blocks of ``m2`` entries of ``x``)."""
+    for r in range(m2):
+        acc = 0.0
+        for k in range(m2):
+            acc += W[rl + r, k] * x[o * m2 + k]
+        x[j * m2 + r] -= acc
+
+
+@inline_jit
+def _coupling(G, dF, j, l, n_h, W, r0):
+    """``W[r0:r0 + 2 n_h] = G[j, l] dF_l``, the block of dampers ``j``, ``l``."""
+    m2 = 2 * n_h
+    for r in range(m2):
+        for c in range(m2):
+            W[r0 + r, c] = 1.0 if (j == l and r == c) else 0.0
+    c = _linear_gain(dF, l, n_h)
+    for h in range(n_h):
+        _couple(G, dF, h, j, l, n_h, c, W, r0 + 2 * h)
+
+
 @jit
-def _newton_step(G, dF, R, J, piv, dx, nd, n_h, chain):
+def _ring_step(G, dF, W, piv, x, nd, n_h):
+    """Solve ``(I + G dF) dx = x`` in place for a ring (``G_h`` cyclic tridiagonal:
+    damper ``j`` meets ``j - 1`` and ``j + 1`` modulo ``nd``; ``nd >= 2``). Bordering, as
+    the single-harmonic ring kernel does: dampers ``0 .. nd - 2`` form a block chain whose
+    extra right-hand side is the last damper's block column (nonzero in its first and last
+    block rows); block Thomas solves it for both, ``y`` and ``Z``; the last damper then
+    solves its Schur complement ``S x_l = x_l - C_0 y_0 - C_p y_p`` (``S = D_l - C_0 Z_0 -
+    C_p Z_p``, ``C`` its blocks in row ``l``, ``p = nd - 2``) and the others follow as ``y -
+    Z x_l``. O(nd) blocks of size ``2 n_h``. ``W`` is scratch of at least ``(3 nd + 1) 2
+    n_h`` rows and ``2 n_h`` columns: per damper ``D_j`` (then its LU factors), ``X_j =
+    D_j^-1 Up_j`` and ``Z_j``. Returns False on a singular block."""
+    m2 = 2 * n_h
+    last = nd - 1
+    rl = 3 * nd * m2                 # scratch: a coupling block
+    for j in range(last):
+        rd = 3 * j * m2
+        rx = rd + m2
+        rz = rd + 2 * m2
+        _coupling(G, dF, j, j, n_h, W, rd)
+        if j == 0 or j == last - 1:
+            _coupling(G, dF, j, last, n_h, W, rz)
+        else:
+            for r in range(m2):
+                for c in range(m2):
+                    W[rz + r, c] = 0.0
+        if j > 0:
+            # D_j -= Lo_j X_{j-1}, Z_j -= Lo_j Z_{j-1}, x_j -= Lo_j y_{j-1}
+            _coupling(G, dF, j, j - 1, n_h, W, rl)
+            _sub_product(W, rl, rx - 3 * m2, rd, m2)
+            _sub_product(W, rl, rz - 3 * m2, rz, m2)
+            _sub_vector(W, rl, x, j - 1, j, m2)
+        D = W[rd:rd + m2]
+        p = piv[j * m2:(j + 1) * m2]
+        if lu_factor(D, p, m2) != 0:
+            return False
+        lu_solve(D, p, x[j * m2:(j + 1) * m2], m2)
+        _solve_rows(D, p, W, rz, m2)
+        if j < last - 1:
+            _coupling(G, dF, j, j + 1, n_h, W, rx)
+            _solve_rows(D, p, W, rx, m2)
+    for j in range(last - 2, -1, -1):
+        # y_j -= X_j y_{j+1}, Z_j -= X_j Z_{j+1}
+        rx = (3 * j + 1) * m2
+        _sub_vector(W, rx, x, j + 1, j, m2)
+        _sub_product(W, rx, rx + 4 * m2, rx + m2, m2)
+    rd = 3 * last * m2
+    _coupling(G, dF, last, last, n_h, W, rd)
+    for t in range(2):
+        o = 0 if t == 0 else last - 1
+        if t == 1 and o == 0:
+            break                    # two dampers: one block to the other, not two
+        _coupling(G, dF, last, o, n_h, W, rl)
+        _sub_product(W, rl, (3 * o + 2) * m2, rd, m2)
+        _sub_vector(W, rl, x, o, last, m2)
+    D = W[rd:rd + m2]
+    p = piv[last * m2:nd * m2]
+    if lu_factor(D, p, m2) != 0:
+        return False
+    lu_solve(D, p, x[last * m2:nd * m2], m2)
+    for j in range(last):
+        # x_j = y_j - Z_j x_l
+        _sub_vector(W, (3 * j + 2) * m2, x, last, j, m2)
+    return True
+
+
+@jit
+def _newton_step(G, dF, R, J, piv, dx, nd, n_h, layout):
     """``dx`` = the Newton step ``-(I + G dF)^-1 R``; False on a singular system."""
     n = 2 * nd * n_h
     for j in range(nd):
         for h in range(n_h):
             dx[2 * (j * n_h + h)] = -R[j, h].real
             dx[2 * (j * n_h + h) + 1] = -R[j, h].imag
-    if chain:
+    if layout == CHAIN:
         return _chain_step(G, dF, J, piv, dx, nd, n_h)
+    if layout == RING:
+        return _ring_step(G, dF, J, piv, dx, nd, n_h)
     _assemble(G, dF, J, nd, n_h)
     if lu_factor(J, piv, n) != 0:
         return False
@@ -423,7 +558,7 @@ def _newton_step(G, dF, R, J, piv, dx, nd, n_h, chain):
 
 @jit
 def _newton(Q, orders, G, q0, kc, fs, n_time, tol, max_iter, F, dF, R, J, piv, dx, dw, Qt,
-            work, nd, n_h, chain):
+            work, nd, n_h, layout):
     """Newton from ``Q`` (updated in place); returns ``(converged, iterations, err)``.
 
     A halving line search on the sum of squares. Where it crawls (the residual is only
@@ -433,7 +568,7 @@ def _newton(Q, orders, G, q0, kc, fs, n_time, tol, max_iter, F, dF, R, J, piv, d
     iterations (at most ``_WATCHDOG_TRIES * _WATCHDOG_STEPS``: counting them against it
     left 16 of 8,000 bench points unconverged instead of 10) and are counted in the
     iterations returned."""
-    err, ss, ok = _evaluate(Q, orders, G, q0, kc, fs, n_time, F, dF, R, work, nd, n_h)
+    err, ss, ok = _evaluate(Q, orders, G, q0, kc, fs, n_time, F, dF, R, work, nd, n_h, layout)
     if not ok:
         return False, 0, math.inf
     rel = err / _scale(Q, q0, nd)
@@ -443,7 +578,7 @@ def _newton(Q, orders, G, q0, kc, fs, n_time, tol, max_iter, F, dF, R, J, piv, d
     for it in range(1, max_iter + 1):
         if rel <= 0.1 * tol:
             return True, it - 1 + extra, rel
-        if not _newton_step(G, dF, R, J, piv, dx, nd, n_h, chain):
+        if not _newton_step(G, dF, R, J, piv, dx, nd, n_h, layout):
             return False, it + extra, rel
         step = 1.0
         accepted = False
@@ -453,7 +588,7 @@ def _newton(Q, orders, G, q0, kc, fs, n_time, tol, max_iter, F, dF, R, J, piv, d
                     i0 = 2 * (j * n_h + h)
                     Qt[j, h] = Q[j, h] + step * complex(dx[i0], dx[i0 + 1])
             err_t, ss_t, ok = _evaluate(Qt, orders, G, q0, kc, fs, n_time, F, dF, R, work, nd,
-                                        n_h)
+                                        n_h, layout)
             # sufficient decrease of the sum of squares (smoother than the max norm)
             if ok and ss_t < (1.0 - 1e-4 * step) * ss:
                 accepted = True
@@ -463,7 +598,7 @@ def _newton(Q, orders, G, q0, kc, fs, n_time, tol, max_iter, F, dF, R, J, piv, d
                 # first whose sum of squares is below the start's
                 tries += 1
                 for _w in range(_WATCHDOG_STEPS):
-                    if not _newton_step(G, dF, R, J, piv, dw, nd, n_h, chain):
+                    if not _newton_step(G, dF, R, J, piv, dw, nd, n_h, layout):
                         break
                     extra += 1
                     for j in range(nd):
@@ -471,7 +606,7 @@ def _newton(Q, orders, G, q0, kc, fs, n_time, tol, max_iter, F, dF, R, J, piv, d
                             i0 = 2 * (j * n_h + h)
                             Qt[j, h] += complex(dw[i0], dw[i0 + 1])
                     err_t, ss_t, ok = _evaluate(Qt, orders, G, q0, kc, fs, n_time, F, dF, R,
-                                                work, nd, n_h)
+                                                work, nd, n_h, layout)
                     if not ok:
                         break
                     if ss_t < (1.0 - 1e-4) * ss:
@@ -482,7 +617,7 @@ def _newton(Q, orders, G, q0, kc, fs, n_time, tol, max_iter, F, dF, R, J, piv, d
             step *= 0.5
         if not accepted:
             # no decrease: at the rounding floor if already within tol, else stuck
-            _evaluate(Q, orders, G, q0, kc, fs, n_time, F, dF, R, work, nd, n_h)
+            _evaluate(Q, orders, G, q0, kc, fs, n_time, F, dF, R, work, nd, n_h, layout)
             return rel <= tol, it + extra, rel
         crawl = crawl + 1 if step <= _CRAWL_STEP else 0
         for j in range(nd):
@@ -495,23 +630,46 @@ def _newton(Q, orders, G, q0, kc, fs, n_time, tol, max_iter, F, dF, R, J, piv, d
 
 
 @jit
-def _single_harmonic_start(s1, G, q0, kc, Q, T, piv, nd, n_h):
-    """``Q`` from single-harmonic slip ratios: ``(I + G_1 K) q = q0``; False if unusable."""
+def _single_harmonic_start(s1, G, q0, kc, Q, T, dF1, J, piv, x, nd, n_h, layout):
+    """``Q`` from single-harmonic slip ratios: ``(I + G_1 K) q = q0``; False if unusable.
+
+    On a chain or a ring by the layout's Newton step with one harmonic (``K_m`` as the
+    2x2 real block ``dF1[m]``; ``J``, ``x``: the step's scratch, ``x`` at least ``2 nd``
+    long), O(nd); on any other graph by a complex dense LU of ``T``."""
     for j in range(nd):
         if math.isnan(s1[j]):
             return False
-    for j in range(nd):
+    if layout == DENSE:
+        for j in range(nd):
+            for m in range(nd):
+                T[j, m] = G[0, j, m] * kc[m] * kappa(s1[m])
+            T[j, j] += 1.0
+        if lu_factor(T, piv, nd) != 0:
+            return False
+        q = np.empty(nd, dtype=np.complex128)
+        for j in range(nd):
+            q[j] = q0[j]
+        lu_solve(T, piv, q, nd)
+        for j in range(nd):
+            Q[j, 0] = q[j]
+    else:
         for m in range(nd):
-            T[j, m] = G[0, j, m] * kc[m] * kappa(s1[m])
-        T[j, j] += 1.0
-    if lu_factor(T, piv, nd) != 0:
-        return False
-    q = np.empty(nd, dtype=np.complex128)
+            k = kc[m] * kappa(s1[m])
+            dF1[m, 0, 0] = k.real
+            dF1[m, 0, 1] = -k.imag
+            dF1[m, 1, 0] = k.imag
+            dF1[m, 1, 1] = k.real
+            x[2 * m] = q0[m].real
+            x[2 * m + 1] = q0[m].imag
+        if layout == CHAIN:
+            ok = _chain_step(G, dF1, J, piv, x, nd, np.int64(1))
+        else:
+            ok = _ring_step(G, dF1, J, piv, x, nd, np.int64(1))
+        if not ok:
+            return False
+        for j in range(nd):
+            Q[j, 0] = complex(x[2 * j], x[2 * j + 1])
     for j in range(nd):
-        q[j] = q0[j]
-    lu_solve(T, piv, q, nd)
-    for j in range(nd):
-        Q[j, 0] = q[j]
         for h in range(1, n_h):
             Q[j, h] = 0.0j
     return True
@@ -563,7 +721,7 @@ _LAMBDA_MIN_STEP = 1.0 / 64.0
 
 @jit
 def _continuation(Q, Qc, orders, G, Gs, G0, q0, q0s, q00, kc, fs, n_time, tol, max_iter, F,
-                  dF, R, J, piv, dx, dw, Qt, work, nd, n_h, chain):
+                  dF, R, J, piv, dx, dw, Qt, work, nd, n_h, layout):
     """Follow the solution from ``Q``, which solves the equations with receptances ``G0``
     and drive ``q00``, while they move in a straight line to ``G`` and ``q0``: natural
     continuation in the line's parameter with step halving (``Gs``, ``q0s`` hold the
@@ -592,7 +750,7 @@ def _continuation(Q, Qc, orders, G, Gs, G0, q0, q0s, q00, kc, fs, n_time, tol, m
             for h in range(n_h):
                 Q[j, h] = Qc[j, h]
         ok, it, rel = _newton(Q, orders, Gs, q0s, kc, fs, n_time, tol, max_iter, F, dF, R, J,
-                              piv, dx, dw, Qt, work, nd, n_h, chain)
+                              piv, dx, dw, Qt, work, nd, n_h, layout)
         total += it
         if ok:
             lam = target
@@ -623,10 +781,17 @@ def _sample(i, rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, tol, m
     n_beams = force.shape[0]
     n_f = omega.shape[0]
     n = 2 * nd * n_h
-    chain = np.bool_(True)           # damper j couples beams j and j + 1: tridiagonal G
+    # damper j couples beams j and j + 1: G tridiagonal; on a ring the last couples the
+    # last beam and the first: cyclic tridiagonal
+    layout = CHAIN
     for j in range(nd):
         if a[j] != j or b[j] != j + 1:
-            chain = np.bool_(False)
+            layout = DENSE
+    if nd >= 2 and nd == n_beams:
+        layout = RING
+        for j in range(nd):
+            if a[j] != j or b[j] != (j + 1) % n_beams:
+                layout = DENSE
     r_base = 0
     if rech.shape[0] > n_h:          # per-sample receptances (mistuned rigs)
         r_base = np.int64(i) * n_h
@@ -647,9 +812,17 @@ def _sample(i, rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, tol, m
     F = np.zeros((nd, n_h), dtype=np.complex128)
     dF = np.zeros((nd, 2 * n_h, 2 * n_h))
     R = np.zeros((nd, n_h), dtype=np.complex128)
-    # dense Jacobian, or the chain's block rows (2 blocks of 2 n_h rows per damper)
-    J = np.zeros((2 * n + 2 * n_h, 2 * n_h)) if chain else np.zeros((n, n))
-    T = np.zeros((nd, nd), dtype=np.complex128)
+    # dense Jacobian, or the blocks of 2 n_h rows of a chain (2 per damper) or a ring (3)
+    if layout == CHAIN:
+        J = np.zeros((2 * n + 2 * n_h, 2 * n_h))
+    elif layout == RING:
+        J = np.zeros((3 * n + 2 * n_h, 2 * n_h))
+    else:
+        J = np.zeros((n, n))
+    # the single-harmonic start's scratch: a dense complex matrix, or one harmonic's blocks
+    T = np.zeros((nd, nd) if layout == DENSE else (1, 1), dtype=np.complex128)
+    dF1 = np.zeros((nd, 2, 2))
+    x1 = np.zeros(2 * nd)
     piv = np.zeros(n, dtype=np.int64)
     dx = np.zeros(n)
     dw = np.zeros(n)
@@ -683,7 +856,8 @@ def _sample(i, rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, tol, m
         ok = False
         st = 0
         rel = math.inf
-        sh = _single_harmonic_start(s1[i, k], G, q0, kci, Qsh, T, piv, nd, n_h)
+        sh = _single_harmonic_start(s1[i, k], G, q0, kci, Qsh, T, dF1, J, piv, x1, nd,
+                                    n_h, layout)
         if have_prev and (have_prev2 or (sh and sh_prev)):
             for j in range(nd):
                 for h in range(n_h):
@@ -694,14 +868,14 @@ def _sample(i, rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, tol, m
                     else:
                         Q[j, h] = Qp[j, h]
             ok, it, rel = _newton(Q, orders, G, q0, kci, fs, n_time, tol, max_iter, F, dF,
-                                  R, J, piv, dx, dw, Qt, work, nd, n_h, chain)
+                                  R, J, piv, dx, dw, Qt, work, nd, n_h, layout)
             its += it
         if have_prev and not ok:
             for j in range(nd):
                 for h in range(n_h):
                     Q[j, h] = Qp[j, h]
             ok, it, rel = _newton(Q, orders, G, q0, kci, fs, n_time, tol, max_iter, F, dF,
-                                  R, J, piv, dx, dw, Qt, work, nd, n_h, chain)
+                                  R, J, piv, dx, dw, Qt, work, nd, n_h, layout)
             its += it
         sh_prev = sh
         for j in range(nd):
@@ -715,7 +889,7 @@ def _sample(i, rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, tol, m
                     for h in range(n_h):
                         Q[j, h] = Qsh[j, h]
                 ok, it, rel = _newton(Q, orders, G, q0, kci, fs, n_time, tol, max_iter, F,
-                                      dF, R, J, piv, dx, dw, Qt, work, nd, n_h, chain)
+                                      dF, R, J, piv, dx, dw, Qt, work, nd, n_h, layout)
                 its += it
         if not ok and sh:
             st = 2
@@ -726,7 +900,7 @@ def _sample(i, rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, tol, m
                         G0[h, j, m] = G[h, j, m] if h == 0 else 0.0j
             ok, it, rel = _continuation(Q, Qc, orders, G, Gs, G0, q0, q0s, q0, kci, fs,
                                         n_time, tol, max_iter, F, dF, R, J, piv, dx, dw, Qt,
-                                        work, nd, n_h, chain)
+                                        work, nd, n_h, layout)
             its += it
         iterations[i, k] = min(its, 32767)
         residual[i, k] = rel
@@ -792,9 +966,10 @@ def _sample(i, rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, tol, m
                 _dense_G(rech, r_base + h, k + 1, a, b, G0[h], nd)
             for j in range(nd):
                 q0n[j] = _q0(rech, r_base, k + 1, force, a, b, j)
-            sh = _single_harmonic_start(s1[i, k], G, q0, kci, Qsh, T, piv, nd, n_h)
-            sh_next = _single_harmonic_start(s1[i, k + 1], G0, q0n, kci, Qsh_prev, T, piv,
-                                             nd, n_h)
+            sh = _single_harmonic_start(s1[i, k], G, q0, kci, Qsh, T, dF1, J, piv, x1, nd,
+                                        n_h, layout)
+            sh_next = _single_harmonic_start(s1[i, k + 1], G0, q0n, kci, Qsh_prev, T, dF1,
+                                             J, piv, x1, nd, n_h, layout)
         next2 = above and k + 2 < n_f and status[i, k + 2] >= 0
         its = 0
         ok = False
@@ -818,7 +993,7 @@ def _sample(i, rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, tol, m
                         else:
                             Q[j, h] = Qall[k + 1, j, h]
                 ok, it, rel = _newton(Q, orders, G, q0, kci, fs, n_time, tol, max_iter, F,
-                                      dF, R, J, piv, dx, dw, Qt, work, nd, n_h, chain)
+                                      dF, R, J, piv, dx, dw, Qt, work, nd, n_h, layout)
             else:
                 kn = k + 1                   # G0 and q0n hold its receptances and drive
                 if attempt == 3:
@@ -842,7 +1017,7 @@ def _sample(i, rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, tol, m
                         Q[j, h] = Qall[kn, j, h] if attempt < 4 else 0.0j
                 ok, it, rel = _continuation(Q, Qc, orders, G, Gs, G0, q0, q0s, q0n, kci, fs,
                                             n_time, tol, max_iter, F, dF, R, J, piv, dx, dw,
-                                            Qt, work, nd, n_h, chain)
+                                            Qt, work, nd, n_h, layout)
             its += it
             if ok:
                 break
