@@ -1493,7 +1493,8 @@ def cmd_verify(args):
     print(f"csv: {out}")
     if not args.no_figure:
         png = out.with_suffix(".png")
-        plot.verify_figure(vs, png, title=f"{model.name}: {label}")
+        plot.verify_figure(vs, png, title=f"{model.name}: {label}, "
+                                          f"F0 = {model.excitation.F0:g} N")
         print(f"figure: {png}")
     return EXIT_OK
 

@@ -9,13 +9,19 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from .hbm import INDICATOR_THRESHOLD
+from .measured.comparison import metric_parts
 from .metric import METRIC_UNITS, omega_power
 from .peaks import GRID as PEAK_GRID
 from .peaks import cut_by_band, nominal_bounds
 from .store import dataset_names, iter_records, read, read_attrs, read_group, replacing
+
+#: Colours of measured files, in the order given.
+MEASURED_COLORS = ("tab:green", "tab:olive", "tab:cyan", "tab:brown", "tab:pink")
 
 
 def _figure(size=(8, 4.5)):
@@ -116,22 +122,28 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
     counted_at = np.zeros(len(f))          # converged members per frequency
     member_flags = None
     n_failed = 0
-    step = 1
+    if not (isinstance(max_lines, (int, np.integer)) and max_lines >= 1):
+        raise ValueError(f"max_lines: expected an integer >= 1, got {max_lines!r}")
+    # the envelope of every member (the cloud may draw only some)
+    env_hi = np.full(len(fw), -np.inf)
+    env_lo = np.full(len(fw), np.inf)
     if "sample" in names:
-        step = max(1, n // max_lines)
+        if member is not None and not 0 <= member < n:
+            raise ValueError(f"member: expected None or a member in 0..{n - 1}, got {member}")
         segs, dots, highlight = [], [], None
         fields = ["metric", "sample", "converged"] + (["harmonic_indicator"] if mark else [])
         for _, arr in iter_records(path, fields):
             # a point not converged is a gap, whatever value the file holds there
             m = np.where(arr["converged"][:, win], arr["metric"][:, win] * scale[win], np.nan)
             n_failed += int(np.count_nonzero(~arr["converged"][:, win]))
-            for idx in np.flatnonzero(arr["sample"] % step == 0):
-                y = np.where(m[idx] > 0, m[idx], np.nan)
+            pos = np.where(m > 0, m, np.nan)
+            with np.errstate(invalid="ignore"):
+                env_hi = np.fmax(env_hi, np.nanmax(pos, axis=0, initial=-np.inf))
+                env_lo = np.fmin(env_lo, np.nanmin(pos, axis=0, initial=np.inf))
+            for idx in np.flatnonzero(_drawn(arr["sample"], n, max_lines)):
+                y = pos[idx]
                 segs.append(np.column_stack([fw, y]))
-                # a point between two gaps draws no line: a dot instead
-                alone = np.isfinite(y) & ~np.isfinite(np.r_[np.nan, y[:-1]]) \
-                    & ~np.isfinite(np.r_[y[1:], np.nan])
-                dots.append(np.column_stack([fw[alone], y[alone]]))
+                dots.append(np.column_stack([fw[_alone(y)], y[_alone(y)]]))
             if mark:
                 hit = arr["converged"] & (arr["harmonic_indicator"] > INDICATOR_THRESHOLD)
                 flagged_at += hit.sum(axis=0)
@@ -144,17 +156,29 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
         drawn = len(segs)
         if segs:
             gaps = (f"; {n_failed:,} points not converged: gaps" if n_failed else "")
+            # with H > 1 no peak is refined: a resonance narrower than the grid step
+            # reaches higher than its grid values
+            grid_only = ("; grid values (peaks not refined with H > 1)"
+                         if harmonics > 1 else "")
+            what = (f"{_count(n, 'member')}, all drawn" if drawn == n
+                    else f"{_count(n, 'member')}, {drawn} drawn")
             lc = LineCollection(segs, colors="0.45", linewidths=0.5, alpha=0.25,
                                 rasterized=True,
-                                label=f"ensemble ({n} members, {drawn} drawn{gaps})")
+                                label=f"ensemble ({what}{gaps}{grid_only})")
             ax.add_collection(lc)
             dots = np.concatenate(dots)
             if len(dots):
                 ax.plot(dots[:, 0], dots[:, 1], ".", color="0.45", ms=1.5, alpha=0.5,
                         rasterized=True)
+            if drawn < n and np.isfinite(env_hi).any():
+                ax.plot(fw, np.where(np.isfinite(env_hi), env_hi, np.nan), color="0.3",
+                        lw=0.7, ls=(0, (4, 2)), label=f"envelope of all {n:,} members")
+                ax.plot(fw, np.where(np.isfinite(env_lo), env_lo, np.nan), color="0.3",
+                        lw=0.7, ls=(0, (4, 2)))
         if highlight is not None:
-            ax.plot(fw, np.where(highlight > 0, highlight, np.nan), color="k", lw=1.1,
-                    label=f"member {member}")
+            y = np.where(highlight > 0, highlight, np.nan)
+            ax.plot(fw, y, color="k", lw=1.1, label=f"member {member}")
+            ax.plot(fw[_alone(y)], y[_alone(y)], ".", color="k", ms=3)
             if member_flags is not None and member_flags.any():
                 ax.plot(fw[member_flags], highlight[member_flags], "o", mfc="none",
                         color="tab:orange", ms=3.5, mew=0.8,
@@ -166,10 +190,10 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
         px, py, ps = [], [], []
         for _, arr in iter_records(path, ["peak_metric", "peak_frequency", "peak_status",
                                           "sample"]):
-            keep = arr["sample"] % step == 0
-            px.append(arr["peak_frequency"][keep].ravel())
-            py.append(arr["peak_metric"][keep].ravel())
-            ps.append(arr["peak_status"][keep].ravel())
+            # every member's: the cloud may draw only some, the peaks are the extremes
+            px.append(arr["peak_frequency"].ravel())
+            py.append(arr["peak_metric"].ravel())
+            ps.append(arr["peak_status"].ravel())
         # no member done (a partial file): nothing to draw
         px, py, ps = (np.concatenate(v) if v else np.empty(0) for v in (px, py, ps))
         py = py * omega_power(px, quantity, stored)
@@ -179,7 +203,7 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
         n_unrefined = int(np.count_nonzero(grid))
         if (ok & ~grid & ~end).any():
             ax.plot(px[ok & ~grid & ~end], py[ok & ~grid & ~end], ".", color="0.15", ms=2.5,
-                    alpha=0.6, label="refined member peaks")
+                    alpha=0.6, rasterized=True, label="refined member peaks (every member)")
         if end.any():
             # the band cuts a resonance: the largest value at its end is no peak
             ax.plot(px[end], py[end], "|", color="0.4", ms=5,
@@ -250,19 +274,34 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
                     label="largest certified upper bound near the peak (sub-grid, "
                           "peak's frequency)")
             marked.append("certified")
-    for mm in measured:
-        g = mm.to_quantity(quantity)
+    metric_beams = _metric_beams(attrs)
+    for i, mm in enumerate(measured):
+        parts = metric_parts([mm.to_quantity(quantity)], metric_beams)
+        if not (parts.full or parts.part):
+            continue                     # no beam of the metric measured: no M to draw
+        g = (parts.full or parts.part)[0]
         mf = g.frequency_hz
-        y = g.metric().response[:, 0].real
+        y = g.response[:, 0].real
         keep = (mf >= lo_f) & (mf <= hi_f)
-        lab = (f"measured {mm.kind}" + (f" ({mm.force_n:g} N)" if mm.force_n else "")
+        color = MEASURED_COLORS[i % len(MEASURED_COLORS)]
+        lab = (f"measured {mm.kind}" + (f" {Path(mm.source).name}" if mm.source else "")
+               + (f" ({mm.force_n:g} N)" if mm.force_n else "")
                + (f", {mm.percentile:g}th percentile" if mm.percentile is not None else ""))
+        if parts.part:
+            # some beam of the metric not measured: the largest measured beam, M at least
+            lab += (f": beam{'s' if len(g.beams) > 1 else ''} "
+                    f"{', '.join(str(b) for b in mm.beams if b in metric_beams)} only, "
+                    f"M at least this")
+        ls = "--" if parts.part else "-"
         if mm.kind == "stepped" or np.count_nonzero(keep) == 1:   # one point draws no line
-            ax.plot(mf[keep], y[keep], "x", color="tab:green", ms=4, mew=1.0, label=lab)
+            ax.plot(mf[keep], y[keep], "+" if parts.part else "x", color=color, ms=4,
+                    mew=1.0, label=lab)
         else:
-            ax.plot(mf[keep], y[keep], color="tab:green", lw=1.0, label=lab)
+            ax.plot(mf[keep], y[keep], color=color, lw=1.0, ls=ls, label=lab)
     ax.set_yscale("log")
-    ax.set_xlim(lo_f, hi_f)
+    # a margin: markers at the ends of the band stay visible
+    pad = 0.005 * (hi_f - lo_f)
+    ax.set_xlim(lo_f - pad, hi_f + pad)
     ax.autoscale(axis="y")
     if band is not None:
         # the band between the bounds; where only 0 is proved below, down to the axis,
@@ -277,10 +316,7 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
     ax.set_ylabel(f"{quantity} amplitude M [{unit}]" if harmonics == 1 else
                   f"{quantity} amplitude M of the fundamental, H = {harmonics} [{unit}]")
     if title is None:
-        name = attrs.get("model_name", "")
-        cfg = _config(attrs)
-        F0 = cfg.get("excitation", {}).get("F0")
-        title = f"{name}" + (f", F0 = {F0:g} N" if F0 else "")
+        title = _title(attrs, B if "sample" not in names else None)
     ax.set_title(title, fontsize=10)
     ax.grid(True, which="both", alpha=0.3)
     handles, labels = ax.get_legend_handles_labels()
@@ -312,6 +348,57 @@ def _config(attrs):
         return {}
 
 
+def _count(n, noun):
+    """``"1 member"``, ``"2 members"``."""
+    return f"{n:,} {noun}" + ("" if n == 1 else "s")
+
+
+def _drawn(sample, n, max_lines):
+    """Mask of the members ``sample`` that the cloud draws: at most ``max_lines`` of the
+    ``n``, spread evenly (member ``s`` where ``floor(s k / n)`` steps up, ``k =
+    min(max_lines, n)``)."""
+    k = min(max_lines, n)
+    s = np.asarray(sample, np.int64)
+    return (s + 1) * k // n != s * k // n
+
+
+def _alone(y):
+    """Points between two gaps (no line joins them: they need a marker)."""
+    ok = np.isfinite(y)
+    return ok & ~np.r_[False, ok[:-1]] & ~np.r_[ok[1:], False]
+
+
+def _metric_beams(attrs):
+    """The metric's beams, 1-based, from a file's configuration."""
+    cfg = _config(attrs)
+    beams = cfg.get("metric", {}).get("beams", "all")
+    if beams == "all" or beams is None:
+        return tuple(range(1, int(cfg.get("model", {}).get("n_beams", 0)) + 1))
+    return tuple(int(b) for b in beams)
+
+
+def _title(attrs, B=None):
+    """The model, the force and what sets this run apart: its engine order on a ring,
+    the mistuning, the harmonics; and the constraints of bounds ``B`` (given for a bounds
+    file)."""
+    cfg = _config(attrs)
+    parts = [attrs.get("model_name", "")]
+    ex = cfg.get("excitation", {})
+    if ex.get("F0"):
+        parts.append(f"F0 = {ex['F0']:g} N")
+    if cfg.get("model", {}).get("topology") == "circular" and ex.get("pattern") == "travelling":
+        parts.append(f"engine order {ex.get('engine_order')}")
+    mis = cfg.get("sampling", {}).get("mistuning", 0)
+    if mis:
+        parts.append(f"mistuned {100 * mis:g} %")
+    if int(attrs.get("harmonics", 1)) > 1:
+        parts.append(f"H = {int(attrs['harmonics'])}")
+    if B is not None:
+        F = "no force limit" if not np.isfinite(B.F_lim) else f"F_lim = {B.F_lim:.3g} N"
+        parts.append(f"k_max = {B.k_max_re:g} N/m, {F}")
+    return ", ".join(p for p in parts if p)
+
+
 def hbm_figure(freq_hz, amplitude, metric, converged, png_path, title="",
                metric_label="M [m]", ylabel="displacement amplitude at the output [m]"):
     """Log amplitude vs frequency of one parameter set: each beam a line, the metric bold.
@@ -325,20 +412,37 @@ def hbm_figure(freq_hz, amplitude, metric, converged, png_path, title="",
     converged : ndarray of bool, shape (n_f,)
         Non-converged points are not drawn.
     png_path : str or Path
+    title : str
+        Figure title.
     metric_label, ylabel : str
         Legend entry of the metric and the axis label, with the unit.
     """
+    freq_hz = np.asarray(freq_hz, float)
+    n_f = freq_hz.shape[0] if freq_hz.ndim == 1 else -1
     ok = np.asarray(converged, bool)
+    amplitude = np.asarray(amplitude, float)
+    metric = np.asarray(metric, float)
+    if n_f < 1 or amplitude.ndim != 2 or amplitude.shape[0] != n_f \
+            or metric.shape != (n_f,) or ok.shape != (n_f,):
+        raise ValueError(f"expected freq_hz (n_f,), amplitude (n_f, n_beams), metric and "
+                         f"converged (n_f,), got shapes {freq_hz.shape}, {amplitude.shape}, "
+                         f"{metric.shape}, {ok.shape}")
     amp = np.where(ok[:, None], amplitude, np.nan)
     met = np.where(ok, metric, np.nan)
     fig = _figure()
     ax = fig.add_subplot()
+    # M first and wide, beneath the beams: it equals the largest beam, which stays visible
+    m = np.where(met > 0, met, np.nan)
+    line, = ax.plot(freq_hz, m, color="k", lw=3.0, alpha=0.3, label=_mathtext(metric_label))
+    ax.plot(freq_hz[_alone(m)], m[_alone(m)], "o", color="k", alpha=0.3, ms=5)
     for b in range(amp.shape[1]):
-        ax.plot(freq_hz, np.where(amp[:, b] > 0, amp[:, b], np.nan), lw=0.9,
-                label=f"beam {b + 1}")
-    ax.plot(freq_hz, np.where(met > 0, met, np.nan), color="k", lw=2.4,
-            label=_mathtext(metric_label))
+        y = np.where(amp[:, b] > 0, amp[:, b], np.nan)
+        line, = ax.plot(freq_hz, y, lw=0.9, label=f"beam {b + 1}")
+        # a point between two failed ones draws no line: a marker instead
+        ax.plot(freq_hz[_alone(y)], y[_alone(y)], ".", color=line.get_color(), ms=4)
     ax.set_yscale("log")
+    if n_f > 1:
+        ax.set_xlim(freq_hz.min(), freq_hz.max())     # the sweep, not only what converged
     ax.set_xlabel("frequency [Hz]")
     ax.set_ylabel(_mathtext(ylabel))
     ax.set_title(title, fontsize=9)
@@ -356,10 +460,19 @@ def verify_figure(verifications, png_path, title=""):
     ----------
     verifications : list of mcfric.verify.Verification
     png_path : str or Path
+    title : str
+        Figure title.
+
+    Returns
+    -------
+    dict
+        ``path`` and ``titles``: each panel's, with what it cannot show (an integration
+        that did not settle, a harmonic balance that did not converge).
     """
     n = len(verifications)
     fig = _figure()
     fig.set_size_inches(7.5, 2.2 * n + 0.8)
+    titles = []
     for k, v in enumerate(verifications):
         ax = fig.add_subplot(n, 1, k + 1)
         b = int(np.argmax(v.peak))
@@ -375,12 +488,19 @@ def verify_figure(verifications, png_path, title=""):
                 label=f"harmonic balance, H = {orders[-1]}")
         ax.plot(t * 1e3, single * 1e6, color="C0", lw=1.0, ls=":",
                 label="single harmonic")
-        ax.set_ylabel(f"beam {b + 1} [um]")
-        ax.set_title(f"{v.freq_hz:g} Hz", fontsize=8)
+        ax.set_ylabel(f"beam {b + 1} [\u00b5m]")
+        # what the panel cannot show: a run that did not settle, a solve that failed
+        # (NaN: no curve)
+        issues = ([] if v.periodic else ["time integration NOT periodic (not settled)"]) + \
+            ([f"H = {orders[-1]} not converged"] if not np.all(np.isfinite(multi)) else []) + \
+            (["single harmonic not converged"] if not np.all(np.isfinite(single)) else [])
+        titles.append(f"{v.freq_hz:g} Hz" + (": " + "; ".join(issues) if issues else ""))
+        ax.set_title(titles[-1], fontsize=8, color="tab:red" if issues else "k")
         ax.grid(True, alpha=0.3)
         if k == 0:
             ax.legend(fontsize=7)
-    fig.axes[-1].set_xlabel("time over one period [ms]")
+    fig.axes[-1].set_xlabel("time over one period [ms]; displacement at the output of the "
+                            "beam with the largest response")
     fig.suptitle(title, fontsize=9)
     _save(fig, png_path, 110)
-    return png_path
+    return {"path": png_path, "titles": titles}

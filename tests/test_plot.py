@@ -217,6 +217,11 @@ def test_a_measured_subset_of_the_beams_is_held_to_the_upper_bound_only(results,
     assert "are not all measured: M could be larger" in out, out
     assert "against both bounds" not in out
     assert _fractions(out) == [(100.0, n_f, n_f), (100.0, n_f, n_f)], out
+    # the figure says the same: drawn as M it dipped below the lower bound unexplained
+    from mcfric import measured, plot
+    drawn = plot.results_figure(results, tmp_path / "n.png",
+                                measured=measured.read_measured(data, force_n=0.22))
+    assert "measured sweep b2.csv (0.22 N): beam 2 only, M at least this" in drawn["legend"]
 
 
 def test_measured_data_at_another_force_needs_normalise(results, tmp_path, capsys):
@@ -362,16 +367,16 @@ def test_measured_options_that_cannot_apply_are_refused_or_said(results, tmp_pat
 
 
 def test_failed_points_and_unrefined_peaks_are_shown_as_such(tmp_path, capsys):
-    """One Newton iteration per attempt: some points fail and some peaks stay grid
-    values. The figure says how many points are gaps and draws the unrefined peaks apart
-    (purple circles), and `mcfric plot` prints both counts."""
+    """One Newton iteration per attempt (mu0 = 0.1, kc = 6 kN/m on every damper): some
+    points fail and some peaks stay grid values. The figure says how many points are
+    gaps and draws the unrefined peaks apart (purple circles), and `mcfric plot` prints
+    both counts."""
     from mcfric import config, ensemble, plot
 
-    cfg = config.load("eight-beam", {"sampling.samples": (30, "--samples"),
-                                     "frequency.n": (20, "--n-freq"),
-                                     "solver.tol": (1e-16, "tol"),
-                                     "solver.max_iter": (1, "max_iter"),
-                                     "bounds.enabled": (False, "bounds")})
+    cfg = config.load({"model": {"preset": "eight-beam"}, "frequency": {"n": 20},
+                       "sampling": {"samples": 30, "mu0": {"dist": "fixed", "value": 0.1},
+                                    "kc": {"dist": "fixed", "value": 6000.0}},
+                       "solver": {"max_iter": 1}, "bounds": {"enabled": False}})
     path = ensemble.run(cfg, tmp_path / "t.h5", progress=False, groups=None).path
     with h5py.File(path, "r") as h5:
         failed = int(np.count_nonzero(~h5["converged"][()]))
@@ -410,3 +415,52 @@ def test_python_ensemble_run_stores_bounds_by_default(tmp_path):
     off = cfg.replace("bounds.enabled", False)
     ensemble.run(off, tmp_path / "n.h5", progress=False)
     assert read_bounds(tmp_path / "n.h5") is None
+
+
+def test_the_cloud_draws_at_most_max_lines_and_the_envelope_of_all(tmp_path):
+    """1000 members, ``max_lines = 400``: exactly 400 drawn (500 before: a step of 2),
+    the envelope of all 1000 drawn and named; the peaks are every member's."""
+    from mcfric import config, ensemble, plot
+    cfg = config.load({"model": {"preset": "two-beam"}, "frequency": {"n": 100},
+                       "sampling": {"samples": 1000}, "bounds": {"enabled": False}})
+    path = ensemble.run(cfg, tmp_path / "b.h5", progress=False).path
+    drawn = plot.results_figure(path, tmp_path / "b.png", max_lines=400, indicator=False)
+    assert drawn["n_drawn"] == 400
+    assert "envelope of all 1,000 members" in drawn["legend"]
+    assert "refined member peaks (every member)" in drawn["legend"]
+    for n, k in ((1000, 400), (799, 400), (10, 400), (7, 3), (1, 1)):
+        assert np.count_nonzero(plot._drawn(np.arange(n), n, k)) == min(n, k)
+    with pytest.raises(ValueError, match="member: expected None or a member in 0..999"):
+        plot.results_figure(path, tmp_path / "c.png", member=1000)
+    with pytest.raises(ValueError, match="max_lines: expected an integer >= 1"):
+        plot.results_figure(path, tmp_path / "c.png", max_lines=0)
+    assert not (tmp_path / "c.png").exists()
+
+
+def test_a_point_between_two_failed_ones_is_a_marker():
+    from mcfric import plot
+    y = np.array([1.0, np.nan, 2.0, np.nan, 3.0, 4.0, np.nan, 5.0])
+    assert list(np.flatnonzero(plot._alone(y))) == [0, 2, 7]
+
+
+def test_the_hbm_figure_refuses_shapes_that_do_not_match(tmp_path):
+    from mcfric import plot
+    f = np.linspace(10, 20, 5)
+    with pytest.raises(ValueError, match="expected freq_hz"):
+        plot.hbm_figure(f, np.ones((4, 2)), np.ones(5), np.ones(5, bool), tmp_path / "h.png")
+    assert not (tmp_path / "h.png").exists()
+
+
+def test_verify_panels_say_what_they_cannot_show(tmp_path):
+    """A panel whose integration did not settle, or whose harmonic balance failed (a
+    NaN: no curve), says so in its title; the legend is on the first panel only."""
+    import mcfric
+    from mcfric import plot
+    from mcfric.verify import verify
+    vs = verify(mcfric.two_beam(), [35.28, 60.0], 0.03, 15000.0, 0.5, harmonics=3,
+                max_periods=3)
+    assert not any(v.periodic for v in vs)
+    vs[1].multi[:] = np.nan
+    titles = plot.verify_figure(vs, tmp_path / "v.png")["titles"]
+    assert "35.28 Hz: time integration NOT periodic (not settled)" == titles[0]
+    assert "H = 3 not converged" in titles[1]
