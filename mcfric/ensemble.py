@@ -504,13 +504,27 @@ def run(spec, path, *, resume=False, force=False, progress=True, groups="auto",
 
     Raises
     ------
+    TypeError, ValueError
+        ``spec`` is neither a configuration nor the unchanged spec of one (one changed
+        with :func:`dataclasses.replace` is checked by nothing, and the file's record of
+        its configuration would describe another run: change the configuration with
+        :meth:`~mcfric.config.Config.replace` instead), or another argument is of the
+        wrong type.
     RunError
-        Existing files do not allow the run as asked (nothing was written).
+        Existing files do not allow the run as asked (nothing was written). The message
+        names the command line's flags: ``--resume`` and ``--force`` are ``resume=True``
+        and ``force=True`` here.
     Interrupted
         Ctrl-C: the samples finished so far are committed in ``path + ".partial"``.
     """
     t_start = time.perf_counter()
-    spec = getattr(spec, "spec", spec)
+    spec = _own_spec(spec)
+    for name, value in (("resume", resume), ("force", force), ("progress", progress),
+                        ("space_check", space_check)):
+        if not isinstance(value, (bool, np.bool_)):
+            raise TypeError(f"{name}: expected True or False, got {value!r}")
+    if not (groups is None or groups == "auto" or callable(groups)):
+        raise TypeError(f"groups: expected 'auto', None or a callable, got {groups!r}")
     final = Path(path)
     if not final.parent.is_dir():
         raise RunError(f"{final.parent}: output directory does not exist")
@@ -525,6 +539,27 @@ def run(spec, path, *, resume=False, force=False, progress=True, groups="auto",
                            space_check)
     finally:
         lock.release()
+
+
+def _own_spec(spec):
+    """The RunSpec of ``spec`` (a Config or a RunSpec), checked to be its own
+    configuration's: every check of the configuration then holds for it."""
+    from .config import Config, validate
+    from .spec import RunSpec
+
+    if isinstance(spec, Config):
+        return spec.spec
+    if not isinstance(spec, RunSpec):
+        hint = (f" (load it first: mcfric.config.load({spec!r}))"
+                if isinstance(spec, (str, Path)) else "")
+        raise TypeError(f"spec: expected a mcfric.config.Config or its .spec, got "
+                        f"{type(spec).__name__}{hint}")
+    if not spec.matches(validate(json.loads(spec.config_json)).spec):
+        raise ValueError("spec: differs from its own configuration (changed with "
+                         "dataclasses.replace?): nothing checks such a spec, and the file "
+                         "would record another run; change the configuration instead, "
+                         "e.g. cfg.replace(\"run.threads\", 1), and run that")
+    return spec
 
 
 def output_bytes(spec):

@@ -25,8 +25,8 @@ from .metric import check_beams, response_metric
 from .model import CONTACT_LAWS, Model
 from .peaks import Peaks, PeakSettings, refine
 from .threads import threads
-from .validators import fraction, integer, is_bool, real_array
 from .validators import frequencies as check_frequencies
+from .validators import integer, is_bool, real_array, residual_tol
 from .validators import per_damper as check_parameters
 
 #: Default accepted relative residual ``|s kc A - mu0 N0| <= tol mu0 N0``; Newton aims
@@ -185,7 +185,7 @@ def solve(model, freq_hz, mu0, kc, N0=0.5, *, modal_freq_hz=None, tol=TOL,
         Per-sample modal frequencies in Hz (mistuned rigs); default the model's. Friction
         parameters given for one sample apply to all ``n_s``.
     tol : float
-        Accepted relative residual, default 1e-10 (iterations aim 10x lower).
+        Accepted relative residual, 1e-14..0.1, default 1e-10 (iterations aim 10x lower).
     max_iter : int
         Newton iterations per attempt (default 50); a multi-harmonic attempt may add up
         to 10 undamped steps where its line search crawls (docs: harmonics).
@@ -229,7 +229,7 @@ def solve(model, freq_hz, mu0, kc, N0=0.5, *, modal_freq_hz=None, tol=TOL,
     nd = model.n_dampers
     p = check_parameters(nd, mu0=mu0, kc=kc, N0=N0)
     n_s = p["mu0"].shape[0]
-    fraction("tol", tol)
+    residual_tol("tol", tol)
     for name, flag in (("indicator", indicator), ("aft", aft),
                        ("store_harmonics", store_harmonics)):
         if not is_bool(flag):     # "no" would be true

@@ -9,6 +9,7 @@ or of the command line.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -180,3 +181,26 @@ class RunSpec:
     def mistuned(self):
         """True when the members' modal frequencies are drawn (mistuning > 0)."""
         return self.sampler.mistuning > 0
+
+    def matches(self, other):
+        """True if ``other`` is the same run in every field, arrays compared by value."""
+        return _same(self, other)
+
+
+def _same(x, y):
+    """Structural equality of specs: dataclasses field by field, arrays by value (a
+    dataclass's own ``==`` fails on array fields), NaN equal to NaN."""
+    if type(x) is not type(y):
+        return False
+    if dataclasses.is_dataclass(x):
+        return all(_same(getattr(x, f.name), getattr(y, f.name))
+                   for f in dataclasses.fields(x))
+    if isinstance(x, np.ndarray):
+        return x.shape == y.shape and bool(np.all((x == y) | ((x != x) & (y != y))))
+    if isinstance(x, (tuple, list)):
+        return len(x) == len(y) and all(_same(a, b) for a, b in zip(x, y))
+    if isinstance(x, dict):
+        return x.keys() == y.keys() and all(_same(x[k], y[k]) for k in x)
+    if isinstance(x, float) and x != x:
+        return y != y
+    return bool(x == y)

@@ -146,6 +146,22 @@ def real(name, value, *, lo=None, lo_open=False, allow_inf=False):
     return v
 
 
+#: Accepted relative residuals of the harmonic balance: below ``RESIDUAL_TOL_MIN`` the
+#: residual is at the rounding of double precision (about 1e-15 of the forces), where no
+#: solver can tell converged from not.
+RESIDUAL_TOL_MIN = 1e-14
+RESIDUAL_TOL_MAX = 0.1
+
+
+def residual_tol(name, value):
+    """An accepted relative residual: a number in ``RESIDUAL_TOL_MIN .. RESIDUAL_TOL_MAX``."""
+    if not (is_num(value) and RESIDUAL_TOL_MIN <= value <= RESIDUAL_TOL_MAX):
+        raise InputError(name, f"expected a number in {RESIDUAL_TOL_MIN:g}..{RESIDUAL_TOL_MAX:g} "
+                               f"(below {RESIDUAL_TOL_MIN:g} the residual is at the rounding "
+                               f"of double precision), got {value!r}")
+    return float(value)
+
+
 def fraction(name, value):
     """A tolerance argument: a finite number strictly between 0 and 1, as a float."""
     if not (is_num(value) and math.isfinite(value) and 0 < value < 1):
@@ -405,6 +421,8 @@ def per_damper(nd, **params):
         elif arr.ndim == 2:
             if arr.shape[1] not in (1, nd):
                 raise InputError(name, f"expected shape (n_samples, {nd}), got {arr.shape}")
+            if arr.shape[0] == 0:
+                raise InputError(name, f"expected at least one sample, got shape {arr.shape}")
             arr = np.broadcast_to(arr, (arr.shape[0], nd))
         else:
             raise InputError(name, f"expected at most 2 dimensions, got shape {arr.shape}")

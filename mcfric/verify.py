@@ -21,7 +21,7 @@ from .core.receptance import contact_space
 from .core.time_integration import integrate
 from .hbm import MAX_N_TIME, check_harmonics, solve
 from .model import Model
-from .validators import fraction, integer
+from .validators import fraction, integer, residual_tol
 from .validators import frequencies as check_frequencies
 from .validators import per_damper as check_parameters
 
@@ -287,7 +287,7 @@ def verify(model, freq_hz, mu0, kc, N0=0.5, *, harmonics=9, start="single", tol=
         integer(lo)(v, name)
     # named here: solve() would blame "tol", which is the integration's
     if hb_tol is not None:
-        fraction("hb_tol", hb_tol)
+        residual_tol("hb_tol", hb_tol)
     if hb_max_iter is not None:
         integer(1, 10000)(hb_max_iter, "hb_max_iter")
     if hb_n_time is not None:

@@ -358,3 +358,27 @@ def test_a_failed_frequency_is_not_counted_as_set_by_the_box():
     force = int(np.count_nonzero(B.limited_by == 1))
     assert (f"upper set by the force limit at {force}, by the box at {19 - force}; "
             f"failed: 1") in text, text
+
+
+def test_admits_names_the_constraints_and_refuses_what_it_cannot_check():
+    """``Bounds.admits``: a member inside ``kc <= k_max``, ``kc / pi <= k_max_im``, ``4 /
+    pi mu0 N0 <= F_lim`` is admitted, one past any of them not; a member of another
+    damper count or with NaN or negative friction is refused (it returned True)."""
+    model = mcfric.eight_beam()
+    B = compute_bounds(model, np.array([20.0, 40.0]), 15000.0, F_lim=force_limit(1.0, 0.5),
+                       certified=False)
+    nd = model.n_dampers
+    mu0, kc, N0 = np.full(nd, 0.5), np.full(nd, 1e3), np.full(nd, 0.5)
+    assert B.admits(mu0, kc, N0)
+    kc_out = kc.copy()
+    kc_out[3] = 15001.0
+    mu_out = mu0.copy()
+    mu_out[0] = 1.01
+    assert list(B.admits(np.stack([mu0, mu0, mu_out]), np.stack([kc, kc_out, kc]),
+                         N0)) == [True, False, False]
+    for args, message in (((mu0[:3], kc[:3], N0[:3]), r"mu0: expected shape \(\.\.\., 7\)"),
+                          ((0.5, kc, N0), r"mu0: expected shape"),
+                          ((-mu0, kc, N0), "mu0: expected finite values >= 0"),
+                          ((mu0, kc, np.full(nd, np.nan)), "N0: expected finite")):
+        with pytest.raises(ValueError, match=message):
+            B.admits(*args)

@@ -129,7 +129,12 @@ def test_metric_only_and_other_metric(tmp_path):
 
 
 def test_non_converged_points_are_flagged_and_counted(tmp_path):
-    cfg = two_beam(samples=60, n=40, solver__tol=1e-17)   # below rounding: some must fail
+    # one Newton iteration per attempt on eight beams slipping: some points must fail
+    cfg = config.load({"model": {"preset": "eight-beam"}, "frequency": {"n": 40},
+                       "sampling": {"samples": 20, "seed": 11,
+                                    "mu0": {"dist": "fixed", "value": 0.1},
+                                    "kc": {"dist": "fixed", "value": 6000.0}},
+                       "bounds": {"enabled": False}, "solver": {"max_iter": 1}})
     s = run(cfg, tmp_path / "r.h5")
     d = load(tmp_path / "r.h5")
     bad = int(np.count_nonzero(~d["converged"]))
@@ -199,6 +204,30 @@ def test_refusals_and_the_already_done_case(tmp_path):
     with pytest.raises(RunError, match="does not exist"):
         run(cfg, tmp_path / "nodir" / "r.h5")
 
+
+
+def test_a_spec_changed_behind_its_configuration_is_refused_before_any_file(tmp_path):
+    """``dataclasses.replace`` on a RunSpec skips every check of the configuration (0
+    threads, 0 samples, a NaN frequency went as far as the kernel or the writer, leaving a
+    partial file that blocked the corrected call) and the file would record the
+    configuration, not the run: refused, nothing written. A string is not loaded."""
+    import dataclasses
+    spec = two_beam(samples=4, n=10, bounds__enabled=False).spec
+    out = tmp_path / "r.h5"
+    f = np.array(spec.freq_hz)
+    f[3] = np.nan
+    for bad in (dataclasses.replace(spec, samples=0),
+                dataclasses.replace(spec, freq_hz=f),
+                dataclasses.replace(spec, execution=dataclasses.replace(spec.execution,
+                                                                        threads=0))):
+        with pytest.raises(ValueError, match="spec: differs from its own configuration"):
+            run(bad, out)
+    with pytest.raises(TypeError, match=r"load it first: mcfric.config.load\('two-beam'\)"):
+        run("two-beam", out)
+    with pytest.raises(TypeError, match="progress: expected True or False"):
+        ensemble.run(spec, out, progress="no")
+    assert list(tmp_path.iterdir()) == []
+    assert run(spec, out).complete              # the spec itself is its configuration's
 
 @contextlib.contextmanager
 def ctrl_c_at_chunk_3(monkeypatch):

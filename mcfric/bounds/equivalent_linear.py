@@ -144,8 +144,27 @@ class Bounds:
         Returns
         -------
         ndarray of bool, shape (...)
+
+        Raises
+        ------
+        ValueError
+            A parameter without one value per damper last, or with values not finite or
+            below 0.
         """
-        mu0, kc, N0 = (np.asarray(x, float) for x in (mu0, kc, N0))
+        nd = self.K_upper.shape[-1]
+        checked = []
+        for name, x in (("mu0", mu0), ("kc", kc), ("N0", N0)):
+            try:
+                a = np.asarray(x, float)
+            except (TypeError, ValueError):
+                raise ValueError(f"{name}: expected numbers, got {x!r}") from None
+            if a.ndim == 0 or a.shape[-1] != nd:
+                raise ValueError(f"{name}: expected shape (..., {nd}) (a value per damper "
+                                 f"last), got {a.shape}")
+            if not np.all(np.isfinite(a) & (a >= 0)):
+                raise ValueError(f"{name}: expected finite values >= 0")
+            checked.append(a)
+        mu0, kc, N0 = checked
         slack = 1.0 + 1e-12               # "auto" limits are these very products
         ok = (kc <= self.k_max_re * slack) & (kc / np.pi <= self.k_max_im * slack)
         ok &= 4.0 / np.pi * mu0 * N0 <= self.F_lim * slack

@@ -16,6 +16,8 @@ from ..presets import preset as make_preset
 from ..validators import (
     F0_RANGE,
     MAX_FREQ_HZ,
+    RESIDUAL_TOL_MAX,
+    RESIDUAL_TOL_MIN,
     InputError,
     auto_or_boolean,
     auto_or_integer,
@@ -173,7 +175,7 @@ SPEC = {
                                      "to look for folds"),
     },
     "solver": {
-        "tol": (number(lo=0, hi=0.1, lo_open=True),
+        "tol": (number(lo=RESIDUAL_TOL_MIN, hi=RESIDUAL_TOL_MAX),
                 "accepted relative friction-force residual"),
         "max_iter": (integer(1, 10000), "Newton iterations per attempt (multi-harmonic: "
                                          "plus up to 10 undamped steps where it crawls)"),
