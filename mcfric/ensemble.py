@@ -89,6 +89,10 @@ class Summary:
         Of ``wall_s``, the bounds' computation (certification included), s; 0 where they
         were not computed in this call.
     complete, already_complete : bool
+    peaks, harmonics : list of str or None
+        Lines that :meth:`text` prints: the peak statistics (members' resonance peaks,
+        folds; None without peak refinement) and the harmonic content (the multi-harmonic
+        report, or the single-harmonic indicator's).
     cluster : str
         The Dask scheduler of this call (``"local:N"`` or an address); "" for none.
     startup_s : float

@@ -201,8 +201,11 @@ class Model:
         for name in ("contact", "output", "drive"):
             integer()(getattr(self, name), name)          # 1.9 would be position 1
         for t in beams:
-            for label in (self.contact, self.output, self.drive):
-                t.column(label)
+            for name in ("contact", "output", "drive"):
+                try:
+                    t.column(getattr(self, name))
+                except ValueError as e:
+                    raise ValueError(f"{name}: {e}") from None
         object.__setattr__(self, "beams", beams)
         force = self.excitation.force(len(beams))  # validates the driven beam index
         ex = self.excitation

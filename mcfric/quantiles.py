@@ -50,7 +50,15 @@ def quantile_interval(values, p, confidence=0.95, raised=0):
     if not 0.0 < p < 1.0 or not 0.0 < confidence < 1.0:
         raise ValueError(f"quantile_interval: expected 0 < p, confidence < 1, got {p!r}, "
                          f"{confidence!r}")
-    x = np.sort(np.asarray(values, dtype=float).ravel())
+    if isinstance(raised, bool) or not isinstance(raised, (int, np.integer)) or raised < 0:
+        raise ValueError(f"quantile_interval: raised: expected an integer >= 0, got {raised!r}")
+    try:
+        x = np.asarray(values, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError("quantile_interval: values: expected numbers") from None
+    if x.ndim != 1:
+        raise ValueError(f"quantile_interval: values: expected shape (n,), got {x.shape}")
+    x = np.sort(x)
     x = x[np.isfinite(x)]
     n = x.size
     if n == 0:

@@ -300,7 +300,10 @@ class Sampler:
 
     def draw(self, index):
         """Parameters of samples ``index`` (any order, any subset), see :class:`Draw`."""
-        index = np.asarray(index, dtype=np.int64).reshape(-1)
+        given = np.asarray(index)
+        if given.size and not np.issubdtype(given.dtype, np.integer):
+            raise ValueError(f"index: expected integer sample numbers, got dtype {given.dtype}")
+        index = given.astype(np.int64).reshape(-1)
         if np.any(index < 0):
             raise ValueError("index: sample numbers must be >= 0")
         u = self.uniforms(index)

@@ -43,6 +43,11 @@ def test_small_empty_and_bad_input():
     assert all(np.isnan(quantile_interval([np.nan], 0.5)))
     with pytest.raises(ValueError, match="0 < p"):
         quantile_interval([1.0], 1.0)
+    # -1 lower estimates gave (-inf, 3); a 2-d array was flattened silently
+    with pytest.raises(ValueError, match="raised: expected an integer >= 0, got -1"):
+        quantile_interval([1.0, 2.0, 3.0], 0.5, raised=-1)
+    with pytest.raises(ValueError, match=r"values: expected shape \(n,\), got \(2, 2\)"):
+        quantile_interval([[1.0, 2.0], [3.0, 4.0]], 0.5)
 
 
 @pytest.mark.parametrize("k", [1, 10])

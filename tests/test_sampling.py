@@ -27,6 +27,9 @@ def test_contract_spawned_children_and_block_layout():
         np.testing.assert_array_equal(d.kc[row], 15000.0 * u[3:6])
         np.testing.assert_array_equal(d.N0[row], 0.1 + 0.65 * u[6:9])
     assert d.modal_freq_hz is None
+    # a float index drew sample 1 for 1.5
+    with pytest.raises(ValueError, match="index: expected integer sample numbers"):
+        s.draw(np.array([1.5]))
 
 
 def test_a_sample_does_not_depend_on_its_chunk_or_order():

@@ -296,8 +296,8 @@ def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity
         Also tighten the certified upper bound by the second-order moment relaxation
         where the first-order one leaves it loose (:mod:`.moments`; chains of 2-7
         dampers with a force limit). ``"auto"`` (default): where it applies; False: the
-        first order alone (about a quarter of the time on eight beams, the upper bound
-        within 1 % of its witness at 84-93 % of the frequencies instead of 99.8-99.9 %:
+        first order alone (about a third of the time on eight beams, the upper bound
+        within 1 % of its witness at 84-93 % of the frequencies instead of 99.9-100 %:
         docs/bounds.md); True: an error where it cannot run.
     progress : bool or None
         Progress bars of the certification on stderr: None (default) on a terminal only,
