@@ -237,8 +237,11 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
         label += "; single-harmonic model)" if harmonics > 1 else ")"
         up = np.where(np.isfinite(up), up, np.nan)
         band = lo, up
-        ax.plot(fw, up, color="tab:blue", lw=2.0, label="upper bound" + label)
-        ax.plot(fw, np.where(lo > 0, lo, np.nan), color="tab:red", lw=2.0,
+        # on a coarse grid the straight lines between grid points read as a bound: the
+        # points where it holds are marked
+        dot = "." if len(fw) <= 60 else None
+        ax.plot(fw, up, color="tab:blue", lw=2.0, marker=dot, ms=5, label="upper bound" + label)
+        ax.plot(fw, np.where(lo > 0, lo, np.nan), color="tab:red", lw=2.0, marker=dot, ms=5,
                 label="lower bound" + label)
         if C is not None:
             # the witnesses (attained by admissible describing functions: the true extreme
