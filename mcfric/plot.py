@@ -280,9 +280,9 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
     metric_beams = _metric_beams(attrs)
     for i, mm in enumerate(measured):
         parts = metric_parts([mm.to_quantity(quantity)], metric_beams)
-        if not (parts.full or parts.part):
-            continue                     # no beam of the metric measured: no M to draw
-        g = (parts.full or parts.part)[0]
+        # M, or the largest measured beam of the metric (M at least that), or with no
+        # beam of the metric measured the largest measured beam (drawn, compared to nothing)
+        g = (parts.full or parts.part or [mm.to_quantity(quantity).metric()])[0]
         mf = g.frequency_hz
         y = g.response[:, 0].real
         keep = (mf >= lo_f) & (mf <= hi_f)
@@ -290,14 +290,17 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
         lab = (f"measured {mm.kind}" + (f" {Path(mm.source).name}" if mm.source else "")
                + (f" ({mm.force_n:g} N)" if mm.force_n else "")
                + (f", {mm.percentile:g}th percentile" if mm.percentile is not None else ""))
+        mine = [b for b in mm.beams if b in metric_beams]
         if parts.part:
             # some beam of the metric not measured: the largest measured beam, M at least
-            lab += (f": beam{'s' if len(g.beams) > 1 else ''} "
-                    f"{', '.join(str(b) for b in mm.beams if b in metric_beams)} only, "
-                    f"M at least this")
-        ls = "--" if parts.part else "-"
+            lab += (f": beam{'s' if len(mine) > 1 else ''} {', '.join(map(str, mine))} "
+                    f"only, M at least this")
+        elif not parts.full:
+            lab += (f": beam{'s' if len(mm.beams) > 1 else ''} "
+                    f"{', '.join(map(str, mm.beams))}, not in the metric")
+        ls = "-" if parts.full else "--"
         if mm.kind == "stepped" or np.count_nonzero(keep) == 1:   # one point draws no line
-            ax.plot(mf[keep], y[keep], "+" if parts.part else "x", color=color, ms=4,
+            ax.plot(mf[keep], y[keep], "x" if parts.full else "+", color=color, ms=4,
                     mew=1.0, label=lab)
         else:
             ax.plot(mf[keep], y[keep], color=color, lw=1.0, ls=ls, label=lab)
