@@ -64,6 +64,35 @@ MAX_SWEEPS = 20
 MAX_SWEEPS_FRACTION_MAX = 0.5
 
 
+#: Relative slack of the admissibility checks: ``"auto"`` limits are these very products.
+ADMIT_SLACK = 1.0 + 1e-12
+
+
+def past_limits(mu0, kc, N0, k_max_re, k_max_im, F_lim):
+    """Where a Jenkins damper leaves the bounds' admissible region, per constraint.
+
+    A damper of stiffness ``kc`` and slip force ``mu0 N0`` has ``0 <= Re K <= kc``, ``0
+    <= Im K <= kc / pi`` (at ``fs / (kc A) = 1/2``) and ``|K| A <= 4 / pi mu0 N0`` at any
+    amplitude ``A``: the bounds hold for it if ``kc <= k_max_re``, ``kc / pi <=
+    k_max_im`` and ``4 / pi mu0 N0 <= F_lim`` (each with :data:`ADMIT_SLACK`).
+
+    Parameters
+    ----------
+    mu0, kc, N0 : float or ndarray
+        Friction coefficient (1), contact stiffness (N/m), preload (N).
+    k_max_re, k_max_im, F_lim : float
+        The limits, N/m, N/m, N.
+
+    Returns
+    -------
+    tuple of three bool (or bool arrays)
+        ``kc`` past ``k_max_re``, ``kc / pi`` past ``k_max_im``, ``4 / pi mu0 N0`` past
+        ``F_lim``.
+    """
+    return (kc > k_max_re * ADMIT_SLACK, kc / np.pi > k_max_im * ADMIT_SLACK,
+            4.0 / np.pi * mu0 * N0 > F_lim * ADMIT_SLACK)
+
+
 @dataclass
 class Bounds:
     """Bounds on the metric over frequency: the paper's, found by a search, and (in
@@ -131,10 +160,8 @@ class Bounds:
     def admits(self, mu0, kc, N0):
         """Boolean mask of the members whose friction lies inside the bounds' constraints.
 
-        A Jenkins element of stiffness ``kc`` and slip force ``mu0 N0`` has ``0 <= Re K
-        <= kc``, ``0 <= Im K <= kc / pi`` and ``|K| A <= 4 / pi mu0 N0`` at any amplitude
-        ``A``: the bounds hold for a member whose every damper keeps ``kc <= k_max_re``,
-        ``kc / pi <= k_max_im`` and ``4 / pi mu0 N0 <= F_lim``, and need not for others.
+        The bounds hold for a member whose every damper is inside their constraints
+        (:func:`past_limits`), and need not for others.
 
         Parameters
         ----------
@@ -164,11 +191,8 @@ class Bounds:
             if not np.all(np.isfinite(a) & (a >= 0)):
                 raise ValueError(f"{name}: expected finite values >= 0")
             checked.append(a)
-        mu0, kc, N0 = checked
-        slack = 1.0 + 1e-12               # "auto" limits are these very products
-        ok = (kc <= self.k_max_re * slack) & (kc / np.pi <= self.k_max_im * slack)
-        ok &= 4.0 / np.pi * mu0 * N0 <= self.F_lim * slack
-        return ok.all(axis=-1)
+        re, im, force = past_limits(*checked, self.k_max_re, self.k_max_im, self.F_lim)
+        return ~(re | im | force).any(axis=-1)
 
     def contains(self, metric, rtol=1e-9):
         """Boolean mask ``lower (1 - rtol) <= metric <= upper (1 + rtol)`` (NaN -> False).

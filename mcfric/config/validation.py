@@ -13,7 +13,7 @@ import json
 import math
 
 from .. import sampling
-from ..bounds.equivalent_linear import K_MAX_LIMIT
+from ..bounds.equivalent_linear import K_MAX_LIMIT, past_limits
 from ..validators import InputError, choices, is_num, show
 from . import configuration  # at call time: configuration imports this module
 from .schema import BEAM, SPEC, TABLE
@@ -301,9 +301,9 @@ def bounds_shortfalls(c):
     """Where ``[bounds]``' constraints leave out friction the sampling draws: one phrase
     per constraint (empty where they cover every member, or the bounds are off).
 
-    The bounds hold for the members whose dampers keep ``kc <= k_max``, ``kc / pi <=
-    k_max_im`` and ``4 / pi mu0 N0 <= F_lim`` (:meth:`Bounds.admits
-    <mcfric.bounds.Bounds.admits>`); ``"auto"`` limits cover the sampling by
+    The bounds hold for the members whose dampers keep inside their constraints
+    (:func:`~mcfric.bounds.equivalent_linear.past_limits`, as :meth:`Bounds.admits
+    <mcfric.bounds.Bounds.admits>` checks members); ``"auto"`` limits cover the sampling by
     construction, given ones may not (a unit slip: 15 for 15 kN/m). Unbounded
     distributions (normal, lognormal) are not looked at: their tails are counted after
     the run.
@@ -316,14 +316,14 @@ def bounds_shortfalls(c):
     # the check after the run, which counts the members it left out
     kc, mu, n0 = (_dist_max(s[k]) for k in ("kc", "mu0", "N0"))
     kc, mu, n0 = (x if math.isfinite(x) else 0.0 for x in (kc, mu, n0))
-    slack = 1.0 + 1e-12
+    re, im, force = past_limits(mu, kc, n0, k_max, k_im, F_lim)
     out = []
-    if kc > k_max * slack:
+    if re:
         out.append(f"k_max = {k_max:g} N/m is below the largest kc drawn, {kc:g} N/m")
-    if kc / math.pi > k_im * slack:
+    if im:
         out.append(f"k_max_im = {k_im:g} N/m is below the largest kc / pi drawn, "
                    f"{kc / math.pi:g} N/m")
-    if 4.0 / math.pi * mu * n0 > F_lim * slack:
+    if force:
         out.append(f"F_lim = {F_lim:g} N is below the largest 4/pi mu0 N0 drawn, "
                    f"{4.0 / math.pi * mu * n0:g} N")
     return out
