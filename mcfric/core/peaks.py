@@ -46,10 +46,11 @@ import numpy as np
 from numba import prange
 
 from . import chain_newton as cn
-from ._jit import inline_jit, jit
+from ._jit import jit
 from .friction import LAW_COULOMB
 from .newton import levenberg_marquardt, newton, workspace
 from .receptance import CONTACT, D11, D13, D21, D23, DRIVE, OUTPUT
+from .sweep import g_entry
 
 #: Status of a reported peak.
 PEAK_REFINED = 0        # a local maximum, refined to rtol
@@ -126,22 +127,6 @@ def _lane_newton(x, kc, c, act, G, q0, tol, max_iter, L, ring):
     return True
 
 
-@inline_jit
-def _g_entry(rec1, a, b, j, m):
-    """Entry ``(j, m)`` of ``G = B D11 B^T``: damper ``m``'s force at damper ``j``'s
-    relative displacement (m/N)."""
-    g = 0.0j
-    if a[j] == a[m]:
-        g += rec1[D11, a[j]]
-    if a[j] == b[m]:
-        g -= rec1[D11, a[j]]
-    if b[j] == b[m]:
-        g += rec1[D11, b[j]]
-    if b[j] == a[m]:
-        g -= rec1[D11, b[j]]
-    return g
-
-
 @jit
 def _solve_at(omega, r, modal_f, zeta, u, force, a, b, kc, c, act, x, tol, max_iter, w,
               rec1, G, q0, y, law, L, lanes):
@@ -152,6 +137,7 @@ def _solve_at(omega, r, modal_f, zeta, u, force, a, b, kc, c, act, x, tol, max_i
     nd = a.shape[0]
     n_beams = force.shape[0]
     _receptances_at(omega, r, modal_f, zeta, u, rec1)
+    d11 = rec1[D11]
     for j in range(nd):
         q0[j] = rec1[D13, a[j]] * force[a[j]] - rec1[D13, b[j]] * force[b[j]]
     for j in range(nd):
@@ -161,9 +147,9 @@ def _solve_at(omega, r, modal_f, zeta, u, force, a, b, kc, c, act, x, tol, max_i
         # the O(nd) Newton reads G's diagonal and super-diagonal (and a ring's corner)
         # alone: the full G, nd^2 entries, only where the dense solvers must run
         for j in range(nd):
-            G[j, j] = _g_entry(rec1, a, b, j, j)
+            G[j, j] = g_entry(d11, a, b, j, j)
             m = (j + 1) % nd
-            G[j, m] = _g_entry(rec1, a, b, j, m)
+            G[j, m] = g_entry(d11, a, b, j, m)
         x0 = x.copy()
         ring = nd == n_beams
         # from the guess, then from s = 1 on the same Newton: the dense Newton from
@@ -185,7 +171,7 @@ def _solve_at(omega, r, modal_f, zeta, u, force, a, b, kc, c, act, x, tol, max_i
             x[j] = x0[j]
     for j in range(nd):
         for m in range(nd):
-            G[j, m] = _g_entry(rec1, a, b, j, m)
+            G[j, m] = g_entry(d11, a, b, j, m)
     ok, _ = newton(x, kc, c, act, G, q0, tol, max_iter, w, law)
     if not ok:
         for j in range(nd):

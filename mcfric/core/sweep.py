@@ -161,18 +161,26 @@ def _q0(rec, r, k, force, a, b, j):
 @inline_jit
 def _dense_G(rec, r, k, a, b, G, nd):
     """``G = B diag(d11) B^T`` for any damper graph."""
+    d11 = rec[r, k, D11]
     for j in range(nd):
         for m in range(nd):
-            g = 0.0j
-            if a[j] == a[m]:
-                g += rec[r, k, D11, a[j]]
-            if a[j] == b[m]:
-                g -= rec[r, k, D11, a[j]]
-            if b[j] == b[m]:
-                g += rec[r, k, D11, b[j]]
-            if b[j] == a[m]:
-                g -= rec[r, k, D11, b[j]]
-            G[j, m] = g
+            G[j, m] = g_entry(d11, a, b, j, m)
+
+
+@inline_jit
+def g_entry(d11, a, b, j, m):
+    """Entry ``(j, m)`` of ``G = B diag(d11) B^T``: damper ``m``'s force at damper ``j``'s
+    relative displacement (m/N), from the beams' contact receptances ``d11``."""
+    g = 0.0j
+    if a[j] == a[m]:
+        g += d11[a[j]]
+    if a[j] == b[m]:
+        g -= d11[a[j]]
+    if b[j] == b[m]:
+        g += d11[b[j]]
+    if b[j] == a[m]:
+        g -= d11[b[j]]
+    return g
 
 
 @jit
