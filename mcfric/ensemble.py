@@ -552,7 +552,7 @@ def _own_spec(spec):
     from .spec import RunSpec
 
     if isinstance(spec, Config):
-        return spec.spec
+        spec = spec.spec             # checked below too: a Config may be built by hand
     if not isinstance(spec, RunSpec):
         hint = (f" (load it first: mcfric.config.load({spec!r}))"
                 if isinstance(spec, (str, Path)) else "")
@@ -593,7 +593,8 @@ def peak_memory_bytes(spec):
     # as hbm counts them; a multi-harmonic solve's kernel runs after its single-harmonic one
     scratch = hbm.DENSE_SCRATCH_BYTES * nd * nd
     if n_h > 1:
-        scratch = max(scratch, hbm.multi_harmonic_scratch(nd, n_h, n_f))
+        n_time = hbm.check_harmonics(spec.solver.harmonics, spec.solver.n_time)[1]
+        scratch = max(scratch, hbm.multi_harmonic_scratch(nd, n_h, n_f, n_time))
     est += min(n_threads, chunk) * scratch
     if spec.bounds:
         est += 3 * 8 * nb * nd

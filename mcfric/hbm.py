@@ -17,6 +17,7 @@ from .core import harmonic_indicator as _indicator
 from .core import multi_harmonic as _multi_harmonic
 from .core import sweep as _sweep
 from .core.aft import harmonic_orders
+from .core.aft import work_size as aft_work_size
 from .core.multi_harmonic import FROM_ABOVE, FROM_REST
 from .core.newton import NOT_CONVERGED
 from .core.receptance import D21
@@ -318,14 +319,19 @@ def check_harmonics(harmonics, n_time=None):
     return harmonics, int(n_time)
 
 
-def multi_harmonic_scratch(nd, n_h, n_f):
-    """Bytes each thread of the multi-harmonic kernel holds for ``nd`` dampers, ``n_h``
-    harmonics and ``n_f`` frequencies: the receptance matrices (three of ``n_h nd^2``
-    complex: the point's, a neighbour's and the continuation's), the Newton step's blocks
-    (a ring's: three of ``2 n_h`` rows per damper; a chain holds two) and every
-    frequency's solution (for the pass back down)."""
+def multi_harmonic_scratch(nd, n_h, n_f, n_time):
+    """Bytes each thread of the multi-harmonic kernel holds (``core.multi_harmonic``'s
+    ``_sample``) for ``nd`` dampers, ``n_h`` harmonics, ``n_f`` frequencies and
+    ``n_time`` AFT samples per period: the receptance matrices (three of ``n_h nd^2``
+    complex: the point's, a neighbour's and the continuation's), every frequency's
+    solution (for the pass back down), the Newton step's blocks (a ring's: three of ``2
+    n_h`` rows per damper; a chain holds two), the dampers' Jacobians and states, and the
+    AFT's and the peak's samples."""
     n = 2 * nd * n_h
-    return 48.0 * n_h * nd * nd + 8.0 * (3 * n + 2 * n_h) * 2 * n_h + 16.0 * n_f * nd * n_h
+    return (48.0 * n_h * nd * nd + 16.0 * n_f * nd * n_h
+            + 8.0 * (3 * n + 2 * n_h) * 2 * n_h + 8.0 * nd * (2 * n_h) ** 2
+            + 16.0 * (10 * nd * n_h + 4 * nd) + 8.0 * (3 * n + 8 * nd)
+            + 8.0 * aft_work_size(n_h, n_time) + 8.0 * 4 * n_time * (2 * n_h + 1))
 
 
 def check_harmonic_memory(model, harmonics, n_time, n_f, n_r, per="call"):
@@ -334,7 +340,7 @@ def check_harmonic_memory(model, harmonics, n_time, n_f, n_r, per="call"):
     ``"chunk"``)."""
     n_h = (harmonics + 1) // 2
     need = 16.0 * n_r * n_h * n_f * 4 * model.n_beams
-    need += multi_harmonic_scratch(model.n_dampers, n_h, n_f) * numba.get_num_threads()
+    need += multi_harmonic_scratch(model.n_dampers, n_h, n_f, n_time) * numba.get_num_threads()
     if need > MAX_HARMONIC_BYTES:
         raise MemoryRefused(f"harmonics: H = {harmonics} needs {need / 2**30:.3g} GiB for "
                             f"this model and grid (limit {MAX_HARMONIC_BYTES / 2**30:.0f} "

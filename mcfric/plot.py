@@ -448,7 +448,9 @@ def hbm_figure(freq_hz, amplitude, metric, converged, png_path, title="",
         ax.plot(freq_hz[_alone(y)], y[_alone(y)], ".", color=line.get_color(), ms=4)
     ax.set_yscale("log")
     if n_f > 1:
-        ax.set_xlim(freq_hz.min(), freq_hz.max())     # the sweep, not only what converged
+        # the sweep, not only what converged; a margin keeps markers at its ends whole
+        lo, hi = freq_hz.min(), freq_hz.max()
+        ax.set_xlim(lo - 0.005 * (hi - lo), hi + 0.005 * (hi - lo))
     ax.set_xlabel("frequency [Hz]")
     ax.set_ylabel(_mathtext(ylabel))
     ax.set_title(title, fontsize=9)

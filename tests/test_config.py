@@ -283,3 +283,13 @@ def test_a_source_that_is_no_configuration_file_is_one_line(tmp_path):
         with pytest.raises(config.ConfigError, match=re.escape(words)) as e:
             config.load(source)
         assert len(str(e.value).splitlines()) == 1
+
+
+def test_replace_takes_numpy_values_as_a_toml_file_gives_them():
+    """numpy scalars inside a list, or an array, for a list key: 'cannot render
+    np.int64(1)' and numpy's 'truth value is ambiguous' before."""
+    cfg = config.load("eight-beam")
+    for beams in ([np.int64(1), np.int64(3)], np.array([1, 3])):
+        c = cfg.replace("metric.beams", beams)
+        assert c["metric"]["beams"] == [1, 3] and "beams = [1, 3]" in c.toml()
+    assert cfg.replace("excitation.F0", np.float64(0.5))["excitation"]["F0"] == 0.5

@@ -224,6 +224,11 @@ def test_a_spec_changed_behind_its_configuration_is_refused_before_any_file(tmp_
             run(bad, out)
     with pytest.raises(TypeError, match=r"load it first: mcfric.config.load\('two-beam'\)"):
         run("two-beam", out)
+    # a Config built by hand is checked as well
+    data = json.loads(spec.config_json)
+    data["frequency"]["f_min"] = float("nan")
+    with pytest.raises(ValueError, match="frequency.f_min"):
+        run(config.Config(data), out)
     with pytest.raises(TypeError, match="progress: expected True or False"):
         ensemble.run(spec, out, progress="no")
     assert list(tmp_path.iterdir()) == []

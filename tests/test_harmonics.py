@@ -745,11 +745,9 @@ def test_the_memory_check_counts_the_threads_the_solve_uses(two_beam, monkeypatc
         pytest.skip("needs two threads")
     H, n_f = 5, 4
     n_h = (H + 1) // 2
-    # three receptance matrices, the Newton step's blocks (at most a ring's) and every
-    # frequency's solution (for the pass back down)
-    nd = two_beam.n_dampers
-    per_thread = (48.0 * n_h * nd ** 2 + 8.0 * (6 * nd * n_h + 2 * n_h) * 2 * n_h
-                  + 16.0 * n_f * nd * n_h)
+    # what the kernel allocates per sample (one sample per thread at a time)
+    per_thread = hbm.multi_harmonic_scratch(two_beam.n_dampers, n_h, n_f,
+                                            hbm.check_harmonics(H)[1])
     one = 16.0 * n_h * n_f * 4 * two_beam.n_beams + per_thread
     monkeypatch.setattr(hbm, "MAX_HARMONIC_BYTES", one + per_thread / 2)
     f = np.linspace(20, 30, n_f)

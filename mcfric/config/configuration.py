@@ -147,13 +147,27 @@ class Config:
         ``"model.n_beams"`` renames a preset that carries its automatic name (as
         :func:`~mcfric.config.load` names it)."""
         raw = copy.deepcopy(self.data)
-        loading.set_key(raw, dotted, value)
+        loading.set_key(raw, dotted, _plain(value))
         if dotted == "model.n_beams":
             m = self.data["model"]
             n_preset = defaults(m["preset"])["model"]["n_beams"]
             if m["name"] == loading.automatic_name(m["preset"], m["n_beams"], n_preset):
                 raw["model"]["name"] = loading.automatic_name(m["preset"], value, n_preset)
         return validation.validate(raw)
+
+
+def _plain(value):
+    """``value`` with numpy arrays and scalars (also inside lists) as Python's own, as a
+    TOML file gives them."""
+    if isinstance(value, np.ndarray):
+        return _plain(value.tolist())
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    if isinstance(value, dict):
+        return {k: _plain(v) for k, v in value.items()}
+    return value
 
 
 def response_format(setting, n_beams):
