@@ -328,6 +328,7 @@ def multi_harmonic_scratch(nd, n_h, n_f, n_time):
     n_h`` rows per damper; a chain holds two), the dampers' Jacobians and states, and the
     AFT's and the peak's samples."""
     n = 2 * nd * n_h
+    n_time = int(n_time)
     return (48.0 * n_h * nd * nd + 16.0 * n_f * nd * n_h
             + 8.0 * (3 * n + 2 * n_h) * 2 * n_h + 8.0 * nd * (2 * n_h) ** 2
             + 16.0 * (10 * nd * n_h + 4 * nd) + 8.0 * (3 * n + 8 * nd)
@@ -340,6 +341,7 @@ def check_harmonic_memory(model, harmonics, n_time, n_f, n_r, per="call"):
     ``"chunk"``)."""
     n_h = (harmonics + 1) // 2
     need = 16.0 * n_r * n_h * n_f * 4 * model.n_beams
+    n_time = check_harmonics(harmonics, n_time)[1]          # None: the default for H
     need += multi_harmonic_scratch(model.n_dampers, n_h, n_f, n_time) * numba.get_num_threads()
     if need > MAX_HARMONIC_BYTES:
         raise MemoryRefused(f"harmonics: H = {harmonics} needs {need / 2**30:.3g} GiB for "
