@@ -162,6 +162,9 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
                          if harmonics > 1 else "")
             what = (f"{_count(n, 'member')}, all drawn" if drawn == n
                     else f"{_count(n, 'member')}, {drawn} drawn")
+            if not np.isfinite(env_hi).any():
+                what = f"{_count(n, 'member')}: no point in the window converged"
+                gaps = ""
             lc = LineCollection(segs, colors="0.45", linewidths=0.5, alpha=0.25,
                                 rasterized=True,
                                 label=f"ensemble ({what}{gaps}{grid_only})")

@@ -464,3 +464,18 @@ def test_verify_panels_say_what_they_cannot_show(tmp_path):
     titles = plot.verify_figure(vs, tmp_path / "v.png")["titles"]
     assert "35.28 Hz: time integration NOT periodic (not settled)" == titles[0]
     assert "H = 3 not converged" in titles[1]
+
+
+def test_a_file_where_nothing_converged_says_so(results, tmp_path):
+    """Every point failed (the flags set in a copy): the legend said '20 drawn' over an
+    empty axis."""
+    import shutil
+
+    from mcfric import plot
+    copy = tmp_path / "none.h5"
+    shutil.copy(results, copy)
+    with h5py.File(copy, "r+") as h5:
+        h5["converged"][...] = False
+    drawn = plot.results_figure(copy, tmp_path / "none.png", indicator=False)
+    assert drawn["legend"][0] == "ensemble (20 members: no point in the window converged)"
+    assert drawn["n_not_converged"] == 20 * 60
