@@ -180,13 +180,19 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
                         lw=0.7, ls=(0, (4, 2)))
         if highlight is not None:
             y = np.where(highlight > 0, highlight, np.nan)
-            ax.plot(fw, y, color="k", lw=1.1, label=f"member {member}")
+            ax.plot(fw, y, color="k", lw=1.1, zorder=2.2, label=f"member {member}")
             ax.plot(fw[_alone(y)], y[_alone(y)], ".", color="k", ms=3)
             if member_flags is not None and member_flags.any():
-                ax.plot(fw[member_flags], highlight[member_flags], "o", mfc="none",
-                        color="tab:orange", ms=3.5, mew=0.8,
-                        label=f"member {member}: higher harmonics > "
-                              f"{INDICATOR_THRESHOLD:g} (indicator)")
+                label = (f"member {member}: higher harmonics > {INDICATOR_THRESHOLD:g} "
+                         f"(indicator)")
+                if len(fw) <= 300:
+                    ax.plot(fw[member_flags], highlight[member_flags], "o", mfc="none",
+                            color="tab:orange", ms=3.5, mew=0.8, label=label)
+                else:
+                    # on a fine grid the circles merge into a band that hides the member:
+                    # its flagged stretches underlined instead
+                    ax.plot(fw, np.where(member_flags, y, np.nan), color="tab:orange",
+                            lw=4.0, alpha=0.6, zorder=2.1, label=label)
     n_unrefined = 0
     if "peak_metric" in dataset_names(path):
         # the members' refined peaks (the grid underestimates lightly damped peaks)
