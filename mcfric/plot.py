@@ -80,7 +80,7 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
         If the file has a ``harmonic_indicator`` (single-harmonic runs): mark the points
         where one harmonic may not be enough. The share of converged members flagged at
         each frequency is drawn on a right-hand axis (0-100 %), and the highlighted
-        member's flagged points are circled.
+        member's flagged points are circled (underlined above 300 frequencies).
 
     Returns
     -------
