@@ -838,8 +838,10 @@ def cmd_plot(args):
     grid = drawn["n_peaks_unrefined"]
     print(f"figure: {out} ({drawn['n_drawn']} of {drawn['n_members']} members drawn"
           f"{', bounds' if drawn['has_bounds'] else ', no bounds in the file'}"
-          + (f"; {gaps:,} points not converged, left as gaps" if gaps else "")
-          + (f"; {grid} member peaks not refined, drawn as circles" if grid else "") + ")")
+          + (f"; {gaps:,} point{'s' if gaps > 1 else ''} not converged, left as gaps"
+             if gaps else "")
+          + (f"; {grid} member peak{'s' if grid > 1 else ''} not refined, drawn as circles"
+             if grid else "") + ")")
     if measured and drawn["has_bounds"]:
         _print_inside(path, measured, args.quantity, window)
     elif measured:
