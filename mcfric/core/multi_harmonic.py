@@ -81,8 +81,8 @@ from . import aft
 from ._jit import inline_jit, jit
 from .friction import kappa
 from .linalg import lu_factor, lu_solve
-from .receptance import D21, D23
-from .sweep import _dense_G, _q0
+from .receptance import D11, D21, D23
+from .sweep import _dense_G, _q0, g_entry
 
 #: Status of a point that converged only from the solution at the next frequency,
 #: sweeping back down the grid (on the branch reached from above).
@@ -120,6 +120,24 @@ def _neighbour(j, t, nd, layout):
         return (0, nd - 2, nd - 1)[t] if t < 3 else -1
     m = max(j - 1, 0) + t
     return m if m <= min(j + 1, nd - 1) else -1
+
+
+@jit
+def _contact_G(rec, r, k, a, b, G, nd, layout):
+    """``G = B diag(d11) B^T`` at receptance row ``r``, frequency ``k``: every entry on
+    any graph; on a chain or a ring only the couplings (the others stay 0 from the
+    allocation: O(nd) instead of O(nd^2) a frequency)."""
+    if layout == DENSE:
+        _dense_G(rec, r, k, a, b, G, nd)
+        return
+    d11 = rec[r, k, D11]
+    for j in range(nd):
+        t = 0
+        m = _neighbour(j, t, nd, layout)
+        while m >= 0:
+            G[j, m] = g_entry(d11, a, b, j, m)
+            t += 1
+            m = _neighbour(j, t, nd, layout)
 
 
 @jit
@@ -795,9 +813,10 @@ def _sample(i, rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, tol, m
     r_base = 0
     if rech.shape[0] > n_h:          # per-sample receptances (mistuned rigs)
         r_base = np.int64(i) * n_h
-    G = np.empty((n_h, nd, nd), dtype=np.complex128)
-    Gs = np.empty((n_h, nd, nd), dtype=np.complex128)
-    G0 = np.empty((n_h, nd, nd), dtype=np.complex128)
+    # zeros: on a chain or a ring only the couplings are written (_contact_G)
+    G = np.zeros((n_h, nd, nd), dtype=np.complex128)
+    Gs = np.zeros((n_h, nd, nd), dtype=np.complex128)
+    G0 = np.zeros((n_h, nd, nd), dtype=np.complex128)
     Qc = np.zeros((nd, n_h), dtype=np.complex128)
     Qall = np.empty((n_f, nd, n_h), dtype=np.complex128)   # rows of converged points
     q0 = np.empty(nd, dtype=np.complex128)
@@ -849,7 +868,7 @@ def _sample(i, rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, tol, m
     yt = np.empty(n_peak)
     for k in range(n_f):
         for h in range(n_h):
-            _dense_G(rech, r_base + h, k, a, b, G[h], nd)
+            _contact_G(rech, r_base + h, k, a, b, G[h], nd, layout)
         for j in range(nd):
             q0[j] = _q0(rech, r_base, k, force, a, b, j)
         its = 0
@@ -956,14 +975,14 @@ def _sample(i, rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, tol, m
         if not (above or below or drive):
             continue
         for h in range(n_h):
-            _dense_G(rech, r_base + h, k, a, b, G[h], nd)
+            _contact_G(rech, r_base + h, k, a, b, G[h], nd, layout)
         for j in range(nd):
             q0[j] = _q0(rech, r_base, k, force, a, b, j)
         sh = False
         sh_next = False
         if above:
             for h in range(n_h):
-                _dense_G(rech, r_base + h, k + 1, a, b, G0[h], nd)
+                _contact_G(rech, r_base + h, k + 1, a, b, G0[h], nd, layout)
             for j in range(nd):
                 q0n[j] = _q0(rech, r_base, k + 1, force, a, b, j)
             sh = _single_harmonic_start(s1[i, k], G, q0, kci, Qsh, T, dF1, J, piv, x1, nd,
@@ -1000,7 +1019,7 @@ def _sample(i, rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, tol, m
                     kn = k - 1
                     st = 0                   # on the branch continued from below
                     for h in range(n_h):
-                        _dense_G(rech, r_base + h, kn, a, b, G0[h], nd)
+                        _contact_G(rech, r_base + h, kn, a, b, G0[h], nd, layout)
                     for j in range(nd):
                         q0n[j] = _q0(rech, r_base, kn, force, a, b, j)
                 if attempt == 4:
