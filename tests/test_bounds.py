@@ -360,6 +360,22 @@ def test_a_failed_frequency_is_not_counted_as_set_by_the_box():
             f"failed: 1") in text, text
 
 
+def test_the_summary_says_where_a_witness_lies_past_the_searched_bounds():
+    """An admissible witness above the searched upper bound (or below the lower) shows
+    the search missed it: on eight beams at 15.5 Hz (17 frequencies) by 8.7 %, which
+    the summary did not say. Here the searched bounds are moved inward by hand."""
+    B = compute_bounds(mcfric.two_beam(0.22), np.linspace(10.0, 150.0, 12), 15000.0,
+                       F_lim=force_limit(1.0, 0.5))
+    assert "lie past the searched bounds" not in B.summary()
+    C = B.certificate
+    up, lo = B.upper.copy(), B.lower.copy()
+    up[2] = C.upper_witness[2] / 1.05
+    lo[5] = C.lower_witness[5] / 0.98
+    text = dataclasses.replace(B, upper=up, lower=lo).summary()
+    assert ("witnesses lie past the searched bounds, upper at 1 (up to 5 % above) and lower "
+            "at 1 (up to 2 % below) of the frequencies: the search missed them") in text, text
+
+
 def test_admits_names_the_constraints_and_refuses_what_it_cannot_check():
     """``Bounds.admits``: a member inside ``kc <= k_max``, ``kc / pi <= k_max_im``, ``4 /
     pi mu0 N0 <= F_lim`` is admitted, one past any of them not; a member of another

@@ -154,7 +154,22 @@ class Bounds:
         text = (f"searched bounds at {len(self.freq_hz)} frequencies: upper set by the force "
                 f"limit at {force}, by the box at {box}; failed: {self.n_failed}")
         if self.certificate is not None:
-            text += "\n" + self.certificate.summary(self.freq_hz)
+            C = self.certificate
+            # admissible witnesses past the searched bounds: the search missed them
+            with np.errstate(invalid="ignore", divide="ignore"):
+                above = C.upper_witness / self.upper - 1.0
+                below = 1.0 - C.lower_witness / self.lower
+            up = np.isfinite(above) & (above > 1e-9)
+            lo = np.isfinite(below) & (below > 1e-9)
+            if up.any() or lo.any():
+                parts = ([f"upper at {np.count_nonzero(up)} (up to {100 * above[up].max():.3g} "
+                          f"% above)"] if up.any() else []) + \
+                        ([f"lower at {np.count_nonzero(lo)} (up to {100 * below[lo].max():.3g} "
+                          f"% below)"] if lo.any() else [])
+                text += ("\nthe certificate's admissible witnesses lie past the searched "
+                         f"bounds, {' and '.join(parts)} of the frequencies: the search "
+                         "missed them there (the certified bounds hold)")
+            text += "\n" + C.summary(self.freq_hz)
         return text
 
     def admits(self, mu0, kc, N0):
