@@ -21,19 +21,54 @@ PRESETS = ("two-beam", "eight-beam", "disk-24", "disk-72")
 
 
 def two_beam(F0=0.22):
-    """The two-beam sub-assembly (one damper, beam 1 driven)."""
+    """The two-beam sub-assembly (one damper, beam 1 driven).
+
+    Parameters
+    ----------
+    F0 : float
+        Force amplitude at beam 1's drive point, N (the paper's Fig. 7: 0.22 N).
+
+    Returns
+    -------
+    Model
+    """
     return Model.identical(TABLE_1, 2, excitation=Excitation("single", F0, beam=1),
                            topology="linear", name="two-beam")
 
 
 def eight_beam(F0=1.1):
-    """The eight-beam rig (seven dampers, free-chain mode m = 2 drive pattern)."""
+    """The eight-beam rig (seven dampers, free-chain mode m = 2 drive pattern).
+
+    Parameters
+    ----------
+    F0 : float
+        Amplitude of the drive pattern, N (the paper's: 0.25 and 1.1 N).
+
+    Returns
+    -------
+    Model
+    """
     return Model.identical(TABLE_1, 8, excitation=Excitation("mode", F0, mode=2),
                            topology="linear", name="eight-beam")
 
 
 def disk(n_blades=24, engine_order=3, F0=1.1):
-    """A tuned bladed disk: ``n_blades`` Table-1 blades in a ring, engine-order wave."""
+    """A tuned bladed disk: ``n_blades`` Table-1 blades in a ring, engine-order wave.
+
+    Parameters
+    ----------
+    n_blades : int
+        Blades (beams) in the ring, at least 3; as many dampers, one between each pair of
+        neighbours.
+    engine_order : int
+        Nodal diameters of the travelling wave, 0 .. n_blades - 1.
+    F0 : float
+        Force amplitude at every blade's drive point, N.
+
+    Returns
+    -------
+    Model
+    """
     return Model.identical(TABLE_1, n_blades,
                            excitation=Excitation("travelling", F0, engine_order=engine_order),
                            topology="circular", name=f"disk-{n_blades}")
@@ -50,7 +85,24 @@ def disk_72(F0=1.1):
 
 
 def preset(name, F0=None):
-    """A preset model by name (one of ``PRESETS``), optionally with its F0 in N."""
+    """A preset model by name.
+
+    Parameters
+    ----------
+    name : str
+        One of ``PRESETS``: ``"two-beam"``, ``"eight-beam"``, ``"disk-24"``, ``"disk-72"``.
+    F0 : float, optional
+        Force amplitude, N; default the preset's.
+
+    Returns
+    -------
+    Model
+
+    Raises
+    ------
+    ValueError
+        An unknown name.
+    """
     makers = {"two-beam": two_beam, "eight-beam": eight_beam, "disk-24": disk_24,
               "disk-72": disk_72}
     if not isinstance(name, str) or name not in makers:

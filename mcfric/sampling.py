@@ -176,6 +176,20 @@ DISTRIBUTIONS = {cls.dist: (cls, tuple(cls.__dataclass_fields__))
 def distribution(dist, **params):
     """Build a distribution by name, e.g. ``distribution("uniform", low=0, high=1)``.
 
+    Parameters
+    ----------
+    dist : str
+        ``"fixed"`` (``value``), ``"uniform"`` (``low``, ``high``), ``"normal"``
+        (``mean``, ``std``), ``"truncnormal"`` (``mean``, ``std``, ``low``, ``high``) or
+        ``"lognormal"`` (``median``, ``sigma``).
+    **params : float
+        Exactly the parameters of ``dist``, in the unit of the quantity drawn (mu0: -,
+        kc: N/m, N0: N); docs: configuration, "Distributions".
+
+    Returns
+    -------
+    Fixed, Uniform, Normal, TruncNormal or LogNormal
+
     Raises
     ------
     ValueError

@@ -212,8 +212,17 @@ class Bounds:
     def contains(self, metric, rtol=1e-9):
         """Boolean mask ``lower (1 - rtol) <= metric <= upper (1 + rtol)`` (NaN -> False).
 
-        ``metric`` is real, shape ``(..., n_f)`` (frequencies last, as ``metric()``
-        returns them); ``rtol`` in [0, 0.5).
+        Parameters
+        ----------
+        metric : array_like, shape (..., n_f)
+            Real values of the metric in the bounds' unit, frequencies last (as
+            ``HBMResult.metric()`` returns them).
+        rtol : float
+            Relative slack, in [0, 0.5).
+
+        Returns
+        -------
+        ndarray of bool, shape (..., n_f)
         """
         m = np.asarray(metric)
         if not (np.issubdtype(m.dtype, np.floating) or np.issubdtype(m.dtype, np.integer)) \
@@ -231,8 +240,18 @@ class Bounds:
 def force_limit(mu_max, N0_max):
     """``F_lim = (4/pi) mu_max N0_max``: first harmonic of a saturated Coulomb force, N.
 
-    ``mu_max`` (-) and ``N0_max`` (N) must be finite and > 0 (0 would leave every damper
-    free, a limit :func:`compute_bounds` does not take: ``F_lim > 0``).
+    Parameters
+    ----------
+    mu_max : float
+        Largest friction coefficient (-), finite and > 0.
+    N0_max : float
+        Largest normal preload, N, finite and > 0 (0 would leave every damper free, a
+        limit :func:`compute_bounds` does not take: ``F_lim > 0``).
+
+    Returns
+    -------
+    float
+        ``F_lim``, N.
     """
     mu = real("mu_max", mu_max, lo=0, lo_open=True)
     n0 = real("N0_max", N0_max, lo=0, lo_open=True)

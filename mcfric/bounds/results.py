@@ -93,7 +93,21 @@ def to_group(B):
 
 
 def read_bounds(path):
-    """The bounds stored in a results (or bounds) file, as :class:`Bounds`; None if absent."""
+    """The bounds stored in a results (or bounds) file.
+
+    Parameters
+    ----------
+    path : str or Path
+        A results file of ``mcfric run`` (complete or partial) or a bounds file of
+        ``mcfric bounds``.
+
+    Returns
+    -------
+    Bounds or None
+        The searched bounds and, where the file has them, the certified ones
+        (``certificate``), in the metric's unit; None if the file has no ``bounds/``
+        group.
+    """
     from ..store import read, read_group
 
     found = read_group(path, "bounds")

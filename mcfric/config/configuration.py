@@ -143,9 +143,27 @@ class Config:
         return rendering.render(self.data, comments)
 
     def replace(self, dotted, value):
-        """A validated copy with one key changed (e.g. ``"sampling.samples"``); a new
-        ``"model.n_beams"`` renames a preset that carries its automatic name (as
-        :func:`~mcfric.config.load` names it)."""
+        """A validated copy with one key changed.
+
+        Parameters
+        ----------
+        dotted : str
+            The key, e.g. ``"sampling.samples"`` (docs: configuration); a new
+            ``"model.n_beams"`` renames a preset that carries its automatic name (as
+            :func:`~mcfric.config.load` names it).
+        value
+            Its new value in the configuration's units (Hz, N, N/m, m), as a TOML file
+            gives it (numpy values are taken as Python's).
+
+        Returns
+        -------
+        Config
+
+        Raises
+        ------
+        InputError
+            The value (or the configuration it makes) is not valid.
+        """
         raw = copy.deepcopy(self.data)
         loading.set_key(raw, dotted, _plain(value))
         if dotted == "model.n_beams":

@@ -31,7 +31,18 @@ def _open_read(path):
 
 
 def read_attrs(path):
-    """Root attributes of a results file (complete or partial) as a dict."""
+    """Root attributes of a results file (complete or partial).
+
+    Parameters
+    ----------
+    path : str or Path
+
+    Returns
+    -------
+    dict
+        Attribute name to value, bytes decoded and numpy scalars as Python's (the names:
+        docs, results file).
+    """
     with _open_read(path) as h5:
         return {k: _plain(v) for k, v in h5.attrs.items()}
 
@@ -61,7 +72,24 @@ def describe(path):
 def iter_records(path, names, block=4096, only_done=True):
     """Yield ``(start, {name: array})`` in blocks of records (memory stays flat).
 
-    Records not marked done are skipped when ``only_done`` (they may hold garbage).
+    Parameters
+    ----------
+    path : str or Path
+        A results file, complete or partial.
+    names : list of str
+        Datasets with the record (sample) dimension first, e.g. ``["metric",
+        "converged"]``; ``"sample"`` gives the records' sample numbers.
+    block : int
+        Records per block read.
+    only_done : bool
+        Skip records not marked done (they may hold garbage).
+
+    Yields
+    ------
+    start : int
+        Index of the block's first record.
+    arrays : dict of str to ndarray
+        Each dataset's rows of the block (only the done ones with ``only_done``).
     """
     if isinstance(names, (str, bytes)):       # "metric" would be read letter by letter
         raise StoreError(f"names: expected a list of dataset names, got {names!r}")
