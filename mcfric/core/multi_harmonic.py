@@ -760,9 +760,14 @@ def _continuation(Q, Qc, orders, G, Gs, G0, q0, q0s, q00, kc, fs, n_time, tol, m
         end = target == 1.0             # the point's own equations, not rounded ones
         for h in range(n_h):
             for j in range(nd):
-                for m in range(nd):
+                # the couplings of the layout (the other entries are 0 in all three)
+                t = 0
+                m = _neighbour(j, t, nd, layout)
+                while m >= 0:
                     Gs[h, j, m] = (G[h, j, m] if end else
                                    G0[h, j, m] + target * (G[h, j, m] - G0[h, j, m]))
+                    t += 1
+                    m = _neighbour(j, t, nd, layout)
         for j in range(nd):
             q0s[j] = q0[j] if end else q00[j] + target * (q0[j] - q00[j])
             for h in range(n_h):
