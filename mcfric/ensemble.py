@@ -590,12 +590,8 @@ def peak_memory_bytes(spec):
     import numba
 
     n_threads = spec.execution.threads or numba.config.NUMBA_NUM_THREADS
-    # as hbm counts them; a multi-harmonic solve's kernel runs after its single-harmonic one
-    scratch = hbm.DENSE_SCRATCH_BYTES * nd * nd
-    if n_h > 1:
-        n_time = hbm.check_harmonics(spec.solver.harmonics, spec.solver.n_time)[1]
-        scratch = max(scratch, hbm.multi_harmonic_scratch(nd, n_h, n_f, n_time))
-    est += min(n_threads, chunk) * scratch
+    est += min(n_threads, chunk) * hbm.scratch_per_thread(nd, spec.solver.harmonics, n_f,
+                                                          spec.solver.n_time)
     if spec.bounds:
         est += 3 * 8 * nb * nd
     return int(est)

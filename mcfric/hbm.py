@@ -354,6 +354,18 @@ def check_harmonic_memory(model, harmonics, n_time, n_f, n_r, per="call"):
 DENSE_SCRATCH_BYTES = 40
 
 
+def scratch_per_thread(nd, harmonics, n_f, n_time=None):
+    """Bytes of scratch each thread of a solve holds at most, for ``nd`` dampers: the
+    single-harmonic kernels' dense fallback, or with ``harmonics > 1`` the multi-harmonic
+    kernel's (:func:`multi_harmonic_scratch`), whichever is larger (they run one after
+    the other)."""
+    scratch = DENSE_SCRATCH_BYTES * nd * nd
+    if harmonics > 1:
+        n_time = check_harmonics(harmonics, n_time)[1]
+        scratch = max(scratch, multi_harmonic_scratch(nd, (harmonics + 1) // 2, n_f, n_time))
+    return scratch
+
+
 def check_output_memory(model, n_s, n_f, harmonics, store_harmonics, n_r):
     """Refuse a solve whose results (with the receptances and each thread's scratch of the
     dense fallback) would not fit in the memory available: numpy's allocation error
