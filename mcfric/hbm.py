@@ -184,7 +184,10 @@ def solve(model, freq_hz, mu0, kc, N0=0.5, *, modal_freq_hz=None, tol=TOL,
         (:data:`mcfric.validators.KC_MAX`, a stuck contact).
     modal_freq_hz : array_like, shape (n_s, n_beams, n_modes), optional
         Per-sample modal frequencies in Hz (mistuned rigs); default the model's. Friction
-        parameters given for one sample apply to all ``n_s``.
+        parameters given for one sample apply to all ``n_s``. ``n_modes`` is the largest
+        mode count of the model's beams; a beam with fewer modes takes any value > 0 in
+        its padding slots (they have zero shapes and add nothing, like the 1 Hz
+        :meth:`Model.modal_arrays` puts there).
     tol : float
         Accepted relative residual, 1e-14..0.1, default 1e-10 (iterations aim 10x lower).
     max_iter : int
