@@ -409,6 +409,10 @@ def _output_path(args, suffix, prefix="", figure=False):
     if suffix == ".h5" and out.name.endswith(".partial"):
         raise UsageError(f"-o: {out.name} ends in .partial, the name of an interrupted "
                          f"run's file; give the final name ({out.name[:-8]})")
+    if out.name.endswith(".lock"):
+        # a run on the name without .lock takes FILE.lock as its lock and removes it
+        raise UsageError(f"-o: {out.name} ends in .lock, the name of a run's lock file; "
+                         f"choose another name")
     if suffix != ".h5":
         _not_replacing_hdf5(out, what)
     _not_replacing_input(args, out, what)

@@ -215,6 +215,10 @@ OVERWRITES = [
     (["run", *SMALL, "-o", ""], 'got ""'),
     (["hbm", "two-beam", "-o", ""], 'got ""'),
     (["plot", "{res}", "-o", ""], 'got ""'),
+    # a run on FILE takes FILE.lock as its lock and removes it at the end
+    (["run", *SMALL, "-o", "{dir}/next.h5.lock"], "ends in .lock"),
+    (["bounds", "two-beam", "--n-freq", "10", "-o", "{dir}/next.lock", "--no-figure"],
+     "ends in .lock"),
 ]
 
 
@@ -229,6 +233,20 @@ def test_no_output_silently_replaces_another(tmp_path, capsys, argv, message):
     rc = cli.main([a.format(res=res, dir=tmp_path) for a in argv])
     err = capsys.readouterr().err.strip()
     assert rc == 2 and message in err and len(err.splitlines()) == 1, err
+    assert snapshot(tmp_path) == before
+
+
+@pytest.mark.parametrize("command", [["run", *SMALL], ["bounds", "two-beam", "--n-freq",
+                                                        "10", "--no-figure"]])
+def test_a_file_of_another_kind_at_the_lock_name_is_neither_emptied_nor_removed(
+        tmp_path, capsys, command):
+    res = _results(tmp_path)
+    (tmp_path / "new.h5.lock").write_bytes(res.read_bytes())
+    capsys.readouterr()
+    before = snapshot(tmp_path)
+    assert cli.main([*command, "-o", str(tmp_path / "new.h5")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "is not a lock file" in err and len(err.splitlines()) == 1, err
     assert snapshot(tmp_path) == before
 
 

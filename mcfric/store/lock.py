@@ -68,6 +68,21 @@ def holder(path):
     return None
 
 
+def _is_lock(fd):
+    """Whether the open file is empty or holds an owner line (a lock file of ours, maybe
+    left by a run that died)."""
+    size = os.fstat(fd).st_size
+    if size == 0:
+        return True
+    if size > 4096:
+        return False
+    try:
+        o = json.loads(os.pread(fd, size, 0).decode("utf-8"))
+    except (OSError, ValueError):
+        return False
+    return isinstance(o, dict) and "pid" in o and "host" in o
+
+
 def _lock_briefly_retried(fd):
     """``flock(fd, LOCK_EX | LOCK_NB)``, tried again for about 50 ms: :func:`holder` (an
     ``mcfric info``) holds a shared lock for microseconds, which must not refuse a run."""
@@ -125,6 +140,13 @@ class OutputLock:
                 same = os.stat(self.lock_path).st_ino == os.fstat(fd).st_ino
             except FileNotFoundError:
                 same = False
+            if same and not _is_lock(fd):
+                # a file of another kind under the lock's name (a results file given
+                # -o FILE.lock): truncating it and unlinking it at the end would lose it
+                os.close(fd)
+                raise LockError(f"{self.lock_path} exists and is not a lock file of "
+                                f"mcfric (the lock of {self.path.name}); rename it or "
+                                f"choose another -o")
             if same:
                 break
             os.close(fd)
