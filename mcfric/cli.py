@@ -1070,7 +1070,7 @@ def cmd_info(args):
     try:
         d = describe(path)
         import numpy as np
-        lo, hi, bad, nan = np.inf, -np.inf, 0, 0
+        lo, hi, bad, nan, number = np.inf, -np.inf, 0, 0, 0
         if int(a.get("samples", 0)):
             for _, arr in iter_records(path, ["metric", "converged"]):
                 m = arr["metric"][arr["converged"]]
@@ -1079,6 +1079,7 @@ def cmd_info(args):
                 if ok.any():
                     lo, hi = min(lo, m[ok].min()), max(hi, m[ok].max())
                 bad += int(np.count_nonzero(~arr["converged"]))
+                number += int(np.count_nonzero(np.isfinite(arr["metric"][~arr["converged"]])))
     except StoreError as e:
         raise UsageError(str(e)) from None
     n = int(a.get("samples", 0))
@@ -1121,6 +1122,14 @@ def cmd_info(args):
     if nan:
         lines.append(f"WARNING:     {nan:,} points marked converged hold no finite metric "
                      "(the file was edited or damaged; they are left out above)")
+    if number:
+        lines.append(f"WARNING:     {number:,} points marked not converged hold a number (the "
+                     "file was edited or damaged; left out above, as not converged)")
+    stored = a.get("n_not_converged", -1)
+    if a.get("complete") == 1 and n and int(stored) >= 0 and int(stored) != bad:
+        lines.append(f"WARNING:     the file's attribute n_not_converged = {int(stored):,}, "
+                     f"but {bad:,} points are marked not converged (the file was edited "
+                     f"or damaged)")
     report = peak_report(path)
     if report is not None:
         lines += report_text(report, METRIC_UNITS[q])

@@ -456,6 +456,26 @@ def test_a_nan_metric_marked_converged_is_reported_not_ranged(tmp_path, capsys):
     assert "1 points marked converged hold no finite metric" in out
 
 
+def test_a_number_marked_not_converged_and_a_wrong_count_are_reported(tmp_path, capsys):
+    def unflag(h):
+        c = h["converged"][...]
+        assert c[1, 2]
+        c[1, 2] = False
+        h["converged"][...] = c
+    res = _damaged(tmp_path, unflag)
+    capsys.readouterr()
+    assert cli.main(["info", str(res)]) == 0
+    out = capsys.readouterr().out
+    assert "(1 not converged)" in out
+    assert "1 points marked not converged hold a number" in out
+    assert "attribute n_not_converged = 0, but 1 points" in out
+    (tmp_path / "clean").mkdir()
+    clean = _damaged(tmp_path / "clean", lambda h: None)
+    capsys.readouterr()
+    assert cli.main(["info", str(clean)]) == 0
+    assert "WARNING" not in capsys.readouterr().out
+
+
 def test_a_closed_stdout_is_not_an_error(tmp_path, capsys):
     res = _damaged(tmp_path, lambda h: None)
     p = subprocess.Popen([sys.executable, "-m", "mcfric", "info", str(res)],
