@@ -1037,8 +1037,16 @@ def cmd_config(args):
         how = (f"mcfric run THIS.toml -o {out} --resume continues an interrupted one"
                if int(a.get("samples", 0)) else
                "a bounds file: mcfric bounds THIS.toml computes it again")
-        sys.stdout.write(f"# the configuration of the run in {path}\n# ({how})\n\n"
-                         f"{a['config']}")
+        text = a.get("config")
+        if not isinstance(text, str):
+            from . import config
+
+            # the TOML copy lost (an edited file): the JSON record is the one runs resume by
+            try:
+                text = config.validate(json.loads(a["config_json"])).toml(comments=False)
+            except config.ConfigError as e:
+                raise UsageError(f"{path}: stored configuration: {e}") from None
+        sys.stdout.write(f"# the configuration of the run in {path}\n# ({how})\n\n{text}")
         return EXIT_OK
     cfg = _load(args)
     sys.stdout.write(cfg.toml())

@@ -456,6 +456,24 @@ def test_a_nan_metric_marked_converged_is_reported_not_ranged(tmp_path, capsys):
     assert "1 points marked converged hold no finite metric" in out
 
 
+def test_config_of_a_file_without_its_toml_copy_is_rebuilt_from_the_record(tmp_path, capsys):
+    res = _damaged(tmp_path, lambda h: h.attrs.__delitem__("config"))
+    capsys.readouterr()
+    assert cli.main(["config", str(res)]) == 0
+    (tmp_path / "again.toml").write_text(capsys.readouterr().out)
+    # the rebuilt configuration runs the same members: the file resumes as complete
+    assert cli.main(["run", str(tmp_path / "again.toml"), "-o", str(res), "--resume",
+                     "--no-progress", "--no-figure"]) == 0
+    assert "already holds this run" in capsys.readouterr().out
+    (tmp_path / "b").mkdir()
+    broken = _damaged(tmp_path / "b", lambda h: (h.attrs.__delitem__("config"),
+                                                  _stored("model", "n_beams", "two")(h)))
+    capsys.readouterr()
+    assert cli.main(["config", str(broken)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "stored configuration: model.n_beams" in err and len(err.splitlines()) == 1
+
+
 def test_a_number_marked_not_converged_and_a_wrong_count_are_reported(tmp_path, capsys):
     def unflag(h):
         c = h["converged"][...]
