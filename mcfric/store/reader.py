@@ -150,8 +150,9 @@ def open_results(path, allow_incomplete=False):
     try:
         import xarray as xr
     except ImportError:   # pragma: no cover - depends on the environment
-        raise ImportError("open_results needs xarray and h5netcdf: "
-                          "pip install 'mcfric[test]' or pip install xarray h5netcdf") from None
+        raise ImportError("open_results needs xarray and h5netcdf: pip install xarray "
+                          "h5netcdf (the extra: pip install '.[xarray]' in mcfric's "
+                          "clone)") from None
     attrs = read_attrs(path)
     if attrs.get("layout_version") is None:
         raise StoreError(f"{path}: not an mcfric results file (no layout_version)")
