@@ -256,6 +256,8 @@ def test_modal_table_from_a_uff_file(tmp_path):
     ('file = "beam.uff"\nnodes = {contact = 101, output = 102}', "model.table.nodes"),
     ('file = "beam.uff"\nnodes = {contact = 101, output = 102, drive = 103}\nzeta = [0.1]',
      "model.table.zeta"),
+    ('file = "beam.uff"\nnodes = {contact = 101, output = 102, drive = 103}\nfoo = 1',
+     "model.table.foo: unknown key (with file: file, nodes"),
 ])
 def test_bad_modal_table_file(tmp_path, table, key):
     pytest.importorskip("pyuff")

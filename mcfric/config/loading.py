@@ -153,9 +153,13 @@ def _expand_modal_files(user, base):
         if not isinstance(t, dict) or "file" not in t:
             continue
         extra = set(t) - set(MODAL_FILE_KEYS) - ({"beam"} if key != "model.table" else set())
+        table_keys = {"freq_hz", "zeta", "shapes", "positions"}
+        if extra & table_keys:
+            raise InputError(f"{key}.{sorted(extra & table_keys)[0]}", "cannot be given "
+                             "together with file (the file holds the whole table)")
         if extra:
-            raise InputError(f"{key}.{sorted(extra)[0]}", "cannot be given together with "
-                             "file (the file holds the whole table)")
+            raise InputError(f"{key}.{sorted(extra)[0]}", "unknown key (with file: "
+                             + ", ".join(MODAL_FILE_KEYS) + ")")
         nodes = t.get("nodes")
         if (not isinstance(nodes, dict) or set(nodes) != {"contact", "output", "drive"}
                 or not all(is_int(v) for v in nodes.values())):

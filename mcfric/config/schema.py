@@ -236,7 +236,8 @@ SPEC = {
 }
 SECTION_DOC = {
     "model": "the beam array (docs: theory, The rig)",
-    "model.table": "modal table of every beam (paper Table 1)",
+    "model.table": "modal table of every beam (default paper Table 1; a table given as "
+                   "file = ... is read once and stored here as numbers)",
     "model.beam": "per-beam overrides of the table (mistuned or measured beams)",
     "excitation": "harmonic drive at the drive position (docs: theory, Excitation)",
     "frequency": "the frequency grid",
