@@ -84,7 +84,9 @@ def _parser():
     from . import __version__
 
     p = _Parser(prog="mcfric", description="Friction-damped beam arrays: harmonic balance, "
-                "Monte Carlo ensembles. `mcfric` alone runs the default ensemble.")
+                "Monte Carlo ensembles. `mcfric` alone runs the default ensemble; options "
+                "given without a command are run's (`mcfric --samples 10` is `mcfric run "
+                "--samples 10`).")
     p.add_argument("--version", action="version", version=f"mcfric {__version__}")
     sub = p.add_subparsers(dest="command",
                            metavar="{run,config,info,hbm,bounds,plot,verify}")
@@ -94,7 +96,8 @@ def _parser():
                        "(written as FILE.partial, renamed when complete) and draw its figure.")
     r.add_argument("source", nargs="?", help=_source_help() + " (default: eight-beam)")
     r.add_argument("-o", "--output", metavar="FILE",
-                   help="results file (default: mcfric-results/<name>.h5)")
+                   help="results file (default: mcfric-results/<name>.h5, <name> the preset or "
+                        "the TOML file's name, default without a source)")
     r.add_argument("--samples", type=int, metavar="N", help="ensemble size")
     r.add_argument("--seed", type=int, metavar="S", help="root seed (>= 0)")
     r.add_argument("--resume", action="store_true",
@@ -148,8 +151,8 @@ def _parser():
     _model_flags(h)
     _harmonic_flags(h)
     h.add_argument("-o", "--output", metavar="OUT.csv",
-                   help="CSV file (default: mcfric-results/hbm-<name>.csv); the PNG goes "
-                        "next to it")
+                   help="CSV file (default: mcfric-results/hbm-<name>.csv, <name> as in run); "
+                        "the PNG goes next to it")
     h.add_argument("--no-figure", action="store_true", help="do not draw the figure")
 
     b = sub.add_parser("bounds", help="response bounds alone (no ensemble)",
@@ -158,7 +161,7 @@ def _parser():
                        "and a figure next to it.")
     b.add_argument("source", nargs="?", help=_source_help() + " (default: eight-beam)")
     b.add_argument("-o", "--output", metavar="FILE",
-                   help="bounds file (default: mcfric-results/bounds-<name>.h5)")
+                   help="bounds file (default: mcfric-results/bounds-<name>.h5, <name> as in run)")
     _model_flags(b)
     b.add_argument("--k-max", type=float, metavar="N_PER_M",
                    help="largest Re K of a damper, N/m, and Im K unless k_max_im is "
@@ -242,8 +245,8 @@ def _verify_parser(sub):
                    help="periods after which a response counts as not periodic "
                         "(default %(default)s)")
     v.add_argument("-o", "--output", metavar="OUT.csv",
-                   help="CSV file (default: mcfric-results/verify-<name>.csv); the PNG goes "
-                        "next to it")
+                   help="CSV file (default: mcfric-results/verify-<name>.csv, <name> as in "
+                        "run); the PNG goes next to it")
     v.add_argument("--no-figure", action="store_true", help="do not draw the figure")
     v.add_argument("--no-progress", action="store_true", help="no progress bar")
 
