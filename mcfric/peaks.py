@@ -40,11 +40,11 @@ class PeakSettings:
     Attributes
     ----------
     count : int
-        Largest local maxima of the metric kept per member (>= 1).
+        Largest local maxima of the metric kept per member, 1..100.
     rtol : float
         Relative tolerance of the refined amplitude, 0 < rtol <= 0.1.
     window : int
-        Grid points on each side of a peak swept downward to look for folds (>= 1).
+        Grid points on each side of a peak swept downward to look for folds, 1..1000.
     quantity : {"displacement", "velocity", "acceleration"}
         Quantity of the metric whose peaks are refined.
     beams : tuple of int or None
@@ -58,11 +58,12 @@ class PeakSettings:
     beams: tuple | None = None
 
     def __post_init__(self):
-        integer(1, 10_000)(self.count, "peaks.count")
+        # the limits of the configuration's [peaks] (mcfric.config.schema)
+        integer(1, 100)(self.count, "peaks.count")
         r = real("peaks.rtol", self.rtol, lo=0, lo_open=True)
         if r > 0.1:
             raise ValueError(f"peaks.rtol: expected a number in (0, 0.1], got {self.rtol!r}")
-        integer(1, 10_000)(self.window, "peaks.window")
+        integer(1, 1000)(self.window, "peaks.window")
         check_quantity(self.quantity, "peaks.quantity")
         if self.beams is not None:     # their range: once the model is known
             check_beams(self.beams, None, "peaks.beams")
