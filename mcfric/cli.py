@@ -1152,10 +1152,12 @@ def cmd_info(args):
     lines += indicator_report(path)
     from .bounds import read_bounds
     B = read_bounds(path)
-    if B is not None and B.certificate is not None:
-        lines.append(f"bounds:      {B.certificate.summary(B.freq_hz)}")
-    elif B is not None:
-        lines.append("bounds:      searched only, not certified (--no-certify)")
+    if B is not None:
+        # what run and bounds printed: the searched line, witnesses past it, the certificate
+        text = B.summary() + ("" if B.certificate is not None else
+                              "\nnot certified (--no-certify)")
+        lines += [("bounds:      " if n == 0 else " " * 13) + t
+                  for n, t in enumerate(text.splitlines())]
     if a.get("complete") == 1 and "wall_time_s" in a:
         b = float(a.get("bounds_time_s", 0.0))    # files before 2026-11-30 have none
         of = f"bounds {b:.1f} s, " if b > 0 else ""
@@ -1172,6 +1174,12 @@ def cmd_info(args):
     for name, (dims, shape, dtype) in d["datasets"].items():
         lines.append(f"  {name:<20} {'(' + ', '.join(dims) + ')':<26} "
                      f"{' x '.join(map(str, shape)):<18} {dtype}")
+    if B is not None:
+        from .store import read_group
+
+        names = sorted(read_group(path, "bounds")[0])
+        lines.append(f"  bounds/ (group)      {len(names)} datasets per frequency: "
+                     + ", ".join(names))
     print("\n".join(lines))
     return EXIT_OK
 

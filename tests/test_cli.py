@@ -139,6 +139,10 @@ def test_run_info_and_figure(tmp_path, monkeypatch, capsys):
     assert "(complete)" in out and "two-beam: 2 beams, 1 damper, linear" in out
     assert "converged:   1,000 of 1,000 points (0 not converged)" in out
     assert re.search(r"response\s+\(sample, frequency, beam\)\s+40 x 25 x 2", out)
+    # the bounds as run printed them (searched, then certified) and the group's datasets
+    assert "bounds:      searched bounds at 25 frequencies" in out
+    assert re.search(r"\n {13}certified \(first order", out)
+    assert re.search(r"bounds/ \(group\)\s+\d+ datasets per frequency: .*upper_certified", out)
     # the same run again: nothing to do; another seed: refused, exit 2, file untouched
     rc, out, _ = call(["run", "two-beam", "--samples", "40", "--n-freq", "25", "--seed", "3",
                        "--F0", "0.72", "-o", "r.h5", "--no-progress"], capsys)
