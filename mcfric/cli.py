@@ -899,7 +899,6 @@ def _read_measured(args, attrs):
     cfg = json.loads(attrs.get("config_json", "{}"))
     F0 = cfg.get("excitation", {}).get("F0")
     n_beams = cfg.get("model", {}).get("n_beams")
-    out = []
     seen = set()
     for data in args.measured:
         key = Path(data).resolve()
@@ -907,6 +906,8 @@ def _read_measured(args, attrs):
             raise UsageError(f"--measured: {data} is given twice (its points would count "
                              f"twice)")
         seen.add(key)
+    out, reports = [], []
+    for data in args.measured:
         try:
             ms_list = ms.read_measured(data, nodes=nodes, quantity=args.measured_quantity,
                                        force_n=args.measured_force,
@@ -928,12 +929,16 @@ def _read_measured(args, attrs):
                 if m.force_n is None:
                     raise UsageError(f"--normalise: {data} gives no force level (force_n)")
                 m, report = ms.normalise(m, F0)
-                print(report.text())
+                # printed once all are read (a refusal prints nothing else), once each
+                if report.text() not in reports:
+                    reports.append(report.text())
             elif m.force_n is not None and F0 and abs(m.force_n - F0) > 1e-6 * F0:
                 raise UsageError(f"--measured: {data} was measured at {m.force_n:g} N, the "
                                  f"file is for F0 = {F0:g} N: pass --normalise to rescale "
                                  f"it (docs: measured data)")
             out.append(m)
+    for text in reports:
+        print(text)
     return out
 
 
