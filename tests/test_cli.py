@@ -247,8 +247,8 @@ def test_certified_bound_near_the_peak_is_printed_stored_and_drawn(tmp_path, cap
             f"most {a['peak_upper_certified']:.4g} m (certified)") in line
     assert f"the grid's largest certified value anywhere: {grid_max:.4g} m at " in line
     rc, info, _ = call(["info", str(out)], capsys)
-    assert rc == 0 and lines[k:k + 2] == [x for x in info.splitlines()
-                                          if x.startswith(("bound peak:", "             c"))]
+    heads = ("bound peak:", "             certified: ")
+    assert rc == 0 and lines[k:k + 2] == [x for x in info.splitlines() if x.startswith(heads)]
     assert plot.results_figure(out, tmp_path / "b.png")["bound_peaks"] == ["searched",
                                                                             "certified"]
     rc, text, _ = call(["run", *grid, "--samples", "4", "-o", str(tmp_path / "r.h5"),
@@ -419,7 +419,7 @@ def test_no_arguments_runs_the_embedded_default(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
     monkeypatch.setattr(ensemble, "run", fake_run)
     monkeypatch.setattr(plot, "results_figure", lambda h5, png, **kw: seen.update(png=png))
-    monkeypatch.setattr(cli, "_check_members", lambda path: None)   # no file was written
+    monkeypatch.setattr(cli.run, "_check_members", lambda path: None)   # no file was written
     rc, out, _ = call([], capsys)
     assert rc == 0
     cfg = seen["cfg"]

@@ -678,7 +678,7 @@ def test_a_multi_harmonic_run_says_its_bounds_are_the_single_harmonic_models(tmp
         in drawn["legend"]
     assert "fundamental, H = 3" in drawn["ylabel"]
     # a single-harmonic run's check keeps its warning wording (none where none is outside)
-    from mcfric.cli import _outside_note
+    from mcfric.cli.run import _outside_note
 
     assert _outside_note(2, 1, "x") == " (x: please report)" and _outside_note(0, 1, "x") == ""
     # without the response the line names only what the file holds

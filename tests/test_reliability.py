@@ -17,6 +17,8 @@ import numpy as np
 import pytest
 
 from mcfric import cli, ensemble, store
+from mcfric.cli.inputs import _load
+from mcfric.cli.parser import _parser
 from mcfric.store import Store, writer
 from mcfric.store.lock import OutputLock, lock_path
 
@@ -100,7 +102,7 @@ def test_the_lock_is_taken_once_per_process_and_released(tmp_path):
     out = tmp_path / "r.h5"
     with OutputLock(out, "first"):
         with pytest.raises(ensemble.RunError, match="being written by"):
-            ensemble.run(cli._load(cli._parser().parse_args(["run", *SMALL])).spec, out)
+            ensemble.run(_load(_parser().parse_args(["run", *SMALL])).spec, out)
     assert not lock_path(out).exists()
     assert not list(tmp_path.iterdir())
 
@@ -122,9 +124,9 @@ def test_no_space_is_refused_before_any_work(tmp_path, capsys, monkeypatch):
 def test_the_size_estimate_is_the_file_size(tmp_path):
     """The estimate that the space check uses against the real file (within metadata)."""
     out = tmp_path / "r.h5"
-    args = cli._parser().parse_args(["run", "two-beam", "--samples", "300", "--n-freq",
+    args = _parser().parse_args(["run", "two-beam", "--samples", "300", "--n-freq",
                                      "200"])
-    spec = cli._load(args).spec
+    spec = _load(args).spec
     ensemble.run(spec, out, progress=False)
     size = out.stat().st_size
     assert 0.85 * size <= ensemble.output_bytes(spec) <= size
@@ -899,7 +901,7 @@ def test_an_output_directory_that_cannot_be_written_is_refused_before_the_work(
     """A directory the user may not write (a read-only mount): refused in one line
     before anything is solved, not after."""
     real = os.access
-    monkeypatch.setattr(cli.os, "access",
+    monkeypatch.setattr(os, "access",
                         lambda p, mode: False if str(p) == str(tmp_path) else real(p, mode))
     rc = cli.main(["hbm", "two-beam", "--n-freq", "20", "-o", str(tmp_path / "h.csv")])
     err = capsys.readouterr().err

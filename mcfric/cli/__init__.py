@@ -1,0 +1,44 @@
+"""``mcfric`` command line: wires config, ensemble, store and plots together.
+
+One module per command (:mod:`.run`, :mod:`.bounds`, :mod:`.plot`, :mod:`.info` with
+``config``, :mod:`.hbm`, :mod:`.verify`), beside the parser, the configuration a command
+runs (:mod:`.inputs`), its output paths (:mod:`.outputs`), the errors and exit codes
+(:mod:`.errors`) and the entry point (:mod:`.main`).
+
+::
+
+    mcfric                                   # = mcfric run: the embedded default
+    mcfric run [PRESET|CONFIG.toml] [-o FILE] [--samples N] [--seed S] [--resume]
+               [--force] [--threads T] [--chunk N] [--scheduler ADDRESS] [--peaks N]
+               [--peak-rtol X] [--no-peaks] [--F0 N] [--f-min HZ] [--f-max HZ] [--n-freq N]
+               [--no-certify] [--no-bounds] [--moments | --first-order] [--no-progress]
+               [--no-figure] [--skip-space-check]
+    mcfric config [PRESET|CONFIG.toml|FILE.h5]  # complete TOML on stdout (of a file: its run)
+    mcfric info FILE                         # summary of a results file
+    mcfric hbm [PRESET|CONFIG.toml] [--mu0 X] [--kc N_PER_M] [--N0 N] [--F0 N]
+               [--f-min HZ] [--f-max HZ] [--n-freq N] [-o OUT.csv] [--no-figure]
+    mcfric bounds [PRESET|CONFIG.toml] [-o FILE] [--F0 N] [--f-min HZ] [--f-max HZ]
+               [--n-freq N] [--k-max N_PER_M] [--F-lim N] [--threads T] [--no-certify]
+               [--moments | --first-order] [--no-progress] [--no-figure]
+    mcfric plot FILE [-o FIG.png|pdf] [--quantity Q] [--f-min HZ] [--f-max HZ]
+               [--member I] [--measured DATA ...] [--nodes N1,N2,...] [--normalise]
+               [--measured-quantity Q] [--measured-force N] [--measured-direction D]
+               [--no-indicator]
+    mcfric verify [PRESET|CONFIG.toml] --f HZ [HZ ...] [--mu0 X] [--kc N_PER_M] [--N0 N]
+               [--F0 N] [--harmonics H] [--start single|rest] [-o OUT.csv] [--no-figure]
+               [--no-progress]
+    mcfric verify FILE.h5 --member I --f HZ [HZ ...] [--harmonics H] ...
+
+``run`` and ``hbm`` also take ``--harmonics H`` (multi-harmonic balance of the odd
+harmonics 1..H) and ``--n-time N`` (AFT samples per period).
+
+Exit codes: 0 done, 1 a run-time failure (disk full, I/O error, out of memory), 2 bad
+configuration, arguments or input files, or a refused run (one line on stderr, nothing
+written), 130 interrupted by Ctrl-C, SIGTERM or SIGHUP (the finished chunks are kept;
+continue with ``--resume``).
+"""
+
+from .errors import EXIT_FAIL, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE, UsageError
+from .main import main
+
+__all__ = ["main", "UsageError", "EXIT_OK", "EXIT_FAIL", "EXIT_USAGE", "EXIT_INTERRUPTED"]

@@ -1,0 +1,115 @@
+"""``mcfric``'s entry point: dispatch to the commands, signals, and errors as one line."""
+
+from __future__ import annotations
+
+import os
+import sys
+
+from .bounds import cmd_bounds
+from .errors import EXIT_FAIL, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE, UsageError, _one_line
+from .hbm import cmd_hbm
+from .info import cmd_config, cmd_info
+from .outputs import _MADE_DIRS
+from .parser import COMMANDS, _parser
+from .plot import cmd_plot
+from .run import cmd_run
+from .verify import cmd_verify
+
+
+def _stop_signals_interrupt():
+    """SIGTERM and SIGHUP stop a run as Ctrl-C does: the finished chunks are committed, a
+    message says how to resume, exit 130 (main thread only; elsewhere a no-op)."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        return {}
+
+    from .. import ensemble
+
+    def handler(signum, frame):
+        # also noted: raised inside a ctypes callback (numba compiling) the exception is
+        # printed and dropped, and the run checks the note between chunks
+        ensemble.STOP_SIGNALS.append(signal.Signals(signum).name)
+        raise KeyboardInterrupt(signal.Signals(signum).name)
+
+    ensemble.STOP_SIGNALS.clear()
+    previous = {}
+    for name in ("SIGTERM", "SIGHUP"):
+        if hasattr(signal, name):
+            sig = getattr(signal, name)
+            previous[sig] = signal.signal(sig, handler)
+    return previous
+
+
+def _command_typo(word):
+    """A message where ``word``, the first argument, is no command, preset or file but
+    close to a command's name (``runn``: read as ``mcfric run runn`` it failed on the
+    arguments after it, or as a missing file), else None."""
+    import difflib
+
+    from ..presets import PRESETS
+
+    if (word in COMMANDS or word.startswith("-") or word in PRESETS or os.path.exists(word)
+            or any(c in word for c in "./\\")):       # a file's name: "no such file" says it
+        return None
+    close = difflib.get_close_matches(word, COMMANDS, n=1, cutoff=0.6)
+    return (f"unknown command {word!r} (did you mean {close[0]!r}? commands: "
+            f"{', '.join(COMMANDS)})" if close else None)
+
+
+def main(argv=None):
+    """Entry point of ``mcfric``; returns the exit code."""
+    from ..store import StoreError
+
+    argv = list(sys.argv[1:] if argv is None else argv)
+    typo = _command_typo(argv[0]) if argv else None
+    if typo:
+        print(f"mcfric: error: {typo}", file=sys.stderr)
+        return EXIT_USAGE
+    if not argv or (argv[0] not in COMMANDS and argv[0] not in ("-h", "--help", "--version")):
+        argv = ["run"] + argv        # `mcfric` alone (or `mcfric two-beam`) means `mcfric run`
+    import signal
+
+    previous = {}
+    try:
+        # inside: Ctrl-C while the solver's modules load is an interrupt like any other
+        previous = _stop_signals_interrupt()
+        args = _parser().parse_args(argv)
+        from ..threads import leaving_on_interrupt
+
+        # the process ends after an interrupt: a chunk's kernel may be left running
+        with leaving_on_interrupt():
+            rc = {"run": cmd_run, "config": cmd_config, "info": cmd_info, "hbm": cmd_hbm,
+                  "bounds": cmd_bounds, "plot": cmd_plot,
+                  "verify": cmd_verify}[args.command](args)
+        sys.stdout.flush()           # a closed pipe shows here, not at interpreter exit
+        return rc
+    except UsageError as e:
+        print(f"mcfric: error: {_one_line(e)}", file=sys.stderr)
+        return EXIT_USAGE
+    except KeyboardInterrupt:
+        print("mcfric: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except BrokenPipeError:
+        # the reader of stdout went away (`mcfric info FILE | head -1`): stop quietly
+        try:
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        except (OSError, ValueError):
+            pass
+        return EXIT_OK
+    except (OSError, StoreError) as e:   # disk full, unreadable file: one line, no traceback
+        print(f"mcfric: error: {_one_line(e)}", file=sys.stderr)
+        return EXIT_FAIL
+    except MemoryError:
+        print("mcfric: error: out of memory (a model or ensemble this large needs more RAM "
+              "than is free: fewer beams, frequencies or samples per chunk)", file=sys.stderr)
+        return EXIT_FAIL
+    finally:
+        for sig, h in previous.items():
+            signal.signal(sig, h)
+        while _MADE_DIRS:
+            try:
+                _MADE_DIRS.pop().rmdir()         # only an empty one
+            except OSError:
+                pass

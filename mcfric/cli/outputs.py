@@ -1,0 +1,179 @@
+"""Output paths and the files a command reads: defaults, and the checks that no output
+replaces another or the command's input."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from .errors import UsageError
+
+DEFAULT_DIR = Path("mcfric-results")
+
+
+def _default_output(args, suffix, prefix=""):
+    from ..presets import PRESETS
+
+    if args.source is None:
+        stem = "default"
+    elif args.source in PRESETS:
+        stem = args.source
+    else:
+        stem = Path(args.source).stem
+    return DEFAULT_DIR / f"{prefix}{stem}{suffix}"
+
+
+#: Default output directories this invocation made: removed at exit if still empty (a
+#: run refused after its output path was chosen leaves nothing behind).
+_MADE_DIRS = []
+
+
+def _output_path(args, suffix, prefix="", figure=False):
+    """The output path; the default directory is created, a given one must exist.
+
+    ``figure``: the command also writes ``FILE.png`` next to it; the two must differ.
+    Neither may replace an HDF5 file unless the command writes HDF5 itself (``suffix``
+    ``.h5``, whose own checks decide), nor the command's own input, nor be a directory,
+    nor end in the other format's suffix (found now, not after the work).
+    """
+    if args.output is not None:
+        if not str(args.output).strip():
+            raise UsageError('-o: expected a file name, got ""')
+        out = Path(args.output)
+        if not out.parent.is_dir():
+            raise UsageError(f"-o: directory {out.parent} does not exist")
+        if out.is_dir():
+            raise UsageError(f"-o: {out} is a directory")
+        if out.exists() and not out.is_file():
+            # --force would replace a device (/dev/null) with a results file; a pipe hangs
+            raise UsageError(f"-o: {out} is not a regular file (a device or a pipe)")
+    else:
+        out = _default_output(args, suffix, prefix)
+        if not out.parent.is_dir():
+            out.parent.mkdir(parents=True, exist_ok=True)
+            _MADE_DIRS.append(out.parent)
+    _writable_dir(out)
+    what = "results file" if suffix == ".h5" else f"{suffix[1:].upper()} output"
+    if suffix == ".h5" and out.name.endswith(".partial"):
+        raise UsageError(f"-o: {out.name} ends in .partial, the name of an interrupted "
+                         f"run's file; give the final name ({out.name[:-8]})")
+    if out.name.endswith(".lock"):
+        # a run on the name without .lock takes FILE.lock as its lock and removes it
+        raise UsageError(f"-o: {out.name} ends in .lock, the name of a run's lock file; "
+                         f"choose another name")
+    if suffix != ".h5":
+        _not_replacing_hdf5(out, what)
+    _not_replacing_input(args, out, what)
+    if figure:
+        png = out.with_suffix(".png")
+        if png == out:
+            raise UsageError(f"-o: the {what} and its figure would both be {out}; give the "
+                             f"{what} another suffix (e.g. {out.with_suffix(suffix).name})")
+        if png.is_dir():
+            raise UsageError(f"-o: the figure {png} is a directory; choose another -o")
+        _not_replacing_hdf5(png, "figure")
+        _not_replacing_input(args, png, "figure")
+    # a name that promises the other format (the reader would then fail on it)
+    other = {".h5": (".csv", ".png", ".txt", ".toml"),
+             ".csv": (".h5", ".hdf5", ".hdf", ".nc", ".png", ".toml")}[suffix]
+    if out.suffix.lower() in other:
+        fmt = "an HDF5 results file" if suffix == ".h5" else "CSV"
+        raise UsageError(f"-o: {out.name}: this command writes {fmt}; give a name ending "
+                         f"in {suffix}")
+    return out
+
+
+def _writable_dir(out):
+    """An output is renamed into its directory when complete: one that cannot be written
+    is refused now, not after the work."""
+    if not os.access(out.parent, os.W_OK | os.X_OK):
+        raise UsageError(f"-o: directory {out.parent} is not writable")
+
+
+def _not_replacing_input(args, path, what):
+    """No output replaces the configuration (or file) the command reads."""
+    src = getattr(args, "source", None)
+    if src and Path(src).is_file() and path.exists() and path.samefile(src):
+        raise UsageError(f"-o: the {what} would replace the input {src}; choose another -o")
+
+
+def _not_replacing_hdf5(path, what):
+    """No CSV or figure silently replaces a results file (HDF5)."""
+    if path.is_file() and _is_hdf5(path):
+        raise UsageError(f"{path} is an HDF5 file (results?); the {what} would replace it: "
+                         f"choose another -o")
+
+
+def _no_such_file(path):
+    """The line for a results file that does not exist; it names the files an
+    engine-order sweep writes for that ``-o`` (``FILE-eoE.h5``), where there are any."""
+    import glob
+
+    p = Path(path)
+    # order_path's names, any order (its "-eo" and then digits: engine orders are >= 0)
+    pattern = order_path(Path(glob.escape(str(p))), "*")
+    names = sorted(Path(q).name for q in glob.glob(str(pattern))
+                   if Path(q).stem[len(p.stem) + 3:].isdigit()) if p.suffix else []
+    if not names:
+        return f"{path}: no such file"
+    shown = ", ".join(names[:4]) + (", ..." if len(names) > 4 else "")
+    return (f"{path}: no such file; an engine-order sweep wrote {shown} (one file per "
+            f"order): give one of them")
+
+
+def _checked_file(path):
+    """:func:`~mcfric.results_check.check_file` of ``path``, then the keys of its stored
+    configuration that the readers use (an edited file: one line, exit 2)."""
+    from .. import config
+    from ..results_check import CONFIG_KEYS, check_file
+    from ..store import StoreError
+
+    if Path(path).is_dir():
+        raise UsageError(f"{path}: a directory, not a results file")
+    if not Path(path).exists():
+        raise UsageError(_no_such_file(path))
+    try:
+        attrs, cfg = check_file(path)
+    except StoreError as e:
+        raise UsageError(str(e)) from None
+    try:
+        config.check_keys(cfg, CONFIG_KEYS)
+    except config.ConfigError as e:
+        raise UsageError(f"{path}: stored configuration: {e}") from None
+    return attrs, cfg
+
+
+def _only_replacing_bounds(out):
+    """``mcfric bounds`` replaces a bounds file of its own, nothing else (an ensemble's
+    results file, its ``.partial``, or a file of another kind)."""
+    from ..store import StoreError, partial_path, read_attrs
+
+    part = partial_path(out)
+    if part.exists():
+        raise UsageError(f"{part} exists (an interrupted run?); the bounds would replace "
+                         f"it: choose another -o")
+    if not out.exists():
+        return
+    try:
+        attrs = read_attrs(out)
+    except StoreError:
+        attrs = {}
+    if "layout_version" not in attrs or int(attrs.get("samples", -1)) != 0:
+        kind = "an ensemble's results file" if "layout_version" in attrs else \
+            "not an mcfric bounds file"
+        raise UsageError(f"{out} exists and is {kind}; the bounds would replace it: "
+                         f"choose another -o")
+
+
+def order_path(out, E):
+    """The results file of engine order ``E`` in a sweep written to ``out``."""
+    return out.with_name(f"{out.stem}-eo{E}{out.suffix}")
+
+
+def _is_hdf5(path):
+    import h5py
+
+    try:
+        return h5py.is_hdf5(path)
+    except OSError:
+        return False
