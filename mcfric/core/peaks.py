@@ -5,8 +5,11 @@ the paper's beams, zeta = 0.0017, is about 0.055 Hz wide), so the largest value 
 sweep on a grid underestimates the member's peak. After the sweep, for every member:
 
 1. the local maxima of the metric ``M = max_b omega^p |y_b|`` over the grid are ranked
-   and the ``n_peaks`` largest kept (the metric, not each beam: ``M`` is what the bounds
-   and the statistics are about);
+   (the metric, not each beam: ``M`` is what the bounds and the statistics are about);
+   the ``n_peaks`` largest are refined (2-4 below), and then every other whose grid value
+   could belong to a higher peak than the ``n_peaks``-th refined so far (a resonance as
+   wide as the narrowest mode, peaking midway between grid points: ``_hidden_fraction``);
+   the ``n_peaks`` largest results are reported, largest first;
 2. each is refined in frequency: parabolic steps on ``1/M^2`` from its grid neighbours
    (golden-section steps where no parabola fits) for a peak broader than the grid; for a
    sharper one, or where that does not converge in a few steps, eight sub-intervals of
@@ -466,6 +469,16 @@ def _flanks(k_lo, k_hi, i, omega, y, s, status, M, P, S, rtol, x, top, top_y, wi
 
 
 @jit
+def _hidden_fraction(step, width):
+    """The least grid value, as a fraction of a resonance's peak, of the nearer grid point
+    to that peak: a peak of half-power width ``width`` (rad/s) midway between grid points
+    ``step`` apart is ``1 / sqrt(1 + (step / width)^2)`` of the way up (the magnitude of a
+    single mode's receptance). A grid maximum below this fraction of a value already
+    reported cannot hide a higher peak of a resonance at least ``width`` wide."""
+    return 1.0 / math.sqrt(1.0 + (step / width) ** 2)
+
+
+@jit
 def _log_s(s, i, k, nd, x):
     """``x = log s`` of sample ``i`` at grid point ``k`` (0 where s is 0 or not finite)."""
     for j in range(nd):
@@ -524,15 +537,32 @@ def _member(i, omega, modal_f, zeta, u, force, a, b, mu0, N0, kc, tol, max_iter,
             cand[n_c] = k
             n_c += 1
     order = np.argsort(-M[cand[:n_c]], kind="mergesort")
-    for p in range(n_peaks):
-        pk_st[i, p] = PEAK_NONE
-        fold[i, p] = FOLD_UNCHECKED
-        pk_w[i, p] = pk_m[i, p] = pkd_w[i, p] = pkd_m[i, p] = math.nan
-        for bb in range(n_beams):
-            pk_y[i, p, bb] = complex(math.nan, math.nan)
-        if p >= n_c:
-            continue
-        k = cand[order[p]]
+    # candidates are refined into slots, and the n_peaks largest slots reported: past
+    # the n_peaks largest grid maxima, a narrow resonance between grid points may still
+    # peak above the n_peaks-th value found, unless its grid value is too low for that
+    n_slot = max(n_c, n_peaks)
+    sw = np.full(n_slot, math.nan)
+    sm = np.full(n_slot, math.nan)
+    sdw = np.full(n_slot, math.nan)
+    sdm = np.full(n_slot, math.nan)
+    sst = np.full(n_slot, PEAK_NONE, np.int64)
+    sfo = np.full(n_slot, FOLD_UNCHECKED, np.int64)
+    sy = np.full((n_slot, n_beams), complex(math.nan, math.nan))
+    n_done = 0
+    for c in range(n_c):
+        k = cand[order[c]]
+        if n_done >= n_peaks:
+            # the n_peaks-th largest value reported so far
+            kth = np.sort(sm[:n_done])[n_done - n_peaks]
+            step = 0.0
+            if k > 0:
+                step = max(step, omega[k] - omega[k - 1])
+            if k < n_f - 1:
+                step = max(step, omega[k + 1] - omega[k])
+            if not M[k] >= kth * _hidden_fraction(step, width):
+                continue
+        p = n_done
+        n_done += 1
         # the bracket between the converged grid neighbours
         k_lo = k - 1 if k > 0 and status[i, k - 1] >= 0 else k
         k_hi = k + 1 if k < n_f - 1 and status[i, k + 1] >= 0 else k
@@ -541,9 +571,9 @@ def _member(i, omega, modal_f, zeta, u, force, a, b, mu0, N0, kc, tol, max_iter,
         # grid value, flagged, not a flank refined as if it were the band's end
         gap = (k_lo == k and k > 0) or (k_hi == k and k < n_f - 1)
         if k_lo == k_hi or gap:
-            pk_st[i, p] = PEAK_GRID
-            pk_w[i, p], pk_m[i, p] = omega[k], M[k]
-            pk_y[i, p, :] = y[i, k, :]
+            sst[p] = PEAK_GRID
+            sw[p], sm[p] = omega[k], M[k]
+            sy[p, :] = y[i, k, :]
             continue
         S[4][0] = 0
         idx = np.full(N_SUB + 1, -1, np.int64)
@@ -555,30 +585,30 @@ def _member(i, omega, modal_f, zeta, u, force, a, b, mu0, N0, kc, tol, max_iter,
         best, ok = _refine(idx, np.bool_(True), P, S, rtol)
         if best < 0 or not ok:
             # refinement failed or stopped short: the grid value, as the status says
-            pk_st[i, p] = PEAK_GRID
-            pk_w[i, p], pk_m[i, p] = omega[k], M[k]
-            pk_y[i, p, :] = y[i, k, :]
+            sst[p] = PEAK_GRID
+            sw[p], sm[p] = omega[k], M[k]
+            sy[p, :] = y[i, k, :]
         else:
-            pk_st[i, p] = PEAK_AT_EDGE if edge else PEAK_REFINED
-            pk_w[i, p], pk_m[i, p] = S[0][best], S[1][best]
-            pk_y[i, p, :] = S[3][best]
-            top[0], top[1] = pk_w[i, p], pk_m[i, p]
+            sst[p] = PEAK_AT_EDGE if edge else PEAK_REFINED
+            sw[p], sm[p] = S[0][best], S[1][best]
+            sy[p, :] = S[3][best]
+            top[0], top[1] = sw[p], sm[p]
             found, complete = _flanks(k_lo, k_hi, i, omega, y, s, status, M, P, S, rtol,
                                       x, top, top_y, width)
             for q in range(p):
                 # a resonance an earlier peak reported already (their flanks overlap)
-                found = found and not abs(top[0] - pk_w[i, q]) < width
+                found = found and not abs(top[0] - sw[q]) < width
             if not complete:
                 # a flank where a higher resonance may hide was not searched
-                pk_st[i, p] = PEAK_GRID
-                pk_w[i, p], pk_m[i, p] = omega[k], M[k]
-                pk_y[i, p, :] = y[i, k, :]
+                sst[p] = PEAK_GRID
+                sw[p], sm[p] = omega[k], M[k]
+                sy[p, :] = y[i, k, :]
             elif found:
                 # an interior resonance, refined (not the band's end any more)
-                pk_st[i, p] = PEAK_REFINED
-                pk_w[i, p], pk_m[i, p] = top[0], top[1]
-                pk_y[i, p, :] = top_y
-        pkd_w[i, p], pkd_m[i, p] = pk_w[i, p], pk_m[i, p]
+                sst[p] = PEAK_REFINED
+                sw[p], sm[p] = top[0], top[1]
+                sy[p, :] = top_y
+        sdw[p], sdm[p] = sw[p], sm[p]
         # the same stretch swept downward, from the upward state above the peak
         k_top = min(k + window, n_f - 1)
         k_bot = max(k - window, 0)
@@ -613,9 +643,9 @@ def _member(i, omega, modal_f, zeta, u, force, a, b, mu0, N0, kc, tol, max_iter,
             elif abs(S[1][n] - M[g]) > FOLD_RTOL * max(S[1][n], M[g]):
                 differs = True
         if not differs:
-            fold[i, p] = FOLD_NONE if complete else FOLD_UNCHECKED
+            sfo[p] = FOLD_NONE if complete else FOLD_UNCHECKED
             continue
-        fold[i, p] = FOLD_FOUND
+        sfo[p] = FOLD_FOUND
         # the downward branch's own peak, refined continued from above
         gb = k_top
         for g in range(k_bot, k_top + 1):
@@ -624,7 +654,7 @@ def _member(i, omega, modal_f, zeta, u, force, a, b, mu0, N0, kc, tol, max_iter,
         g_lo = gb - 1 if gb > k_bot and dn[gb - 1 - k_bot] >= 0 else gb
         g_hi = gb + 1 if gb < k_top else gb
         if g_lo == g_hi:
-            pkd_w[i, p], pkd_m[i, p] = S[0][dn[gb - k_bot]], S[1][dn[gb - k_bot]]
+            sdw[p], sdm[p] = S[0][dn[gb - k_bot]], S[1][dn[gb - k_bot]]
             continue
         idx = np.full(N_SUB + 1, -1, np.int64)
         idx[0] = dn[g_lo - k_bot]
@@ -633,7 +663,16 @@ def _member(i, omega, modal_f, zeta, u, force, a, b, mu0, N0, kc, tol, max_iter,
             idx[N_SUB // 2] = dn[gb - k_bot]
         best, ok = _refine(idx, np.bool_(False), P, S, rtol)
         j = best if best >= 0 else dn[gb - k_bot]
-        pkd_w[i, p], pkd_m[i, p] = S[0][j], S[1][j]
+        sdw[p], sdm[p] = S[0][j], S[1][j]
+    # the n_peaks largest, largest first (unrefined slots by their grid value)
+    key = np.where(np.isnan(sm[:n_slot]), -np.inf, sm[:n_slot])
+    rank = np.argsort(-key, kind="mergesort")
+    for p in range(n_peaks):
+        q = rank[p]
+        pk_st[i, p], fold[i, p] = sst[q], sfo[q]
+        pk_w[i, p], pk_m[i, p], pkd_w[i, p], pkd_m[i, p] = sw[q], sm[q], sdw[q], sdm[q]
+        for bb in range(n_beams):
+            pk_y[i, p, bb] = sy[q, bb]
 
 
 @jit(parallel=True, nogil=True)
