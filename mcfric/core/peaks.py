@@ -25,9 +25,12 @@ sweep on a grid underestimates the member's peak. After the sweep, for every mem
    coupled beams is a cluster of narrow resonances, and one of them can lie between two
    grid points beside the maximum (neither of them a local maximum), or in the bracket
    beside the one refined. Each grid interval of the bracket and within ``FLANK`` steps
-   of it is solved at inner points about one half-power width of the narrowest mode
-   apart (continued from below), and any inner point above both its neighbours is
-   climbed as above; the best point found replaces the peak where it is higher. A flank
+   of it is solved at inner points ``FLANK_DENSITY`` per half-power width of the
+   narrowest mode (continued from below), and any inner point above both its neighbours
+   is climbed as above; around the refined peak's own sample (an inner point or a grid
+   point), each side is solved ``N_FLANK`` times finer and searched the same way (two
+   resonances closer than the spacing show as one bump). The best point found replaces
+   the peak where it is higher. A flank
    that could not be solved or climbed, or a grid step of more than ``N_FLANK_MAX``
    widths, leaves the peak a lower estimate (``PEAK_GRID``);
 4. the sweep is repeated downward over ``window`` grid points on each side of the peak,
@@ -75,12 +78,16 @@ MAX_STEPS = 40
 #: Steps of the first climb from the grid neighbours alone, before sub-sampling.
 QUICK_STEPS = 4
 #: Grid intervals searched on each side of a kept grid maximum's bracket, and the
-#: sub-intervals each is solved at: at least ``N_FLANK``, one per half-power width of the
-#: narrowest mode, ``2 zeta f``; a step of more than ``N_FLANK_MAX`` widths is not searched
+#: sub-intervals each is solved at: at least ``N_FLANK``, ``FLANK_DENSITY`` per half-power
+#: width of the narrowest mode, ``2 zeta f``; a step of more than ``N_FLANK_MAX`` widths is
+#: not searched
 #: (a resonance hidden between grid points shows as an inner point above both its
 #: neighbours).
 FLANK = 2
 N_FLANK = 4
+#: Flank points per half-power width: at one, two resonances a width apart beside the
+#: refined one can show as one bump
+FLANK_DENSITY = 2
 N_FLANK_MAX = 64
 _INV_PHI = 0.6180339887498949
 
@@ -422,7 +429,10 @@ def _flanks(k_lo, k_hi, i, omega, y, s, status, M, P, S, rtol, x, top, top_y, wi
     """The best point of the resonances hidden between grid points in the bracket
     ``k_lo .. k_hi`` and beside it (``FLANK`` intervals on each side; see the module
     docstring), written to ``top`` (omega, M) and ``top_y`` (responses) where it is above
-    ``top[1]``. ``width``: the narrowest mode's half-power width, rad/s.
+    ``top[1]``. ``width``: the narrowest mode's half-power width, rad/s. A sample above
+    its neighbours (at an interval's end, above its one neighbour inside) whose
+    neighbours' span holds the refined peak has each side within the interval searched
+    finer (:func:`_split_half`); any other is climbed (:func:`_raise`).
 
     Returns (found, complete): ``found`` if ``top`` was raised; ``complete`` is False if
     an interval could not be solved, a climb did not converge, or the grid step is more
@@ -432,14 +442,14 @@ def _flanks(k_lo, k_hi, i, omega, y, s, status, M, P, S, rtol, x, top, top_y, wi
     nd = x.shape[0]
     pw, pm = S[0], S[1]
     found = False
-    idx = np.empty(N_FLANK_MAX + 1, np.int64)
+    idx = np.empty(FLANK_DENSITY * N_FLANK_MAX + 1, np.int64)
     for g in range(max(k_lo - FLANK, 0), min(k_hi + FLANK, n_f - 1)):
         if status[i, g] < 0 or status[i, g + 1] < 0:
             return found, False                   # a gap beside the peak: not searched
         step = omega[g + 1] - omega[g]
         if not step <= N_FLANK_MAX * width:
             return found, False                   # a grid too coarse to search
-        n = max(int(math.ceil(step / width)), N_FLANK)
+        n = max(int(math.ceil(FLANK_DENSITY * step / width)), N_FLANK)
         S[4][0] = 0                               # each interval afresh
         _log_s(s, i, g, nd, x)
         idx[0] = _seed(omega[g], x, y[i, g], M[g], S)
@@ -449,23 +459,79 @@ def _flanks(k_lo, k_hi, i, omega, y, s, status, M, P, S, rtol, x, top, top_y, wi
                 return found, False
         _log_s(s, i, g + 1, nd, x)
         idx[n] = _seed(omega[g + 1], x, y[i, g + 1], M[g + 1], S)
-        for t in range(1, n):
-            # an inner local maximum, unless it is the refined peak's (a sub-point above
-            # the refined value is another resonance beside it)
-            if (pm[idx[t]] > pm[idx[t - 1]] and pm[idx[t]] > pm[idx[t + 1]]
-                    and (pm[idx[t]] > top[1]
-                         or not pw[idx[t - 1]] <= top[0] <= pw[idx[t + 1]])):
-                best, ok = _climb(idx[t], pw[idx[t - 1]], pw[idx[t + 1]], idx[0],
-                                  np.bool_(True), P, S, rtol, np.int64(MAX_STEPS),
-                                  np.int64(-1))
-                if not ok:
+        for t in range(0, n + 1):
+            v = pm[idx[t]]
+            above_l = t == 0 or v > pm[idx[t - 1]]
+            above_r = t == n or v > pm[idx[t + 1]]
+            if not (above_l and above_r):
+                continue
+            # the span of the sample's neighbours (an end's neighbour across the grid
+            # point is in the next interval: one width there, at most)
+            lo = pw[idx[t - 1]] if t > 0 else pw[idx[0]] - width
+            hi = pw[idx[t + 1]] if t < n else pw[idx[n]] + width
+            if 0 < t < n and (v > top[1] or not lo <= top[0] <= hi):
+                # an inner local maximum that is not the refined peak's (a sub-point
+                # above the refined value is another resonance beside it)
+                ok = _raise(idx[t], pw[idx[t - 1]], pw[idx[t + 1]], idx[0], P, S, rtol,
+                            top, top_y)
+                if ok < 0:
                     return found, False
-                if pm[best] > top[1]:
-                    found = True
-                    top[0], top[1] = pw[best], pm[best]
-                    for bb in range(top_y.shape[0]):
-                        top_y[bb] = S[3][best, bb]
+                found = found or ok > 0
+            elif lo <= top[0] <= hi:
+                # the refined peak's own sample: a second resonance closer to it than the
+                # spacing does not show; each side within this interval is sampled finer
+                for a_t in (t - 1, t):
+                    if a_t < 0 or a_t + 1 > n:
+                        continue                  # that side is the next interval's
+                    ok = _split_half(idx[a_t], idx[a_t + 1], P, S, rtol, top, top_y)
+                    if ok < 0:
+                        return found, False
+                    found = found or ok > 0
     return found, True
+
+
+@jit
+def _raise(start, left, right, first, P, S, rtol, top, top_y):
+    """Climb from the stored point ``start`` inside ``[left, right]`` (rad/s), continued
+    from below (``first``: the interval's first point); raise ``top`` and ``top_y`` to
+    the best point where it is higher. Returns 1 (raised), 0 (not) or -1 (the climb did
+    not converge)."""
+    pw, pm = S[0], S[1]
+    best, ok = _climb(start, left, right, first, np.bool_(True), P, S, rtol,
+                      np.int64(MAX_STEPS), np.int64(-1))
+    if not ok:
+        return -1
+    if pm[best] > top[1]:
+        top[0], top[1] = pw[best], pm[best]
+        for bb in range(top_y.shape[0]):
+            top_y[bb] = S[3][best, bb]
+        return 1
+    return 0
+
+
+@jit
+def _split_half(a, b, P, S, rtol, top, top_y):
+    """Solve ``N_FLANK - 1`` points between the stored points ``a`` < ``b`` (continued
+    from ``a``) and climb any above both its neighbours (:func:`_raise`), unless it is
+    the refined peak's (``top`` between its neighbours, and above it). Returns 1 (``top``
+    raised), 0 or -1 (a solve or a climb failed)."""
+    pw, pm = S[0], S[1]
+    sub = np.empty(N_FLANK + 1, np.int64)
+    sub[0], sub[N_FLANK] = a, b
+    for t in range(1, N_FLANK):
+        sub[t] = _add_point(pw[a] + (pw[b] - pw[a]) * t / N_FLANK, S[2][sub[t - 1]], P, S)
+        if sub[t] < 0:
+            return -1
+    raised = 0
+    for t in range(1, N_FLANK):
+        if (pm[sub[t]] > pm[sub[t - 1]] and pm[sub[t]] > pm[sub[t + 1]]
+                and (pm[sub[t]] > top[1]
+                     or not pw[sub[t - 1]] <= top[0] <= pw[sub[t + 1]])):
+            ok = _raise(sub[t], pw[sub[t - 1]], pw[sub[t + 1]], a, P, S, rtol, top, top_y)
+            if ok < 0:
+                return -1
+            raised = max(raised, ok)
+    return raised
 
 
 @jit
@@ -512,7 +578,7 @@ def _member(i, omega, modal_f, zeta, u, force, a, b, mu0, N0, kc, tol, max_iter,
          np.empty(nd, np.complex128), beams, power, np.empty(nd),
          np.empty(n_beams, np.complex128), law, cn.workspace(nd), lanes)
     # the refinement's points, or one flank interval's and two climbs
-    cap = 2 * N_SUB + 4 * MAX_STEPS + N_FLANK_MAX + 2 * window + 8
+    cap = 2 * N_SUB + 6 * MAX_STEPS + FLANK_DENSITY * N_FLANK_MAX + N_FLANK + 2 * window + 8
     width = math.inf                      # the narrowest mode's half-power width, rad/s
     for bb in range(modal_f.shape[1]):
         for m in range(modal_f.shape[2]):
