@@ -40,7 +40,8 @@ class PeakSettings:
     Attributes
     ----------
     count : int
-        Largest local maxima of the metric kept per member, 1..100.
+        Peaks reported per member, the largest refined local maxima of the metric,
+        1..100 (grid maxima that may hide a higher peak are refined too).
     rtol : float
         Relative tolerance of the refined amplitude, 0 < rtol <= 0.1.
     window : int
