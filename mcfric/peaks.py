@@ -168,7 +168,7 @@ def refine(model, result, omega, modal_freq_hz, settings, mu0, N0, kc, tol, max_
         float(settings.rtol), np.int64(settings.window),
         out_w, out_m, out_y, out_st, out_fold, out_wd, out_md,
         np.int64(CONTACT_LAWS.index(model.contact_law)))
-    # largest refined peak first (the kernel ranks them by their grid values)
+    # largest first by the upward value (the kernel chose which: an unrefined one is kept)
     order = np.argsort(np.where(np.isnan(out_m), np.inf, -out_m), axis=1, kind="stable")
     take = np.take_along_axis
     to_hz = 1.0 / (2.0 * np.pi)

@@ -535,6 +535,15 @@ def _split_half(a, b, P, S, rtol, top, top_y):
 
 
 @jit
+def _kth_largest(v, k):
+    """The ``k``-th largest of the values ``v`` that are not NaN (NaN if fewer)."""
+    ok = v[~np.isnan(v)]
+    if ok.shape[0] < k:
+        return math.nan
+    return np.sort(ok)[ok.shape[0] - k]
+
+
+@jit
 def _hidden_fraction(step, width):
     """The least grid value, as a fraction of a resonance's peak, of the nearer grid point
     to that peak: a peak of half-power width ``width`` (rad/s) midway between grid points
@@ -577,7 +586,7 @@ def _member(i, omega, modal_f, zeta, u, force, a, b, mu0, N0, kc, tol, max_iter,
          np.empty((4, n_beams), np.complex128), np.empty((nd, nd), np.complex128),
          np.empty(nd, np.complex128), beams, power, np.empty(nd),
          np.empty(n_beams, np.complex128), law, cn.workspace(nd), lanes)
-    # the refinement's points, or one flank interval's and two climbs
+    # the refinement's points, or one flank interval's, its finer sides and their climbs
     cap = 2 * N_SUB + 6 * MAX_STEPS + FLANK_DENSITY * N_FLANK_MAX + N_FLANK + 2 * window + 8
     width = math.inf                      # the narrowest mode's half-power width, rad/s
     for bb in range(modal_f.shape[1]):
@@ -619,13 +628,13 @@ def _member(i, omega, modal_f, zeta, u, force, a, b, mu0, N0, kc, tol, max_iter,
         k = cand[order[c]]
         if n_done >= n_peaks:
             # the n_peaks-th largest value reported so far
-            kth = np.sort(sm[:n_done])[n_done - n_peaks]
+            kth = _kth_largest(sm[:n_done], n_peaks)
             step = 0.0
             if k > 0:
                 step = max(step, omega[k] - omega[k - 1])
             if k < n_f - 1:
                 step = max(step, omega[k + 1] - omega[k])
-            if not M[k] >= kth * _hidden_fraction(step, width):
+            if kth == kth and not M[k] >= kth * _hidden_fraction(step, width):
                 continue
         p = n_done
         n_done += 1
@@ -675,6 +684,17 @@ def _member(i, omega, modal_f, zeta, u, force, a, b, mu0, N0, kc, tol, max_iter,
                 sw[p], sm[p] = top[0], top[1]
                 sy[p, :] = top_y
         sdw[p], sdm[p] = sw[p], sm[p]
+        if sst[p] == PEAK_REFINED or sst[p] == PEAK_AT_EDGE:
+            dup = False
+            for q in range(p):
+                # the same resonance as an earlier slot (a lower grid maximum can climb
+                # one that another's flank search reported): reported once
+                dup = dup or ((sst[q] == PEAK_REFINED or sst[q] == PEAK_AT_EDGE)
+                              and abs(sw[p] - sw[q]) < width)
+            if dup:
+                sst[p] = PEAK_NONE
+                sw[p] = sm[p] = sdw[p] = sdm[p] = math.nan
+                continue
         # the same stretch swept downward, from the upward state above the peak
         k_top = min(k + window, n_f - 1)
         k_bot = max(k - window, 0)
@@ -730,8 +750,13 @@ def _member(i, omega, modal_f, zeta, u, force, a, b, mu0, N0, kc, tol, max_iter,
         best, ok = _refine(idx, np.bool_(False), P, S, rtol)
         j = best if best >= 0 else dn[gb - k_bot]
         sdw[p], sdm[p] = S[0][j], S[1][j]
-    # the n_peaks largest, largest first (unrefined slots by their grid value)
-    key = np.where(np.isnan(sm[:n_slot]), -np.inf, sm[:n_slot])
+    # the n_peaks largest, largest first, by the larger of the two branches (what
+    # largest() reports); an unrefined slot first whatever its grid value (a lower
+    # estimate: dropping it would call the member resolved)
+    key = np.empty(n_slot)
+    for q in range(n_slot):
+        v = max(sm[q], sdm[q]) if sdm[q] == sdm[q] else sm[q]
+        key[q] = math.inf if sst[q] == PEAK_GRID else (v if v == v else -math.inf)
     rank = np.argsort(-key, kind="mergesort")
     for p in range(n_peaks):
         q = rank[p]
