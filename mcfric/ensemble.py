@@ -530,6 +530,12 @@ def run(spec, path, *, resume=False, force=False, progress=True, groups="auto",
     if not (groups is None or groups == "auto" or callable(groups)):
         raise TypeError(f"groups: expected 'auto', None or a callable, got {groups!r}")
     final = Path(path)
+    if final.name.endswith((".lock", ".partial")):
+        # the names of a run's lock and partial files: a run on the stem would take this
+        # file for its own and remove or replace it
+        raise RunError(f"{final.name}: ends in {final.suffix}, the name of a run's "
+                       f"{'lock' if final.suffix == '.lock' else 'interrupted'} file; "
+                       f"choose another name")
     if not final.parent.is_dir():
         raise RunError(f"{final.parent}: output directory does not exist")
     # one owner per output, from the first look at the files to the last rename

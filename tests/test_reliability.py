@@ -252,6 +252,14 @@ def test_a_file_of_another_kind_at_the_lock_name_is_neither_emptied_nor_removed(
     assert snapshot(tmp_path) == before
 
 
+@pytest.mark.parametrize("name", ["r.h5.lock", "r.h5.partial"])
+def test_the_python_api_refuses_a_lock_or_partial_name(tmp_path, name):
+    spec = _load(_parser().parse_args(["run", *SMALL])).spec
+    with pytest.raises(ensemble.RunError, match="choose another name"):
+        ensemble.run(spec, tmp_path / name)
+    assert not list(tmp_path.iterdir())
+
+
 TINY = ["--n-freq", "5", "--no-progress"]
 REFUSED_BEFORE_WORK = [
     # (argv, {dir} = the directory, holding fig.png/ and c.toml; message)
