@@ -57,7 +57,9 @@ def test_png_shows_bounds_and_cloud(results, tmp_path, capsys):
     png = tmp_path / "fig.png"
     rc, out, err = call(["plot", results, "-o", png], capsys)
     assert rc == 0, err
-    assert f"figure: {png} (20 of 20 members drawn, bounds)" in out
+    # (on this 60-point grid a member may keep an unrefined low maximum that a narrow
+    # resonance could lie behind: the line then says so after "bounds")
+    assert f"figure: {png} (20 of 20 members drawn, bounds" in out
     img = rgb(png)
     assert_not_blank(img)
     assert near(img, TAB_BLUE) > 1000, "no upper bound (blue) drawn"
