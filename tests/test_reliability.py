@@ -17,8 +17,8 @@ import numpy as np
 import pytest
 
 from mcfric import cli, ensemble, store
-from mcfric.cli.inputs import _load
-from mcfric.cli.parser import _parser
+from mcfric.cli.inputs import load_config
+from mcfric.cli.parser import build_parser
 from mcfric.store import Store, writer
 from mcfric.store.lock import OutputLock, lock_path
 
@@ -102,7 +102,7 @@ def test_the_lock_is_taken_once_per_process_and_released(tmp_path):
     out = tmp_path / "r.h5"
     with OutputLock(out, "first"):
         with pytest.raises(ensemble.RunError, match="being written by"):
-            ensemble.run(_load(_parser().parse_args(["run", *SMALL])).spec, out)
+            ensemble.run(load_config(build_parser().parse_args(["run", *SMALL])).spec, out)
     assert not lock_path(out).exists()
     assert not list(tmp_path.iterdir())
 
@@ -124,9 +124,9 @@ def test_no_space_is_refused_before_any_work(tmp_path, capsys, monkeypatch):
 def test_the_size_estimate_is_the_file_size(tmp_path):
     """The estimate that the space check uses against the real file (within metadata)."""
     out = tmp_path / "r.h5"
-    args = _parser().parse_args(["run", "two-beam", "--samples", "300", "--n-freq",
+    args = build_parser().parse_args(["run", "two-beam", "--samples", "300", "--n-freq",
                                      "200"])
-    spec = _load(args).spec
+    spec = load_config(args).spec
     ensemble.run(spec, out, progress=False)
     size = out.stat().st_size
     assert 0.85 * size <= ensemble.output_bytes(spec) <= size
@@ -254,7 +254,7 @@ def test_a_file_of_another_kind_at_the_lock_name_is_neither_emptied_nor_removed(
 
 @pytest.mark.parametrize("name", ["r.h5.lock", "r.h5.partial"])
 def test_the_python_api_refuses_a_lock_or_partial_name(tmp_path, name):
-    spec = _load(_parser().parse_args(["run", *SMALL])).spec
+    spec = load_config(build_parser().parse_args(["run", *SMALL])).spec
     with pytest.raises(ensemble.RunError, match="choose another name"):
         ensemble.run(spec, tmp_path / name)
     assert not list(tmp_path.iterdir())

@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 from .errors import EXIT_OK, UsageError
-from .inputs import _load, _shortfall_note
-from .outputs import _only_replacing_bounds, _output_path
+from .inputs import load_config, shortfall_note
+from .outputs import only_replacing_bounds, output_path
 
 
 def cmd_bounds(args):
@@ -14,9 +14,9 @@ def cmd_bounds(args):
     from .. import bounds, plot
     from ..store.lock import LockError, OutputLock
 
-    cfg = _load(args, {"bounds.enabled": True})
+    cfg = load_config(args, {"bounds.enabled": True})
     spec = cfg.spec
-    out = _output_path(args, ".h5", prefix="bounds-", figure=not args.no_figure)
+    out = output_path(args, ".h5", prefix="bounds-", figure=not args.no_figure)
     model, f, lim = spec.model, spec.freq_hz, spec.bounds
     lock = OutputLock(out, "mcfric bounds")
     try:
@@ -24,11 +24,11 @@ def cmd_bounds(args):
     except LockError as e:
         raise UsageError(str(e)) from None
     try:
-        _only_replacing_bounds(out)
+        only_replacing_bounds(out)
         print(f"mcfric bounds: {model.name}, {len(f)} frequencies {f[0]:g}-{f[-1]:g} Hz, "
               f"F0 = {model.excitation.F0:g} N; box 0 <= Re K <= {lim.k_max_re:g} N/m, "
               f"0 <= Im K <= {lim.k_max_im:g} N/m, F_lim = {lim.F_lim:g} N", flush=True)
-        _shortfall_note(cfg)
+        shortfall_note(cfg)
         t = time.perf_counter()
         B = bounds.from_spec(spec, progress=False if args.no_progress else None)
         print(f"{B.summary()} ({time.perf_counter() - t:.1f} s)")

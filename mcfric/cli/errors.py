@@ -10,7 +10,7 @@ class UsageError(Exception):
     """Bad input from the user: one line on stderr, exit code 2."""
 
 
-def _one_line(e):
+def one_line(e):
     """An error's text on one line: a key or a library's message may hold line breaks
     (a quoted TOML key with a line break in it, HDF5's own errors)."""
     return " ".join(str(e).split())

@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 from .errors import EXIT_OK, UsageError
-from .inputs import _check_friction_flag, _load
-from .outputs import _output_path
+from .inputs import check_friction_flag, load_config
+from .outputs import output_path
 
 
 def cmd_hbm(args):
@@ -15,10 +15,10 @@ def cmd_hbm(args):
     from ..metric import METRIC_UNITS, omega_power
     from ..threads import interruptible
 
-    spec = _load(args).spec
+    spec = load_config(args).spec
     for flag, v in (("mu0", args.mu0), ("kc", args.kc), ("N0", args.N0)):
-        _check_friction_flag(flag, v)
-    out = _output_path(args, ".csv", prefix="hbm-", figure=not args.no_figure)
+        check_friction_flag(flag, v)
+    out = output_path(args, ".csv", prefix="hbm-", figure=not args.no_figure)
     model, f = spec.model, spec.freq_hz
     H = spec.solver.harmonics
     try:

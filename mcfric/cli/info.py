@@ -8,8 +8,8 @@ import sys
 from pathlib import Path
 
 from .errors import EXIT_OK, UsageError
-from .inputs import _load
-from .outputs import _checked_file, _is_hdf5
+from .inputs import load_config
+from .outputs import checked_file, is_hdf5
 
 
 def cmd_config(args):
@@ -20,8 +20,8 @@ def cmd_config(args):
     path = Path(args.source) if args.source is not None else None
     if path is not None and not path.exists() and partial_path(path).exists():
         path = partial_path(path)
-    if path is not None and path.is_file() and _is_hdf5(path):
-        a, _ = _checked_file(path)
+    if path is not None and path.is_file() and is_hdf5(path):
+        a, _ = checked_file(path)
         out = str(path).removesuffix(".partial")
         how = (f"mcfric run THIS.toml -o {out} --resume continues an interrupted one"
                if int(a.get("samples", 0)) else
@@ -37,7 +37,7 @@ def cmd_config(args):
                 raise UsageError(f"{path}: stored configuration: {e}") from None
         sys.stdout.write(f"# the configuration of the run in {path}\n# ({how})\n\n{text}")
         return EXIT_OK
-    cfg = _load(args)
+    cfg = load_config(args)
     sys.stdout.write(cfg.toml())
     return EXIT_OK
 
@@ -54,7 +54,7 @@ def cmd_info(args):
     path = Path(args.file)
     if not path.exists() and partial_path(path).exists():
         path = partial_path(path)
-    a, cfg = _checked_file(path)
+    a, cfg = checked_file(path)
     try:
         d = describe(path)
         import numpy as np

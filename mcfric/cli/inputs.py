@@ -49,7 +49,7 @@ def _overrides(args):
     return o
 
 
-def _load(args, fixed=None):
+def load_config(args, fixed=None):
     """The validated configuration of ``args``; ``fixed``: ``{dotted key: value}`` that
     the command itself sets."""
     from .. import config
@@ -72,7 +72,7 @@ def _load(args, fixed=None):
     return cfg
 
 
-def _check_friction_flag(name, v):
+def check_friction_flag(name, v):
     """``--mu0``, ``--kc`` or ``--N0`` (``name`` without dashes): finite and >= 0, ``kc``
     at most :data:`mcfric.validators.KC_MAX`; a UsageError naming the flag otherwise."""
     from ..validators import InputError, check_kc, number
@@ -85,7 +85,7 @@ def _check_friction_flag(name, v):
         raise UsageError(str(e)) from None
 
 
-def _shortfall_note(cfg):
+def shortfall_note(cfg):
     """A note where ``[bounds]``' constraints leave out friction the sampling draws (a
     limit given in kN/m, say): the bounds then need not hold for every member."""
     short = cfg.bounds_shortfalls()

@@ -6,11 +6,11 @@ import os
 import sys
 
 from .bounds import cmd_bounds
-from .errors import EXIT_FAIL, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE, UsageError, _one_line
+from .errors import EXIT_FAIL, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE, UsageError, one_line
 from .hbm import cmd_hbm
 from .info import cmd_config, cmd_info
-from .outputs import _MADE_DIRS
-from .parser import COMMANDS, _parser
+from .outputs import MADE_DIRS
+from .parser import COMMANDS, build_parser
 from .plot import cmd_plot
 from .run import cmd_run
 from .verify import cmd_verify
@@ -75,7 +75,7 @@ def main(argv=None):
     try:
         # inside: Ctrl-C while the solver's modules load is an interrupt like any other
         previous = _stop_signals_interrupt()
-        args = _parser().parse_args(argv)
+        args = build_parser().parse_args(argv)
         from ..threads import leaving_on_interrupt
 
         # the process ends after an interrupt: a chunk's kernel may be left running
@@ -86,7 +86,7 @@ def main(argv=None):
         sys.stdout.flush()           # a closed pipe shows here, not at interpreter exit
         return rc
     except UsageError as e:
-        print(f"mcfric: error: {_one_line(e)}", file=sys.stderr)
+        print(f"mcfric: error: {one_line(e)}", file=sys.stderr)
         return EXIT_USAGE
     except KeyboardInterrupt:
         print("mcfric: interrupted", file=sys.stderr)
@@ -99,7 +99,7 @@ def main(argv=None):
             pass
         return EXIT_OK
     except (OSError, StoreError) as e:   # disk full, unreadable file: one line, no traceback
-        print(f"mcfric: error: {_one_line(e)}", file=sys.stderr)
+        print(f"mcfric: error: {one_line(e)}", file=sys.stderr)
         return EXIT_FAIL
     except MemoryError:
         print("mcfric: error: out of memory (a model or ensemble this large needs more RAM "
@@ -108,8 +108,8 @@ def main(argv=None):
     finally:
         for sig, h in previous.items():
             signal.signal(sig, h)
-        while _MADE_DIRS:
+        while MADE_DIRS:
             try:
-                _MADE_DIRS.pop().rmdir()         # only an empty one
+                MADE_DIRS.pop().rmdir()         # only an empty one
             except OSError:
                 pass

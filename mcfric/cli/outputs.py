@@ -25,10 +25,10 @@ def _default_output(args, suffix, prefix=""):
 
 #: Default output directories this invocation made: removed at exit if still empty (a
 #: run refused after its output path was chosen leaves nothing behind).
-_MADE_DIRS = []
+MADE_DIRS = []
 
 
-def _output_path(args, suffix, prefix="", figure=False):
+def output_path(args, suffix, prefix="", figure=False):
     """The output path; the default directory is created, a given one must exist.
 
     ``figure``: the command also writes ``FILE.png`` next to it; the two must differ.
@@ -51,8 +51,8 @@ def _output_path(args, suffix, prefix="", figure=False):
         out = _default_output(args, suffix, prefix)
         if not out.parent.is_dir():
             out.parent.mkdir(parents=True, exist_ok=True)
-            _MADE_DIRS.append(out.parent)
-    _writable_dir(out)
+            MADE_DIRS.append(out.parent)
+    writable_dir(out)
     what = "results file" if suffix == ".h5" else f"{suffix[1:].upper()} output"
     if suffix == ".h5" and out.name.endswith(".partial"):
         raise UsageError(f"-o: {out.name} ends in .partial, the name of an interrupted "
@@ -62,7 +62,7 @@ def _output_path(args, suffix, prefix="", figure=False):
         raise UsageError(f"-o: {out.name} ends in .lock, the name of a run's lock file; "
                          f"choose another name")
     if suffix != ".h5":
-        _not_replacing_hdf5(out, what)
+        not_replacing_hdf5(out, what)
     _not_replacing_input(args, out, what)
     if figure:
         png = out.with_suffix(".png")
@@ -71,7 +71,7 @@ def _output_path(args, suffix, prefix="", figure=False):
                              f"{what} another suffix (e.g. {out.with_suffix(suffix).name})")
         if png.is_dir():
             raise UsageError(f"-o: the figure {png} is a directory; choose another -o")
-        _not_replacing_hdf5(png, "figure")
+        not_replacing_hdf5(png, "figure")
         _not_replacing_input(args, png, "figure")
     # a name that promises the other format (the reader would then fail on it)
     other = {".h5": (".csv", ".png", ".txt", ".toml"),
@@ -83,7 +83,7 @@ def _output_path(args, suffix, prefix="", figure=False):
     return out
 
 
-def _writable_dir(out):
+def writable_dir(out):
     """An output is renamed into its directory when complete: one that cannot be written
     is refused now, not after the work."""
     if not os.access(out.parent, os.W_OK | os.X_OK):
@@ -97,14 +97,14 @@ def _not_replacing_input(args, path, what):
         raise UsageError(f"-o: the {what} would replace the input {src}; choose another -o")
 
 
-def _not_replacing_hdf5(path, what):
+def not_replacing_hdf5(path, what):
     """No CSV or figure silently replaces a results file (HDF5)."""
-    if path.is_file() and _is_hdf5(path):
+    if path.is_file() and is_hdf5(path):
         raise UsageError(f"{path} is an HDF5 file (results?); the {what} would replace it: "
                          f"choose another -o")
 
 
-def _no_such_file(path):
+def no_such_file(path):
     """The line for a results file that does not exist; it names the files an
     engine-order sweep writes for that ``-o`` (``FILE-eoE.h5``), where there are any."""
     import glob
@@ -121,7 +121,7 @@ def _no_such_file(path):
             f"order): give one of them")
 
 
-def _checked_file(path):
+def checked_file(path):
     """:func:`~mcfric.results_check.check_file` of ``path``, then the keys of its stored
     configuration that the readers use (an edited file: one line, exit 2)."""
     from .. import config
@@ -131,7 +131,7 @@ def _checked_file(path):
     if Path(path).is_dir():
         raise UsageError(f"{path}: a directory, not a results file")
     if not Path(path).exists():
-        raise UsageError(_no_such_file(path))
+        raise UsageError(no_such_file(path))
     try:
         attrs, cfg = check_file(path)
     except StoreError as e:
@@ -143,7 +143,7 @@ def _checked_file(path):
     return attrs, cfg
 
 
-def _only_replacing_bounds(out):
+def only_replacing_bounds(out):
     """``mcfric bounds`` replaces a bounds file of its own, nothing else (an ensemble's
     results file, its ``.partial``, or a file of another kind)."""
     from ..store import StoreError, partial_path, read_attrs
@@ -170,7 +170,8 @@ def order_path(out, E):
     return out.with_name(f"{out.stem}-eo{E}{out.suffix}")
 
 
-def _is_hdf5(path):
+def is_hdf5(path):
+    """Whether ``path`` is an HDF5 file (False where it cannot be read)."""
     import h5py
 
     try:

@@ -43,7 +43,8 @@ def _source_help():
     return "a preset (two-beam, eight-beam, disk-24, disk-72) or a TOML configuration file"
 
 
-def _parser():
+def build_parser():
+    """The ``mcfric`` argument parser with every command's options."""
     from .. import __version__
 
     p = _Parser(prog="mcfric", description="Friction-damped beam arrays: harmonic balance, "

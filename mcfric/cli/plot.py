@@ -7,7 +7,7 @@ import math
 from pathlib import Path
 
 from .errors import EXIT_OK, UsageError
-from .outputs import _checked_file, _no_such_file, _not_replacing_hdf5, _writable_dir
+from .outputs import checked_file, no_such_file, not_replacing_hdf5, writable_dir
 
 
 def cmd_plot(args):
@@ -20,8 +20,8 @@ def cmd_plot(args):
         if partial_path(path).exists():
             raise UsageError(f"{path}: the run is not complete ({partial_path(path).name} "
                              f"holds it; continue it with --resume)")
-        raise UsageError(_no_such_file(path))
-    attrs = _checked_file(path)[0]
+        raise UsageError(no_such_file(path))
+    attrs = checked_file(path)[0]
     if attrs.get("complete") != 1:
         raise UsageError(f"{path}: the run is not complete (continue it with --resume)")
     if args.output is not None and not str(args.output).strip():
@@ -33,8 +33,8 @@ def cmd_plot(args):
         raise UsageError(f"-o: directory {out.parent} does not exist")
     if out.is_dir():
         raise UsageError(f"-o: {out} is a directory")
-    _writable_dir(out)
-    _not_replacing_hdf5(out, "figure")
+    writable_dir(out)
+    not_replacing_hdf5(out, "figure")
     window = None
     if args.f_min is not None or args.f_max is not None:
         from ..store import read

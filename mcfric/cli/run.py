@@ -6,9 +6,9 @@ from __future__ import annotations
 import json
 import sys
 
-from .errors import EXIT_FAIL, EXIT_INTERRUPTED, EXIT_OK, UsageError, _one_line
-from .inputs import _load, _shortfall_note
-from .outputs import _not_replacing_hdf5, _output_path, order_path
+from .errors import EXIT_FAIL, EXIT_INTERRUPTED, EXIT_OK, UsageError, one_line
+from .inputs import load_config, shortfall_note
+from .outputs import not_replacing_hdf5, order_path, output_path
 
 
 def _check_members(path):
@@ -83,8 +83,8 @@ def cmd_run(args):
     if args.resume and args.force:
         # --force won silently and threw a resumable partial away
         raise UsageError("--force: discards FILE.partial, --resume continues it; give one")
-    cfg = _load(args)
-    out = _output_path(args, ".h5", figure=not args.no_figure)
+    cfg = load_config(args)
+    out = output_path(args, ".h5", figure=not args.no_figure)
     orders = cfg.data["excitation"]["engine_orders"]
     if not orders:
         return _run_one(args, cfg, out)
@@ -95,7 +95,7 @@ def cmd_run(args):
     # too: a later order's file of another run was found only after the earlier orders)
     for c, o in runs:
         if not args.no_figure:
-            _not_replacing_hdf5(o.with_suffix(".png"), "figure")
+            not_replacing_hdf5(o.with_suffix(".png"), "figure")
         try:
             # under the order's lock: a writer of it is named, as for one run
             with OutputLock(o, "mcfric run (checking an engine order's files)"):
@@ -133,7 +133,7 @@ def _run_one(args, cfg, out, resume_as=None):
         if args.force or not (out.exists() or partial_path(out).exists()):
             # only where this run computes its bounds: a file resumed or complete keeps
             # the bounds it was made with ([bounds] is no part of a run's identity)
-            _shortfall_note(cfg)
+            shortfall_note(cfg)
         summary = ensemble.run(cfg, out, resume=args.resume, force=args.force,
                                progress=not args.no_progress,
                                space_check=not args.skip_space_check)
@@ -154,7 +154,7 @@ def _run_one(args, cfg, out, resume_as=None):
         # the machine's free memory fell): what was committed stays, to resume
         kept = (f"; the finished chunks are kept: continue with {resume} when memory is "
                 f"free" if partial_path(out).exists() else "")
-        print(f"mcfric: error: {_one_line(e)}{kept}", file=sys.stderr)
+        print(f"mcfric: error: {one_line(e)}{kept}", file=sys.stderr)
         return EXIT_FAIL
     try:
         _report_run(args, cfg, out, summary)

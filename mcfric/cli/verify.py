@@ -7,8 +7,8 @@ import math
 from pathlib import Path
 
 from .errors import EXIT_OK, UsageError
-from .inputs import _check_friction_flag, _load
-from .outputs import _checked_file, _is_hdf5, _output_path
+from .inputs import check_friction_flag, load_config
+from .outputs import checked_file, is_hdf5, output_path
 
 
 def _verify_source(args):
@@ -23,12 +23,12 @@ def _verify_source(args):
     src = args.source
     # by content: run writes any -o name (out.H5, x)
     if src is not None and (src.endswith((".h5", ".h5.partial"))
-                            or (Path(src).is_file() and _is_hdf5(src))):
+                            or (Path(src).is_file() and is_hdf5(src))):
         from ..store import partial_path, read
         if not Path(src).exists() and partial_path(src).exists():
             raise UsageError(f"{src}: no such file; {partial_path(src).name} holds the "
                              f"interrupted run (give that name to verify its members done)")
-        attrs = _checked_file(src)[0]       # a damaged or foreign file: one line, exit 2
+        attrs = checked_file(src)[0]       # a damaged or foreign file: one line, exit 2
         n = int(attrs.get("samples", 0))
         if n == 0:
             # said first: asking for --member would send the user to a second refusal
@@ -54,12 +54,12 @@ def _verify_source(args):
         return spec.model, params, Path(src).stem, spec
     if args.member is not None:
         raise UsageError("--member: only with a results file")
-    spec = _load(args).spec
+    spec = load_config(args).spec
     params = []
     for flag, default in (("mu0", 0.5), ("kc", 6000.0), ("N0", 0.5)):
         v = getattr(args, flag)
         v = default if v is None else v
-        _check_friction_flag(flag, v)
+        check_friction_flag(flag, v)
         params.append(v)
     return spec.model, params, None, spec
 
@@ -220,7 +220,7 @@ def cmd_verify(args):
         raise usage(e) from None
     # the default name of a file's member too goes through the checks (an HDF5 file at
     # mcfric-results/verify-NAME.csv was overwritten)
-    out = _output_path(args, ".csv", prefix="verify-", figure=not args.no_figure)
+    out = output_path(args, ".csv", prefix="verify-", figure=not args.no_figure)
     try:
         # the harmonic balance with the run's tolerance, iterations and (its H) AFT samples
         vs = verify(model, args.f, mu0, kc, N0, harmonics=harmonics, start=args.start,
