@@ -72,7 +72,8 @@ class PeakSettings:
 
 @dataclass
 class Peaks:
-    """Refined peaks of ``n_s`` members, ``count`` per member, largest first.
+    """Refined peaks of ``n_s`` members, ``count`` per member, largest first (which ones:
+    the member's largest, every unrefined one, status 2, then the largest of the rest).
 
     Attributes
     ----------

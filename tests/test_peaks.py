@@ -84,10 +84,28 @@ def test_a_narrow_resonance_on_the_flank_of_a_grid_maximum_is_found(n_freq, inde
         r.peaks.largest() / ref.max(axis=1))
 
 
+def test_climbs_step_across_the_corner_where_a_damper_starts_to_slip():
+    """Seven members of the default run (117, 597, 842, 1107, 1279, 1526, 1679: a
+    review) had a lower grid maximum, refined because it could hide a higher peak, where
+    one damper's slip ratio crosses 1: a corner of the metric, not a resonance. The
+    parabolic steps, fitted across the corner, crept towards it from one side and ran
+    out, and the member was called a lower estimate. With a golden-section step wherever
+    two steps have not halved the bracket, every peak is refined, and the largest is not
+    below a 0.0005 Hz sweep over 15-18 Hz."""
+    spec = config.load("eight-beam").spec
+    d = spec.sampler.draw(np.array([117, 597, 842, 1107, 1279, 1526, 1679]))
+    r = mcfric.solve(spec.model, np.linspace(10.0, 150.0, 1000), d.mu0, d.kc, d.N0,
+                     peaks=PeakSettings(count=2))
+    assert np.all(r.peaks.status == REFINED), r.peaks.status
+    ref = mcfric.solve(spec.model, np.arange(15.0, 18.0, FINE), d.mu0, d.kc, d.N0).metric()
+    assert np.all(r.peaks.largest() >= ref.max(axis=1) * (1 - RTOL)), (
+        r.peaks.largest() / ref.max(axis=1))
+
+
 @pytest.mark.parametrize("F0, seed, member, n_freq", [
     (0.25, 31, 120, 1000), (0.25, 33, 371, 1000), (0.25, 30, 85, 400), (0.25, 31, 120, 400),
     (0.25, 32, 363, 1000), (1.1, 12, 339, 200), (1.1, 12, 339, 250), (1.1, 20, 251, 700),
-    (1.1, 20, 273, 700), (1.1, 13, 146, 200)])
+    (1.1, 20, 273, 700), (1.1, 13, 146, 200), (0.25, 40, 115, 1000)])
 def test_members_of_the_wide_draw_that_were_called_resolved_too_low(F0, seed, member,
                                                                     n_freq):
     """Members of the wide draw (found by a review) whose largest peak was reported
@@ -97,7 +115,9 @@ def test_members_of_the_wide_draw_that_were_called_resolved_too_low(F0, seed, me
     could hide a higher peak are refined too. The others: two resonances closer than the
     flank search's spacing on either side of a grid point, the refinement climbing one
     (0.8 to 5.9 % low); the other side of the refined peak's neighbourhood is searched
-    again."""
+    again. The last: a resonance 0.007 Hz above a grid point inside a bracket, the grid
+    point above the inner samples on both sides of it, was never climbed (1.1 % low);
+    such a grid point is climbed."""
     model = mcfric.eight_beam(F0)
     rng = np.random.default_rng(seed)
     mu0, kc = rng.uniform(0, 1, (400, 7))[member], rng.uniform(0, 15e3, (400, 7))[member]
@@ -125,16 +145,26 @@ def test_an_unrefined_maximum_is_never_dropped_and_no_resonance_is_reported_twic
     mu0, kc = rng.uniform(0, 1, (400, 7))[:200], rng.uniform(0, 15e3, (400, 7))[:200]
     f = np.linspace(10.0, 150.0, 200)
     P = mcfric.solve(model, f, mu0, kc, 0.5, peaks=PeakSettings(count=2)).peaks
-    every = mcfric.solve(model, f, mu0, kc, 0.5, peaks=PeakSettings(count=100)).peaks
-    fm, zeta, _ = model.modal_arrays()
-    rho = 1 / np.sqrt(1 + ((f[1] - f[0]) / np.min(2 * zeta * fm)) ** 2)
-    hidden = [np.any((every.status[i] == 2)
-                     & (every.metric[i] >= rho * np.nanmin(P.metric[i]))) for i in range(200)]
-    assert np.any(hidden)                      # the case is exercised
-    assert not np.any(P.resolved() & np.array(hidden))
     both = (P.status == REFINED).all(axis=1)
     assert np.all(np.abs(P.freq_hz[both, 0] - P.freq_hz[both, 1]) > 0.05)
     assert P.freq_hz[140, 1] > 20.0            # the second peak, not the first again
+    # unrefined maxima: since the climbs step across corners, every refinement of this
+    # draw succeeds; at 45-95 Hz the grid (5 Hz steps, over 64 widths) is too coarse to
+    # search, and a grid maximum there lies below both modes' refined peaks
+    f = np.concatenate([np.linspace(10.0, 40.0, 121), np.linspace(45.0, 95.0, 11),
+                        np.linspace(100.0, 150.0, 201)])
+    P = mcfric.solve(model, f, mu0, kc, 0.5, peaks=PeakSettings(count=2)).peaks
+    every = mcfric.solve(model, f, mu0, kc, 0.5, peaks=PeakSettings(count=100)).peaks
+    fm, zeta, _ = model.modal_arrays()
+    rho = 1 / np.sqrt(1 + ((f[1] - f[0]) / np.min(2 * zeta * fm)) ** 2)
+    # the second largest refined peak: what a grid maximum must be able to exceed
+    second = np.sort(np.where(every.status == REFINED, every.metric, -np.inf), axis=1)[:, -2]
+    hidden = np.array([np.any((every.status[i] == 2) & (every.metric[i] >= rho * second[i])
+                              & (every.metric[i] < second[i])) for i in range(200)])
+    assert np.any(hidden)                      # ranked by grid value, it would be dropped
+    assert not np.any(P.resolved() & hidden)
+    # two or more unrefined maxima: the member's largest, refined, is still reported
+    assert np.all(P.largest() >= every.largest() * (1 - RTOL))
 
 
 def test_linear_limit_peak_equals_an_independent_search():

@@ -9,9 +9,12 @@ sweep on a grid underestimates the member's peak. After the sweep, for every mem
    the ``n_peaks`` largest are refined (2-4 below), and then every other whose grid value
    could belong to a higher peak than the ``n_peaks``-th refined so far (a resonance as
    wide as the narrowest mode, peaking midway between grid points: ``_hidden_fraction``);
-   the ``n_peaks`` largest results are reported, largest first;
+   reported: the largest result, every unrefined maximum (a lower estimate), then the
+   largest of the rest, ``n_peaks`` in all;
 2. each is refined in frequency: parabolic steps on ``1/M^2`` from its grid neighbours
-   (golden-section steps where no parabola fits) for a peak broader than the grid; for a
+   (golden-section steps where no parabola fits, or where two steps have not halved the
+   bracket: a parabola fitted across a corner of ``M``, where a damper starts to slip,
+   creeps towards the top) for a peak broader than the grid; for a
    sharper one, or where that does not converge in a few steps, eight sub-intervals of
    the bracket are solved first and the best one is climbed the same way. ``M`` is a
    maximum over beams, so its top can be a kink where two beams cross: every beam within
@@ -27,7 +30,8 @@ sweep on a grid underestimates the member's peak. After the sweep, for every mem
    beside the one refined. Each grid interval of the bracket and within ``FLANK`` steps
    of it is solved at inner points ``FLANK_DENSITY`` per half-power width of the
    narrowest mode (continued from below), and any inner point above both its neighbours
-   is climbed as above; around the refined peak's own sample (an inner point or a grid
+   is climbed as above, and so is a grid point between two such intervals above the
+   inner points on both sides of it; around the refined peak's own sample (an inner point or a grid
    point), each side is solved ``N_FLANK`` times finer and searched the same way (two
    resonances closer than the spacing show as one bump). The best point found replaces
    the peak where it is higher. A flank
@@ -73,6 +77,8 @@ FOLD_UNCHECKED = -1     # the downward sweep failed to converge somewhere
 FOLD_RTOL = 1e-6
 #: Sub-intervals of the bracket sampled before the golden-section search.
 N_SUB = 8
+#: Rank of an unrefined slot among the reported: above every value, below the largest.
+_GRID_KEY = 1e300
 #: Parabolic (or golden-section) steps at most per peak.
 MAX_STEPS = 40
 #: Steps of the first climb from the grid neighbours alone, before sub-sampling.
@@ -290,6 +296,11 @@ def _climb(best, left, right, start, from_below, P, S, rtol, max_steps, beam):
     pw = S[0]
     power = P[17]
     verify = False
+    # the bracket's width (solved neighbours of the best) before the last two steps: a
+    # parabola fitted across a kink (a damper's stick-slip onset, two beams crossing)
+    # can creep towards the best from one side by a small fraction a step (Brent's
+    # safeguard: where two steps have not halved the bracket, a golden-section step)
+    w_prev1 = w_prev2 = math.inf
     for _ in range(max_steps):
         ib, il, ir = best, np.int64(-1), np.int64(-1)
         for p in range(S[4][0]):
@@ -308,7 +319,10 @@ def _climb(best, left, right, start, from_below, P, S, rtol, max_steps, beam):
         if max(lo_w, hi_w) <= 1e-12 * pw[ib]:
             return best, True
         new1 = new2 = math.nan
-        if il >= 0 and ir >= 0:
+        w_now = lo_w + hi_w
+        creeping = w_now > 0.5 * w_prev2
+        w_prev2, w_prev1 = w_prev1, w_now
+        if il >= 0 and ir >= 0 and not creeping:
             # a parabola in g = 1/M^2, nearly quadratic in omega near a resonance peak
             x0, x1, x2 = pw[il], pw[ib], pw[ir]
             g0 = 1.0 / _val(S, il, beam, power) ** 2
@@ -432,7 +446,9 @@ def _flanks(k_lo, k_hi, i, omega, y, s, status, M, P, S, rtol, x, top, top_y, wi
     ``top[1]``. ``width``: the narrowest mode's half-power width, rad/s. A sample above
     its neighbours (at an interval's end, above its one neighbour inside) whose
     neighbours' span holds the refined peak has each side within the interval searched
-    finer (:func:`_split_half`); any other is climbed (:func:`_raise`).
+    finer (:func:`_split_half`); any other inner sample is climbed (:func:`_raise`), and
+    so is a grid point between two searched intervals that lies above the samples on
+    both sides of it (the range's two end grid points have no sample beyond them).
 
     Returns (found, complete): ``found`` if ``top`` was raised; ``complete`` is False if
     an interval could not be solved, a climb did not converge, or the grid step is more
@@ -443,6 +459,12 @@ def _flanks(k_lo, k_hi, i, omega, y, s, status, M, P, S, rtol, x, top, top_y, wi
     pw, pm = S[0], S[1]
     found = False
     idx = np.empty(FLANK_DENSITY * N_FLANK_MAX + 1, np.int64)
+    # the last inner sample of the interval searched before (omega, M, state, response):
+    # a grid point between two intervals is compared with the samples on both sides
+    keep = np.empty(2)
+    keep_x = np.empty(nd)
+    keep_y = np.empty(top_y.shape[0], np.complex128)
+    have_prev = False
     for g in range(max(k_lo - FLANK, 0), min(k_hi + FLANK, n_f - 1)):
         if status[i, g] < 0 or status[i, g + 1] < 0:
             return found, False                   # a gap beside the peak: not searched
@@ -459,6 +481,23 @@ def _flanks(k_lo, k_hi, i, omega, y, s, status, M, P, S, rtol, x, top, top_y, wi
                 return found, False
         _log_s(s, i, g + 1, nd, x)
         idx[n] = _seed(omega[g + 1], x, y[i, g + 1], M[g + 1], S)
+        if (have_prev and pm[idx[0]] > keep[1] and pm[idx[0]] > pm[idx[1]]
+                and (pm[idx[0]] > top[1] or not keep[0] <= top[0] <= pw[idx[1]])):
+            # grid point g above the samples on both sides of it (the interval below's
+            # last, this one's first), and not the refined peak's: a resonance peaks
+            # beside it (found by a review: 1.1 % low, yet called resolved); climb it
+            jp = _seed(keep[0], keep_x, keep_y, keep[1], S)
+            ok = _raise(idx[0], keep[0], pw[idx[1]], jp, P, S, rtol, top, top_y)
+            if ok < 0:
+                return found, False
+            found = found or ok > 0
+        j = idx[n - 1]
+        keep[0], keep[1] = pw[j], pm[j]
+        for jj in range(nd):
+            keep_x[jj] = S[2][j, jj]
+        for bb in range(keep_y.shape[0]):
+            keep_y[bb] = S[3][j, bb]
+        have_prev = True
         for t in range(0, n + 1):
             v = pm[idx[t]]
             above_l = t == 0 or v > pm[idx[t - 1]]
@@ -750,13 +789,19 @@ def _member(i, omega, modal_f, zeta, u, force, a, b, mu0, N0, kc, tol, max_iter,
         best, ok = _refine(idx, np.bool_(False), P, S, rtol)
         j = best if best >= 0 else dn[gb - k_bot]
         sdw[p], sdm[p] = S[0][j], S[1][j]
-    # the n_peaks largest, largest first, by the larger of the two branches (what
-    # largest() reports); an unrefined slot first whatever its grid value (a lower
-    # estimate: dropping it would call the member resolved)
+    # reported: the largest value first, by the larger of the two branches (what
+    # largest() reports, never below a peak the member solved); then every unrefined
+    # slot whatever its grid value (a lower estimate: dropping it would call the member
+    # resolved); then the rest, largest first
     key = np.empty(n_slot)
+    q_max, v_max = -1, -math.inf
     for q in range(n_slot):
         v = max(sm[q], sdm[q]) if sdm[q] == sdm[q] else sm[q]
-        key[q] = math.inf if sst[q] == PEAK_GRID else (v if v == v else -math.inf)
+        key[q] = _GRID_KEY if sst[q] == PEAK_GRID else (v if v == v else -math.inf)
+        if v > v_max:
+            q_max, v_max = q, v
+    if q_max >= 0:
+        key[q_max] = math.inf
     rank = np.argsort(-key, kind="mergesort")
     for p in range(n_peaks):
         q = rank[p]
