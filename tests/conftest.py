@@ -1,3 +1,9 @@
+import json
+import subprocess
+import sys
+import tempfile
+import time
+
 import numpy as np
 import pytest
 
@@ -5,6 +11,43 @@ import mcfric
 from mcfric.model import TABLE_1, Excitation, Model
 
 from . import naive  # noqa: F401  (tests import it as tests.naive)
+
+# What every xdist worker would otherwise compile for itself, at the same time, on a cold
+# numba cache: the run path of a two-beam and an eight-beam preset (the ensemble with its
+# peaks, and the bounds with their certification). Two processes share the work before
+# the workers start; the workers then load the machine code from the cache.
+_WARM_UP = (
+    [["run", "two-beam", "--samples", "2", "--n-freq", "8", "--no-bounds", "--no-figure"],
+     ["run", "eight-beam", "--samples", "2", "--n-freq", "8", "--no-bounds", "--no-figure"]],
+    [["bounds", "two-beam", "--n-freq", "8", "--no-figure"],
+     ["bounds", "eight-beam", "--n-freq", "8", "--no-figure"]],
+)
+
+
+def pytest_configure(config):
+    """Compile the shared kernels once, in two processes, before the xdist workers start
+    (the whole suite only: about 20 s where the cache is warm)."""
+    if hasattr(config, "workerinput") or not config.pluginmanager.hasplugin("xdist"):
+        return
+    if not config.getoption("numprocesses", None) or config.option.collectonly:
+        return
+    if config.args_source != pytest.Config.ArgsSource.TESTPATHS:
+        return                      # files or tests named: only the whole suite warms up
+    start = time.perf_counter()
+    script = ("import json, subprocess, sys\n"
+              "for i, args in enumerate(json.loads(sys.argv[2])):\n"
+              "    subprocess.run([sys.executable, '-m', 'mcfric', *args, '--no-progress',\n"
+              "                    '-o', f'{sys.argv[1]}{i}.h5'], check=True,\n"
+              "                   stdout=subprocess.DEVNULL)\n")
+    with tempfile.TemporaryDirectory() as d:
+        procs = [subprocess.Popen([sys.executable, "-c", script, d + f"/{n}-",
+                                   json.dumps(chain)])
+                 for n, chain in enumerate(_WARM_UP)]
+        failed = sum(p.wait() != 0 for p in procs)
+    # a failed warm-up costs only time: each test compiles what it needs itself and
+    # reports its own failure
+    print(f"\nkernel caches warmed in {time.perf_counter() - start:.0f} s"
+          + (f" ({failed} warm-up process failed)" if failed else ""), file=sys.stderr)
 
 
 def naive_beams(model):
