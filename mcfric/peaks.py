@@ -73,7 +73,9 @@ class PeakSettings:
 @dataclass
 class Peaks:
     """Refined peaks of ``n_s`` members, ``count`` per member, largest first (which ones:
-    the member's largest, every unrefined one, status 2, then the largest of the rest).
+    the member's largest, the unrefined ones, status 2, then the largest of the rest;
+    with ``count`` 1 an unrefined one takes the place of the largest, so that the member
+    is not called resolved).
 
     Attributes
     ----------

@@ -1,4 +1,6 @@
 import json
+import os
+import signal
 import subprocess
 import sys
 import tempfile
@@ -24,14 +26,11 @@ _WARM_UP = (
 )
 
 
-def pytest_configure(config):
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_setupnodes(config, specs):
     """Compile the shared kernels once, in two processes, before the xdist workers start
     (the whole suite only: about 20 s where the cache is warm)."""
-    if hasattr(config, "workerinput") or not config.pluginmanager.hasplugin("xdist"):
-        return
-    if not config.getoption("numprocesses", None) or config.option.collectonly:
-        return
-    if config.args_source != pytest.Config.ArgsSource.TESTPATHS:
+    if config.option.collectonly or config.args_source != pytest.Config.ArgsSource.TESTPATHS:
         return                      # files or tests named: only the whole suite warms up
     start = time.perf_counter()
     script = ("import json, subprocess, sys\n"
@@ -39,11 +38,19 @@ def pytest_configure(config):
               "    subprocess.run([sys.executable, '-m', 'mcfric', *args, '--no-progress',\n"
               "                    '-o', f'{sys.argv[1]}{i}.h5'], check=True,\n"
               "                   stdout=subprocess.DEVNULL)\n")
+    failed = 0
     with tempfile.TemporaryDirectory() as d:
+        # each chain in its own process group, so that a hung one is stopped whole
         procs = [subprocess.Popen([sys.executable, "-c", script, d + f"/{n}-",
-                                   json.dumps(chain)])
+                                   json.dumps(chain)], start_new_session=True)
                  for n, chain in enumerate(_WARM_UP)]
-        failed = sum(p.wait() != 0 for p in procs)
+        for p in procs:
+            try:
+                failed += p.wait(timeout=max(1.0, start + 1200 - time.perf_counter())) != 0
+            except subprocess.TimeoutExpired:
+                os.killpg(p.pid, signal.SIGKILL)
+                p.wait()
+                failed += 1
     # a failed warm-up costs only time: each test compiles what it needs itself and
     # reports its own failure
     print(f"\nkernel caches warmed in {time.perf_counter() - start:.0f} s"

@@ -165,6 +165,12 @@ def test_an_unrefined_maximum_is_never_dropped_and_no_resonance_is_reported_twic
     assert not np.any(P.resolved() & hidden)
     # two or more unrefined maxima: the member's largest, refined, is still reported
     assert np.all(P.largest() >= every.largest() * (1 - RTOL))
+    # one place: an unrefined maximum that could hide a peak above the largest takes it
+    one = mcfric.solve(model, f, mu0, kc, 0.5, peaks=PeakSettings(count=1)).peaks
+    first = np.max(np.where(every.status == REFINED, every.metric, -np.inf), axis=1)
+    hidden = np.any((every.status == 2) & (every.metric >= rho * first[:, None]), axis=1)
+    assert np.any(hidden)
+    assert not np.any(one.resolved() & hidden)
 
 
 def test_linear_limit_peak_equals_an_independent_search():

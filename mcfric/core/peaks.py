@@ -9,8 +9,9 @@ sweep on a grid underestimates the member's peak. After the sweep, for every mem
    the ``n_peaks`` largest are refined (2-4 below), and then every other whose grid value
    could belong to a higher peak than the ``n_peaks``-th refined so far (a resonance as
    wide as the narrowest mode, peaking midway between grid points: ``_hidden_fraction``);
-   reported: the largest result, every unrefined maximum (a lower estimate), then the
-   largest of the rest, ``n_peaks`` in all;
+   reported, ``n_peaks`` in all: the largest result, the unrefined maxima (lower
+   estimates; with one place, one of them instead of the largest), then the largest of
+   the rest;
 2. each is refined in frequency: parabolic steps on ``1/M^2`` from its grid neighbours
    (golden-section steps where no parabola fits, or where two steps have not halved the
    bracket: a parabola fitted across a corner of ``M``, where a damper starts to slip,
@@ -285,7 +286,8 @@ def _val(S, p, beam, power):
 @jit
 def _climb(best, left, right, start, from_below, P, S, rtol, max_steps, beam):
     """Parabolic steps (on ``1/v^2``, nearly quadratic near a resonance; golden-section
-    steps where no parabola fits) from the best point ``best`` inside ``[left, right]``,
+    steps where no parabola fits, or where two steps have not halved the bracket, as
+    across a corner of ``v``) from the best point ``best`` inside ``[left, right]``,
     on ``v`` = the metric (``beam`` -1) or one beam's amplitude ``omega^p |y_b|``.
 
     A vertex that becomes the best point is checked by two points where the parabola
@@ -625,8 +627,10 @@ def _member(i, omega, modal_f, zeta, u, force, a, b, mu0, N0, kc, tol, max_iter,
          np.empty((4, n_beams), np.complex128), np.empty((nd, nd), np.complex128),
          np.empty(nd, np.complex128), beams, power, np.empty(nd),
          np.empty(n_beams, np.complex128), law, cn.workspace(nd), lanes)
-    # the refinement's points, or one flank interval's, its finer sides and their climbs
-    cap = 2 * N_SUB + 6 * MAX_STEPS + FLANK_DENSITY * N_FLANK_MAX + N_FLANK + 2 * window + 8
+    # the refinement's points, or one flank interval's, its finer sides and their climbs,
+    # and the climb of the grid point below it (the previous interval's last point again)
+    cap = (2 * N_SUB + 8 * MAX_STEPS + FLANK_DENSITY * N_FLANK_MAX + N_FLANK + 2 * window
+           + 9)
     width = math.inf                      # the narrowest mode's half-power width, rad/s
     for bb in range(modal_f.shape[1]):
         for m in range(modal_f.shape[2]):
@@ -789,10 +793,10 @@ def _member(i, omega, modal_f, zeta, u, force, a, b, mu0, N0, kc, tol, max_iter,
         best, ok = _refine(idx, np.bool_(False), P, S, rtol)
         j = best if best >= 0 else dn[gb - k_bot]
         sdw[p], sdm[p] = S[0][j], S[1][j]
-    # reported: the largest value first, by the larger of the two branches (what
-    # largest() reports, never below a peak the member solved); then every unrefined
-    # slot whatever its grid value (a lower estimate: dropping it would call the member
-    # resolved); then the rest, largest first
+    # reported: the largest value, by the larger of the two branches (what largest()
+    # reports, never below a peak the member solved); then the unrefined slots whatever
+    # their grid values (lower estimates: dropping all would call the member resolved);
+    # then the rest, largest first. With one place, an unrefined slot takes it.
     key = np.empty(n_slot)
     q_max, v_max = -1, -math.inf
     for q in range(n_slot):
@@ -800,7 +804,7 @@ def _member(i, omega, modal_f, zeta, u, force, a, b, mu0, N0, kc, tol, max_iter,
         key[q] = _GRID_KEY if sst[q] == PEAK_GRID else (v if v == v else -math.inf)
         if v > v_max:
             q_max, v_max = q, v
-    if q_max >= 0:
+    if q_max >= 0 and n_peaks > 1:
         key[q_max] = math.inf
     rank = np.argsort(-key, kind="mergesort")
     for p in range(n_peaks):
