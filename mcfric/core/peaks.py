@@ -6,9 +6,10 @@ sweep on a grid underestimates the member's peak. After the sweep, for every mem
 
 1. the local maxima of the metric ``M = max_b omega^p |y_b|`` over the grid are ranked
    (the metric, not each beam: ``M`` is what the bounds and the statistics are about);
-   the ``n_peaks`` largest are refined (2-4 below), and then every other whose grid value
-   could belong to a higher peak than the ``n_peaks``-th refined so far (a resonance as
-   wide as the narrowest mode, peaking midway between grid points: ``_hidden_fraction``);
+   the ``n_peaks`` largest are refined (2, 3 and 5 below), and then every other whose
+   grid value could belong to a higher peak than the ``n_peaks``-th refined so far (a
+   resonance as wide as the narrowest mode, peaking midway between grid points:
+   ``_hidden_fraction``);
    reported, ``n_peaks`` in all: the largest result, the unrefined maxima (lower
    estimates; with one place, one of them instead of the largest), then the largest of
    the rest;
@@ -38,7 +39,16 @@ sweep on a grid underestimates the member's peak. After the sweep, for every mem
    the peak where it is higher. A flank
    that could not be solved or climbed, or a grid step of more than ``N_FLANK_MAX``
    widths, leaves the peak a lower estimate (``PEAK_GRID``);
-4. the sweep is repeated downward over ``window`` grid points on each side of the peak,
+4. the gap search: a resonance more than ``FLANK`` intervals from every kept bracket,
+   hidden between grid points on a slope, can still peak above the member's largest
+   value. Every other grid interval whose larger end could belong to a peak above that
+   value (the width rule of 1) is searched as the flanks are, in stretches of
+   consecutive intervals, each with one searched interval on either side; a resonance
+   found above the largest value becomes a refined peak of its own (with the fold check
+   of 5), and a stretch that could not be searched a lower estimate. A member that is
+   a lower estimate already is not searched (past the largest value, a lower peak
+   hidden so is not looked for);
+5. the sweep is repeated downward over ``window`` grid points on each side of the peak,
    from the upward solution above it. Where the downward branch differs from the upward
    one (relative ``FOLD_RTOL`` in ``M``), the member has more than one steady state
    there: the fold is flagged and the downward branch's peak is refined the same way,
@@ -441,11 +451,12 @@ def _beam_peaks(best, lo, hi, start, from_below, P, S, rtol):
 
 
 @jit
-def _flanks(k_lo, k_hi, i, omega, y, s, status, M, P, S, rtol, x, top, top_y, width):
-    """The best point of the resonances hidden between grid points in the bracket
-    ``k_lo .. k_hi`` and beside it (``FLANK`` intervals on each side; see the module
-    docstring), written to ``top`` (omega, M) and ``top_y`` (responses) where it is above
-    ``top[1]``. ``width``: the narrowest mode's half-power width, rad/s. A sample above
+def _flanks(g_from, g_to, i, omega, y, s, status, M, P, S, rtol, x, top, top_y, width):
+    """The best point of the resonances hidden between grid points in the grid intervals
+    ``g_from .. g_to - 1`` (a bracket and ``FLANK`` intervals on each side of it, or a
+    stretch of the gap search; see the module docstring), written to ``top`` (omega, M)
+    and ``top_y`` (responses) where it is above ``top[1]`` (``top[0]`` -1: no refined
+    peak). ``width``: the narrowest mode's half-power width, rad/s. A sample above
     its neighbours (at an interval's end, above its one neighbour inside) whose
     neighbours' span holds the refined peak has each side within the interval searched
     finer (:func:`_split_half`); any other inner sample is climbed (:func:`_raise`), and
@@ -456,7 +467,6 @@ def _flanks(k_lo, k_hi, i, omega, y, s, status, M, P, S, rtol, x, top, top_y, wi
     an interval could not be solved, a climb did not converge, or the grid step is more
     than ``N_FLANK_MAX`` widths.
     """
-    n_f = omega.shape[0]
     nd = x.shape[0]
     pw, pm = S[0], S[1]
     found = False
@@ -467,7 +477,7 @@ def _flanks(k_lo, k_hi, i, omega, y, s, status, M, P, S, rtol, x, top, top_y, wi
     keep_x = np.empty(nd)
     keep_y = np.empty(top_y.shape[0], np.complex128)
     have_prev = False
-    for g in range(max(k_lo - FLANK, 0), min(k_hi + FLANK, n_f - 1)):
+    for g in range(g_from, g_to):
         if status[i, g] < 0 or status[i, g + 1] < 0:
             return found, False                   # a gap beside the peak: not searched
         step = omega[g + 1] - omega[g]
@@ -484,7 +494,7 @@ def _flanks(k_lo, k_hi, i, omega, y, s, status, M, P, S, rtol, x, top, top_y, wi
         _log_s(s, i, g + 1, nd, x)
         idx[n] = _seed(omega[g + 1], x, y[i, g + 1], M[g + 1], S)
         if (have_prev and pm[idx[0]] > keep[1] and pm[idx[0]] > pm[idx[1]]
-                and (pm[idx[0]] > top[1] or not keep[0] <= top[0] <= pw[idx[1]])):
+                and _another(pm[idx[0]], keep[0], pw[idx[1]], top)):
             # grid point g above the samples on both sides of it (the interval below's
             # last, this one's first), and not the refined peak's: a resonance peaks
             # beside it (found by a review: 1.1 % low, yet called resolved); climb it
@@ -510,7 +520,7 @@ def _flanks(k_lo, k_hi, i, omega, y, s, status, M, P, S, rtol, x, top, top_y, wi
             # point is in the next interval: one width there, at most)
             lo = pw[idx[t - 1]] if t > 0 else pw[idx[0]] - width
             hi = pw[idx[t + 1]] if t < n else pw[idx[n]] + width
-            if 0 < t < n and (v > top[1] or not lo <= top[0] <= hi):
+            if 0 < t < n and _another(v, lo, hi, top):
                 # an inner local maximum that is not the refined peak's (a sub-point
                 # above the refined value is another resonance beside it)
                 ok = _raise(idx[t], pw[idx[t - 1]], pw[idx[t + 1]], idx[0], P, S, rtol,
@@ -529,6 +539,14 @@ def _flanks(k_lo, k_hi, i, omega, y, s, status, M, P, S, rtol, x, top, top_y, wi
                         return found, False
                     found = found or ok > 0
     return found, True
+
+
+@jit
+def _another(v, lo, hi, top):
+    """Whether a sample of value ``v`` above its neighbours at ``lo`` and ``hi`` (rad/s)
+    belongs to another resonance than the refined peak's ``top`` (omega, M): it is
+    above the refined value, or the refined peak is not between its neighbours."""
+    return v > top[1] or not lo <= top[0] <= hi
 
 
 @jit
@@ -566,8 +584,7 @@ def _split_half(a, b, P, S, rtol, top, top_y):
     raised = 0
     for t in range(1, N_FLANK):
         if (pm[sub[t]] > pm[sub[t - 1]] and pm[sub[t]] > pm[sub[t + 1]]
-                and (pm[sub[t]] > top[1]
-                     or not pw[sub[t - 1]] <= top[0] <= pw[sub[t + 1]])):
+                and _another(pm[sub[t]], pw[sub[t - 1]], pw[sub[t + 1]], top)):
             ok = _raise(sub[t], pw[sub[t - 1]], pw[sub[t + 1]], a, P, S, rtol, top, top_y)
             if ok < 0:
                 return -1
@@ -600,6 +617,70 @@ def _log_s(s, i, k, nd, x):
     for j in range(nd):
         v = s[i, k, j]
         x[j] = math.log(v) if v > 0.0 and math.isfinite(v) else 0.0
+
+
+@jit
+def _fold(p, k, i, omega, y, s, status, M, P, S, rtol, window, x, sfo, sdw, sdm):
+    """The fold check of slot ``p`` at grid point ``k``: the ``window`` grid points on
+    each side swept downward, from the upward state above them; where the downward
+    branch differs from the upward one (``FOLD_RTOL``), its own peak refined, continued
+    from above, into ``sdw[p]``, ``sdm[p]`` (rad/s, metric). Sets ``sfo[p]``."""
+    n_f = omega.shape[0]
+    nd = x.shape[0]
+    k_top = min(k + window, n_f - 1)
+    k_bot = max(k - window, 0)
+    if k_top == k or status[i, k_top] < 0:
+        return                            # nothing above the peak to start from
+    S[4][0] = 0
+    _log_s(s, i, k_top, nd, x)
+    first = _seed(omega[k_top], x, y[i, k_top], M[k_top], S)
+    prev = first
+    differs = False
+    complete = True
+    dn = np.full(k_top - k_bot + 1, -1, np.int64)
+    dn[k_top - k_bot] = first
+    prev2 = -1
+    for g in range(k_top - 1, k_bot - 1, -1):
+        # the start: extrapolated linearly from the last two points of the way down
+        if prev2 >= 0:
+            t = (omega[g] - S[0][prev]) / (S[0][prev] - S[0][prev2])
+            for j in range(nd):
+                x[j] = S[2][prev, j] + t * (S[2][prev, j] - S[2][prev2, j])
+        else:
+            for j in range(nd):
+                x[j] = S[2][prev, j]
+        n = _add_point(omega[g], x, P, S)
+        if n < 0:
+            complete = False
+            break
+        dn[g - k_bot] = n
+        prev2, prev = prev, n
+        if status[i, g] < 0:
+            complete = False              # no upward point to compare with here
+        elif abs(S[1][n] - M[g]) > FOLD_RTOL * max(S[1][n], M[g]):
+            differs = True
+    if not differs:
+        sfo[p] = FOLD_NONE if complete else FOLD_UNCHECKED
+        return
+    sfo[p] = FOLD_FOUND
+    # the downward branch's own peak, refined continued from above
+    gb = k_top
+    for g in range(k_bot, k_top + 1):
+        if dn[g - k_bot] >= 0 and S[1][dn[g - k_bot]] > S[1][dn[gb - k_bot]]:
+            gb = g
+    g_lo = gb - 1 if gb > k_bot and dn[gb - 1 - k_bot] >= 0 else gb
+    g_hi = gb + 1 if gb < k_top else gb
+    if g_lo == g_hi:
+        sdw[p], sdm[p] = S[0][dn[gb - k_bot]], S[1][dn[gb - k_bot]]
+        return
+    idx = np.full(N_SUB + 1, -1, np.int64)
+    idx[0] = dn[g_lo - k_bot]
+    idx[N_SUB] = dn[g_hi - k_bot]
+    if g_lo < gb < g_hi:
+        idx[N_SUB // 2] = dn[gb - k_bot]
+    best, ok = _refine(idx, np.bool_(False), P, S, rtol)
+    j = best if best >= 0 else dn[gb - k_bot]
+    sdw[p], sdm[p] = S[0][j], S[1][j]
 
 
 @jit
@@ -666,6 +747,8 @@ def _member(i, omega, modal_f, zeta, u, force, a, b, mu0, N0, kc, tol, max_iter,
     sst = np.full(n_slot, PEAK_NONE, np.int64)
     sfo = np.full(n_slot, FOLD_UNCHECKED, np.int64)
     sy = np.full((n_slot, n_beams), complex(math.nan, math.nan))
+    # grid intervals searched beside a kept maximum (for the gap search below)
+    covered = np.zeros(max(n_f - 1, 0), np.bool_)
     n_done = 0
     for c in range(n_c):
         k = cand[order[c]]
@@ -711,8 +794,11 @@ def _member(i, omega, modal_f, zeta, u, force, a, b, mu0, N0, kc, tol, max_iter,
             sw[p], sm[p] = S[0][best], S[1][best]
             sy[p, :] = S[3][best]
             top[0], top[1] = sw[p], sm[p]
-            found, complete = _flanks(k_lo, k_hi, i, omega, y, s, status, M, P, S, rtol,
+            g_from, g_to = max(k_lo - FLANK, 0), min(k_hi + FLANK, n_f - 1)
+            found, complete = _flanks(g_from, g_to, i, omega, y, s, status, M, P, S, rtol,
                                       x, top, top_y, width)
+            if complete:
+                covered[g_from:g_to] = True
             for q in range(p):
                 # a resonance an earlier peak reported already (their flanks overlap)
                 found = found and not abs(top[0] - sw[q]) < width
@@ -738,61 +824,85 @@ def _member(i, omega, modal_f, zeta, u, force, a, b, mu0, N0, kc, tol, max_iter,
                 sst[p] = PEAK_NONE
                 sw[p] = sm[p] = sdw[p] = sdm[p] = math.nan
                 continue
-        # the same stretch swept downward, from the upward state above the peak
-        k_top = min(k + window, n_f - 1)
-        k_bot = max(k - window, 0)
-        if k_top == k or status[i, k_top] < 0:
-            continue                          # nothing above the peak to start from
-        S[4][0] = 0
-        _log_s(s, i, k_top, nd, x)
-        first = _seed(omega[k_top], x, y[i, k_top], M[k_top], S)
-        prev = first
-        differs = False
-        complete = True
-        dn = np.full(k_top - k_bot + 1, -1, np.int64)
-        dn[k_top - k_bot] = first
-        prev2 = -1
-        for g in range(k_top - 1, k_bot - 1, -1):
-            # the start: extrapolated linearly from the last two points of the way down
-            if prev2 >= 0:
-                t = (omega[g] - S[0][prev]) / (S[0][prev] - S[0][prev2])
-                for j in range(nd):
-                    x[j] = S[2][prev, j] + t * (S[2][prev, j] - S[2][prev2, j])
-            else:
-                for j in range(nd):
-                    x[j] = S[2][prev, j]
-            n = _add_point(omega[g], x, P, S)
-            if n < 0:
-                complete = False
-                break
-            dn[g - k_bot] = n
-            prev2, prev = prev, n
-            if status[i, g] < 0:
-                complete = False              # no upward point to compare with here
-            elif abs(S[1][n] - M[g]) > FOLD_RTOL * max(S[1][n], M[g]):
-                differs = True
-        if not differs:
-            sfo[p] = FOLD_NONE if complete else FOLD_UNCHECKED
+        _fold(p, k, i, omega, y, s, status, M, P, S, rtol, window, x, sfo, sdw, sdm)
+    # the gap search: a resonance more than FLANK intervals from every kept bracket,
+    # hidden between grid points on a slope, can peak above the largest value found (a
+    # review: 5.7 % low, called resolved). Every other grid interval whose larger end
+    # could belong to such a peak (the width rule) is searched as the flanks are, in
+    # stretches of consecutive intervals; a member already a lower estimate is left so
+    flagged = False
+    v_max = -math.inf
+    for q in range(n_done):
+        flagged = flagged or sst[q] == PEAK_GRID
+        v = max(sm[q], sdm[q]) if sdm[q] == sdm[q] else sm[q]
+        if v > v_max:
+            v_max = v
+    need = np.zeros(max(n_f - 1, 0), np.bool_)
+    n_run = 0
+    for g in range(n_f - 1):
+        if flagged or not v_max > 0.0 or covered[g]:
             continue
-        sfo[p] = FOLD_FOUND
-        # the downward branch's own peak, refined continued from above
-        gb = k_top
-        for g in range(k_bot, k_top + 1):
-            if dn[g - k_bot] >= 0 and S[1][dn[g - k_bot]] > S[1][dn[gb - k_bot]]:
-                gb = g
-        g_lo = gb - 1 if gb > k_bot and dn[gb - 1 - k_bot] >= 0 else gb
-        g_hi = gb + 1 if gb < k_top else gb
-        if g_lo == g_hi:
-            sdw[p], sdm[p] = S[0][dn[gb - k_bot]], S[1][dn[gb - k_bot]]
+        m_lo = M[g] if M[g] == M[g] else M[g + 1]
+        m_hi = M[g + 1] if M[g + 1] == M[g + 1] else M[g]
+        need[g] = max(m_lo, m_hi) >= v_max * _hidden_fraction(omega[g + 1] - omega[g],
+                                                                width)
+        if need[g] and (g == 0 or not need[g - 1]):
+            n_run += 1
+    if n_run > 0:
+        # one slot more for each stretch at most
+        sw = np.concatenate((sw, np.full(n_run, math.nan)))
+        sm = np.concatenate((sm, np.full(n_run, math.nan)))
+        sdw = np.concatenate((sdw, np.full(n_run, math.nan)))
+        sdm = np.concatenate((sdm, np.full(n_run, math.nan)))
+        sst = np.concatenate((sst, np.full(n_run, PEAK_NONE, np.int64)))
+        sfo = np.concatenate((sfo, np.full(n_run, FOLD_UNCHECKED, np.int64)))
+        sy = np.concatenate((sy, np.full((n_run, n_beams), complex(math.nan, math.nan))))
+        n_slot += n_run
+    g = 0
+    while g < n_f - 1:
+        if not need[g]:
+            g += 1
             continue
-        idx = np.full(N_SUB + 1, -1, np.int64)
-        idx[0] = dn[g_lo - k_bot]
-        idx[N_SUB] = dn[g_hi - k_bot]
-        if g_lo < gb < g_hi:
-            idx[N_SUB // 2] = dn[gb - k_bot]
-        best, ok = _refine(idx, np.bool_(False), P, S, rtol)
-        j = best if best >= 0 else dn[gb - k_bot]
-        sdw[p], sdm[p] = S[0][j], S[1][j]
+        g_end = g
+        while g_end < n_f - 1 and need[g_end]:
+            g_end += 1
+        # and one searched interval on each side: the grid point between is then
+        # compared with the samples on both sides of it
+        g_from = g - 1 if g > 0 and covered[g - 1] else g
+        g_to = g_end + 1 if g_end < n_f - 1 and covered[g_end] else g_end
+        top[0], top[1] = -1.0, v_max
+        found, complete = _flanks(g_from, g_to, i, omega, y, s, status, M, P, S, rtol,
+                                  x, top, top_y, width)
+        p = n_done
+        if not complete:
+            # not searched: the stretch's largest grid value, a lower estimate
+            k = -1
+            for kk in range(g, g_end + 1):
+                if M[kk] == M[kk] and (k < 0 or M[kk] > M[k]):
+                    k = kk
+            n_done += 1
+            sst[p] = PEAK_GRID
+            sw[p], sm[p] = omega[k], M[k]
+            sdw[p], sdm[p] = sw[p], sm[p]
+            sy[p, :] = y[i, k, :]
+            break
+        dup = False
+        for q in range(n_done):
+            # a kept resonance climbed again from the interval searched twice
+            dup = dup or abs(top[0] - sw[q]) < width
+        if found and not dup:
+            n_done += 1
+            sst[p] = PEAK_REFINED
+            sw[p], sm[p] = top[0], top[1]
+            sdw[p], sdm[p] = sw[p], sm[p]
+            sy[p, :] = top_y
+            k = g_from
+            for kk in range(g_from, g_to + 1):
+                if abs(omega[kk] - top[0]) < abs(omega[k] - top[0]):
+                    k = kk
+            _fold(p, k, i, omega, y, s, status, M, P, S, rtol, window, x, sfo, sdw, sdm)
+            v_max = max(v_max, sm[p], sdm[p]) if sdm[p] == sdm[p] else max(v_max, sm[p])
+        g = g_end
     # reported: the largest value, by the larger of the two branches (what largest()
     # reports, never below a peak the member solved); then the unrefined slots whatever
     # their grid values (lower estimates: dropping all would call the member resolved);
