@@ -473,15 +473,17 @@ def bound_peak_line(value, hz, refined, unit, at_end=0, coarse_step=0.0):
 def maximize(fun, lo, hi, m_lo, m_hi, rtol, n_sub=_kernel.N_SUB, max_steps=_kernel.MAX_STEPS):
     """Largest value of a peaked function of one variable on ``[lo, hi]``, refined.
 
-    The same search as the kernel's (:mod:`mcfric.core.peaks`) for functions evaluated
-    in Python (the response bounds): ``n_sub`` sub-intervals, then parabolic steps on
-    ``1/m^2`` until a prediction has come true within ``rtol / 4`` and the next one
-    promises less. ``fun(x)`` returns ``(m, extra)``; NaN ``m`` counts as a failure.
+    A search like the kernel's (:mod:`mcfric.core.peaks`) for functions evaluated in
+    Python (the response bounds): ``n_sub`` sub-intervals, then parabolic steps on
+    ``1/m^2`` (golden-section steps where no parabola fits) until a prediction has come
+    true within ``rtol / 4`` and the next one promises less. ``fun(x)`` returns ``(m,
+    extra)``; NaN ``m`` counts as a failure: the search stops, unconverged.
 
     Returns
     -------
     (x, m, extra, complete)
-        The best point evaluated and whether the search converged.
+        The best point evaluated and whether the search converged (False after any
+        failed evaluation: the peak may lie where it failed).
     """
     pts = {lo: (m_lo, None), hi: (m_hi, None)}
 
@@ -490,13 +492,15 @@ def maximize(fun, lo, hi, m_lo, m_hi, rtol, n_sub=_kernel.N_SUB, max_steps=_kern
         pts[x] = (m, extra)
         return m
 
+    failed = False
     for t in range(1, n_sub):
         if not np.isfinite(add(lo + (hi - lo) * t / n_sub)):
+            failed = True
             break
     last_pred = np.nan
     last = None
     complete = False
-    for _ in range(max_steps):
+    for _ in range(0 if failed else max_steps):
         xs = np.array(sorted(x for x, (m, _) in pts.items() if np.isfinite(m)))
         ms = np.array([pts[x][0] for x in xs])
         ib = int(np.argmax(ms))
