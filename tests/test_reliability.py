@@ -112,13 +112,23 @@ def test_no_space_is_refused_before_any_work(tmp_path, capsys, monkeypatch):
 
     out = tmp_path / "r.h5"
     real = shutil.disk_usage
+    # above the floor every results file needs (writer.MIN_FREE), below this run's size
     monkeypatch.setattr(shutil, "disk_usage",
-                        lambda p: real(p)._replace(free=1 << 10))
-    assert cli.main(["run", *SMALL, "-o", str(out)]) == 2
+                        lambda p: real(p)._replace(free=writer.MIN_FREE + (40 << 10)))
+    argv = ["run", *SMALL, "--samples", "300", "-o", str(out)]
+    assert cli.main(argv) == 2
     err = capsys.readouterr().err
     assert "needs" in err and "free" in err and "--skip-space-check" in err
     assert not list(tmp_path.iterdir())
-    assert cli.main(["run", *SMALL, "-o", str(out), "--skip-space-check"]) == 0
+    assert cli.main([*argv, "--skip-space-check"]) == 0
+    # below the floor even --skip-space-check stops (HDF5 out of space at creation
+    # crashed the process): one line, nothing left
+    out.unlink()
+    monkeypatch.setattr(shutil, "disk_usage", lambda p: real(p)._replace(free=8 << 10))
+    assert cli.main([*argv, "--skip-space-check"]) == 1
+    err = capsys.readouterr().err.strip()
+    assert "no space for the results file" in err and len(err.splitlines()) == 1, err
+    assert not list(tmp_path.iterdir())
 
 
 def test_the_size_estimate_is_the_file_size(tmp_path):
@@ -352,6 +362,69 @@ def test_bounds_replaces_its_own_bounds_file(tmp_path, capsys):
         assert np.all(np.isfinite(h["bounds/upper"][...]))
 
 
+def test_bounds_without_room_for_its_file_is_one_line_and_leaves_nothing(
+        tmp_path, capsys, monkeypatch):
+    """HDF5 that runs out of space while it closes a file can crash the process (a
+    review: exit 139 and a .partial that blocked the name): the room is checked first."""
+    import collections
+    import shutil
+
+    usage = collections.namedtuple("usage", "total used free")
+    monkeypatch.setattr(shutil, "disk_usage", lambda p: usage(10**9, 10**9 - 5000, 5000))
+    out = tmp_path / "b.h5"
+    rc = cli.main(["bounds", "two-beam", "--n-freq", "10", "-o", str(out), "--no-figure"])
+    err = capsys.readouterr().err.strip()
+    assert rc == 1 and "no space for the file" in err and len(err.splitlines()) == 1, err
+    assert not list(tmp_path.iterdir())
+
+
+def test_a_run_stopped_as_it_renames_its_complete_file_is_finished_by_resume(
+        tmp_path, capsys, monkeypatch):
+    """Stopped between marking its .partial complete and the rename (a review), a run
+    leaves a .partial that `info` calls complete but not renamed, and `--resume`
+    renames it: a complete file, nothing recomputed."""
+    out = tmp_path / "r.h5"
+    argv = ["run", *SMALL, "--no-bounds", "-o", str(out)]
+    real = os.replace
+
+    def stopped(a, b):
+        if str(a).endswith(".partial"):
+            raise KeyboardInterrupt
+        return real(a, b)
+
+    monkeypatch.setattr(os, "replace", stopped)
+    assert cli.main(argv) == 130
+    monkeypatch.undo()
+    part = tmp_path / "r.h5.partial"
+    assert part.exists() and not out.exists()
+    capsys.readouterr()
+    assert cli.main(["info", str(part)]) == 0
+    assert "complete, but not renamed" in capsys.readouterr().out
+    assert cli.main([*argv, "--resume"]) == 0
+    assert out.exists() and not part.exists()
+    assert store.read_attrs(out)["complete"] == 1
+    assert store.read_attrs(out)["samples"] == 12
+
+
+def test_a_pipe_given_as_a_results_file_is_refused_not_waited_on(tmp_path):
+    """A named pipe without a writer: HDF5 would wait on it for ever; a device without
+    end as a configuration filled the memory (a review)."""
+    fifo = tmp_path / "p.h5"
+    os.mkfifo(fifo)
+    for argv, words in ((["info", str(fifo)], "not a regular file"),
+                        (["plot", str(fifo)], "not a regular file"),
+                        (["config", str(fifo)], "not a regular file"),
+                        (["verify", str(fifo), "--f", "50", "--member", "0"],
+                         "not a regular file"),
+                        (["run", "/dev/zero"], "more than 16 MiB")):
+        r = subprocess.run([sys.executable, "-m", "mcfric", *argv],
+                           capture_output=True, text=True, timeout=120, cwd=tmp_path)
+        err = r.stderr.strip()
+        assert r.returncode == 2 and words in err, (argv, err)
+        assert len(err.splitlines()) == 1, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["p.h5"]
+
+
 # -- bad input: one line, the documented exit code, nothing written --------------------
 
 def _edit(text, old, new):
@@ -419,6 +492,7 @@ def _replace(name, fn):
 
 DAMAGED = [
     # (edit of a complete results file, words of the one-line error)
+    (lambda h: h.__delitem__("beam"), "a damaged or edited results file"),
     (lambda h: h.__delitem__("metric"), "dataset metric is missing"),
     (lambda h: h.__delitem__("converged"), "dataset converged is missing"),
     (_replace("metric", lambda d: d[:, :5]), "dataset metric"),

@@ -76,7 +76,10 @@ def cmd_info(args):
     nd = m["n_beams"] - (1 if m["topology"] == "linear" else 0)
     final = str(path).removesuffix(".partial")
     writer = None if a.get("complete") == 1 else holder(final)
-    state = ("complete" if a.get("complete") == 1 else
+    state = (f"complete, but not renamed to {final}: the run was stopped as it finished; "
+             f"the command that started it with --resume renames it"
+             if a.get("complete") == 1 and str(path).endswith(".partial") else
+             "complete" if a.get("complete") == 1 else
              f"INCOMPLETE: {done} of {n} samples done; being written now by {writer}"
              if writer else
              f"INCOMPLETE: {done} of {n} samples done; continue it with the command "

@@ -44,6 +44,10 @@ def set_key(tree, dotted, value):
     tree[last] = value
 
 
+#: Largest configuration file read (a modal table inline is a few kB).
+MAX_TOML_BYTES = 16 * 2**20
+
+
 def read_toml(path):
     """Parse a TOML file; problems become a one-line :class:`ConfigError` naming the file."""
     p = Path(path)
@@ -51,8 +55,17 @@ def read_toml(path):
         raise InputError('""', f"expected a preset ({choices(PRESETS)}) or a TOML file")
     if p.is_dir():
         raise InputError(str(path), "a directory, not a TOML file")
+    if p.suffix.lower() in (".h5", ".hdf5", ".partial") and p.exists() and not p.is_file():
+        # a results file's name on a pipe without a writer: reading it would never end
+        raise InputError(str(path), "not a regular file (a pipe or a device), not a "
+                         "results file")
     try:
-        data = p.read_bytes()
+        with open(p, "rb") as fh:
+            # a pipe (`<(...)`) is read; a device without end (/dev/zero) is not
+            data = fh.read(MAX_TOML_BYTES + 1)
+        if len(data) > MAX_TOML_BYTES:
+            raise InputError(str(path), f"more than {MAX_TOML_BYTES // 2**20} MiB, not a "
+                             f"TOML configuration")
         if data.startswith(b"\x89HDF"):
             raise InputError(str(path), "an HDF5 file (results?), not a TOML configuration")
         if p.suffix.lower() in (".h5", ".hdf5", ".partial") and not data.strip():

@@ -3,11 +3,13 @@ coordinates and groups alone, written atomically."""
 
 from __future__ import annotations
 
+import shutil
 from pathlib import Path
 
 import h5py
 import numpy as np
 
+from ..memory import human
 from .files import LAYOUT_VERSION, StoreError, fsync_path, partial_path
 from .reader import read_attrs
 
@@ -83,7 +85,20 @@ def write_file(path, coords, groups, attrs):
     """
     path = Path(path)
     part = partial_path(path)
-    with h5py.File(part, "w") as h5:
+    # room first: HDF5 that runs out of space while closing a file can crash the process
+    # (seen on a full disk), past any cleanup
+    size = _FILE_BYTES + sum(len(str(v)) for v in attrs.values())
+    size += sum(np.asarray(v).nbytes + _DATASET_BYTES for v, _ in coords.values())
+    for variables, gattrs in groups.values():
+        size += sum(len(str(v)) for v in (gattrs or {}).values())
+        size += sum(np.asarray(a).nbytes + _DATASET_BYTES for _, a, _ in variables.values())
+    free = shutil.disk_usage(path.resolve().parent).free
+    if free < size:
+        raise StoreError(f"{path}: no space for the file ({human(size)} needed, "
+                         f"{human(free)} free)")
+    h5 = None
+    try:
+        h5 = h5py.File(part, "w")
         for dim, (values, dattrs) in coords.items():
             d = h5.create_dataset(dim, data=np.asarray(values), track_times=False)
             d.make_scale(dim)
@@ -92,7 +107,27 @@ def write_file(path, coords, groups, attrs):
             write_group(h5, name, variables, gattrs)
         h5.attrs.update(attrs)
         h5.attrs.update({"layout_version": np.int64(LAYOUT_VERSION), "complete": np.int8(1)})
-    fsync_path(part)
-    part.replace(path)
+        h5.close()
+        h5 = None
+        fsync_path(part)
+        part.replace(path)
+    except BaseException as e:
+        # nothing half-written stays: a .partial of a bounds file cannot be resumed
+        if h5 is not None:
+            try:
+                h5.close()
+            except Exception:
+                pass
+        part.unlink(missing_ok=True)
+        if isinstance(e, (OSError, RuntimeError)):
+            first = (str(e).strip().splitlines() or [""])[0]
+            raise StoreError(f"{path}: could not be written ({first})") from None
+        raise
     return path
+
+
+#: Bytes of HDF5 metadata allowed per file and per dataset in the room check (a bounds
+#: file of two beams at 20 frequencies: 31 kB, 3.4 kB of it data, in 20 datasets).
+_FILE_BYTES = 64 * 1024
+_DATASET_BYTES = 4 * 1024
 

@@ -15,6 +15,11 @@ def _open_read(path):
     if not (isinstance(path, (str, bytes, os.PathLike)) or hasattr(path, "read")):
         # h5py's TypeError names no input (a file-like object h5py takes stays allowed)
         raise StoreError(f"path: expected a results file's path, got {type(path).__name__}")
+    if not hasattr(path, "read") and os.path.exists(path) and not os.path.isdir(path) \
+            and not os.path.isfile(path):
+        # HDF5 needs a file it can seek in: opening a pipe without a writer never returns
+        raise StoreError(f"{os.fsdecode(path)}: not a regular file (a pipe or a device), "
+                         f"not a results file")
     try:
         # locking=False: readable while a run writes it (its metadata does not change)
         return h5py.File(path, "r", locking=False)
@@ -58,14 +63,20 @@ def _plain(v):
 def describe(path):
     """Layout summary: root attributes, and per dataset its dims, shape and dtype."""
     with _open_read(path) as h5:
-        out = {"attrs": {k: _plain(v) for k, v in h5.attrs.items()}, "datasets": {}}
-        for name, ds in h5.items():
-            if isinstance(ds, h5py.Dataset):
-                dims = (name,) if ds.is_scale else tuple(
-                    d[0].name.lstrip("/") if len(d) else "?" for d in ds.dims)
-                out["datasets"][name] = (dims, ds.shape, ds.dtype)
-        if DONE in h5:
-            out["done"] = int(np.count_nonzero(h5[DONE][...]))
+        try:
+            out = {"attrs": {k: _plain(v) for k, v in h5.attrs.items()}, "datasets": {}}
+            for name, ds in h5.items():
+                if isinstance(ds, h5py.Dataset):
+                    # a dimension scale deleted or damaged: no name, or HDF5's own errors
+                    dims = (name,) if ds.is_scale else tuple(
+                        d[0].name.lstrip("/") if len(d) else "?" for d in ds.dims)
+                    out["datasets"][name] = (dims, ds.shape, ds.dtype)
+            if DONE in h5:
+                out["done"] = int(np.count_nonzero(h5[DONE][...]))
+        except (AttributeError, KeyError, RuntimeError, TypeError, ValueError,
+                OSError) as e:
+            first = (str(e).strip().splitlines() or [""])[0]
+            raise StoreError(f"{path}: a damaged or edited results file ({first})") from None
         return out
 
 

@@ -49,6 +49,8 @@ CHUNK_BYTES = 1 << 20
 #: No raw-data chunk cache: records are written with os.pwrite, never through HDF5, so a
 #: cached chunk could only be stale.
 CACHE_BYTES = 0
+#: Free bytes needed before a results file is created at all (its layout and metadata).
+MIN_FREE = 256 * 1024
 
 
 def _reason(e):
@@ -185,8 +187,14 @@ class Store:
         """
         part = partial_path(path)
         part.unlink(missing_ok=True)
-        h5 = h5py.File(part, "w", rdcc_nbytes=CACHE_BYTES)
+        free = shutil.disk_usage(Path(part).resolve().parent).free
+        if free < MIN_FREE:
+            # HDF5 that runs out of space while it creates a file can crash the process
+            # (seen with 8 kB free), past any cleanup: not even the layout fits
+            raise StoreError(f"{path}: no space for the results file ({human(free)} free)")
+        h5 = None
         try:
+            h5 = h5py.File(part, "w", rdcc_nbytes=CACHE_BYTES)
             rec = h5.create_dataset(record_dim, shape=(n_records,), dtype=np.int64,
                                     track_times=False)
             block = 1 << 20
@@ -220,9 +228,17 @@ class Store:
             reserve(part)
             fsync_path(part)
             fsync_dir(part)
-        except BaseException:
-            h5.close()
+        except BaseException as e:
+            # nothing half-written stays (on a full disk HDF5's close can fail too)
+            if h5 is not None:
+                try:
+                    h5.close()
+                except Exception:
+                    pass
             part.unlink(missing_ok=True)
+            if isinstance(e, (OSError, RuntimeError)):
+                # HDF5's errors span lines (a full disk's is a RuntimeError)
+                raise StoreError(f"{path}: cannot be written ({_reason(e)})") from None
             raise
         return cls(h5, path, record_dim)
 
@@ -234,9 +250,14 @@ class Store:
             h5 = h5py.File(part, "r+", rdcc_nbytes=CACHE_BYTES)
         except OSError as e:
             raise StoreError(f"{part}: cannot be reopened ({e})") from None
-        if int(h5.attrs.get("complete", -1)) != 0 or DONE not in h5 or record_dim not in h5:
+        complete = int(h5.attrs.get("complete", -1))
+        if complete not in (0, 1) or DONE not in h5 or record_dim not in h5:
             h5.close()
             raise StoreError(f"{part}: not a partial results file of this layout")
+        if complete == 1:
+            # stopped after :meth:`finish` marked it complete, before the rename: it is
+            # finished again (nothing left to solve) and renamed
+            h5.attrs.modify("complete", np.int8(0))
         try:
             reserve(part)
         except BaseException:
