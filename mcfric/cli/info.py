@@ -76,8 +76,9 @@ def cmd_info(args):
     nd = m["n_beams"] - (1 if m["topology"] == "linear" else 0)
     final = str(path).removesuffix(".partial")
     writer = None if a.get("complete") == 1 else holder(final)
-    state = (f"complete, but not renamed to {final}: the run was stopped as it finished; "
-             f"the command that started it with --resume renames it"
+    state = (f"complete, but not renamed to {final}: stopped as it finished ("
+             + ("the command that started it with --resume renames it)" if "done" in d
+                else f"rename it to {Path(final).name})")
              if a.get("complete") == 1 and str(path).endswith(".partial") else
              "complete" if a.get("complete") == 1 else
              f"INCOMPLETE: {done} of {n} samples done; being written now by {writer}"

@@ -43,9 +43,11 @@ sweep on a grid underestimates the member's peak. After the sweep, for every mem
    hidden between grid points on a slope, can still peak above the member's largest
    value. Every other grid interval whose larger end could belong to a peak above that
    value (the width rule of 1) is searched as the flanks are, in stretches of
-   consecutive intervals, each with one searched interval on either side; a resonance
-   found above the largest value becomes a refined peak of its own (with the fold check
-   of 5), and a stretch that could not be searched a lower estimate. A member that is
+   consecutive intervals (with the interval beside a stretch again where a kept
+   maximum's search covered it), climbing only samples that could belong to such a
+   peak; a resonance found above the largest value becomes a refined peak of its own
+   (with the fold check of 5), or raises the peak it belongs to, and a stretch that
+   could not be searched makes a lower estimate. A member that is
    a lower estimate already is not searched (past the largest value, a lower peak
    hidden so is not looked for);
 5. the sweep is repeated downward over ``window`` grid points on each side of the peak,
@@ -451,12 +453,15 @@ def _beam_peaks(best, lo, hi, start, from_below, P, S, rtol):
 
 
 @jit
-def _flanks(g_from, g_to, i, omega, y, s, status, M, P, S, rtol, x, top, top_y, width):
+def _flanks(g_from, g_to, i, omega, y, s, status, M, P, S, rtol, x, top, top_y, width,
+            v_floor):
     """The best point of the resonances hidden between grid points in the grid intervals
     ``g_from .. g_to - 1`` (a bracket and ``FLANK`` intervals on each side of it, or a
     stretch of the gap search; see the module docstring), written to ``top`` (omega, M)
     and ``top_y`` (responses) where it is above ``top[1]`` (``top[0]`` -1: no refined
-    peak). ``width``: the narrowest mode's half-power width, rad/s. A sample above
+    peak). ``width``: the narrowest mode's half-power width, rad/s; ``v_floor``: the
+    least peak worth climbing (0: any), so that a sample too low to belong to a peak of
+    at least ``v_floor`` (the width rule at twice the spacing) is not climbed. A sample above
     its neighbours (at an interval's end, above its one neighbour inside) whose
     neighbours' span holds the refined peak has each side within the interval searched
     finer (:func:`_split_half`); any other inner sample is climbed (:func:`_raise`), and
@@ -484,6 +489,7 @@ def _flanks(g_from, g_to, i, omega, y, s, status, M, P, S, rtol, x, top, top_y, 
         if not step <= N_FLANK_MAX * width:
             return found, False                   # a grid too coarse to search
         n = max(int(math.ceil(FLANK_DENSITY * step / width)), N_FLANK)
+        floor = v_floor * _hidden_fraction(2.0 * step / n, width)
         S[4][0] = 0                               # each interval afresh
         _log_s(s, i, g, nd, x)
         idx[0] = _seed(omega[g], x, y[i, g], M[g], S)
@@ -494,7 +500,7 @@ def _flanks(g_from, g_to, i, omega, y, s, status, M, P, S, rtol, x, top, top_y, 
         _log_s(s, i, g + 1, nd, x)
         idx[n] = _seed(omega[g + 1], x, y[i, g + 1], M[g + 1], S)
         if (have_prev and pm[idx[0]] > keep[1] and pm[idx[0]] > pm[idx[1]]
-                and _another(pm[idx[0]], keep[0], pw[idx[1]], top)):
+                and pm[idx[0]] >= floor and _another(pm[idx[0]], keep[0], pw[idx[1]], top)):
             # grid point g above the samples on both sides of it (the interval below's
             # last, this one's first), and not the refined peak's: a resonance peaks
             # beside it (found by a review: 1.1 % low, yet called resolved); climb it
@@ -521,6 +527,8 @@ def _flanks(g_from, g_to, i, omega, y, s, status, M, P, S, rtol, x, top, top_y, 
             lo = pw[idx[t - 1]] if t > 0 else pw[idx[0]] - width
             hi = pw[idx[t + 1]] if t < n else pw[idx[n]] + width
             if 0 < t < n and _another(v, lo, hi, top):
+                if v < floor:
+                    continue                      # too low for a peak worth climbing
                 # an inner local maximum that is not the refined peak's (a sub-point
                 # above the refined value is another resonance beside it)
                 ok = _raise(idx[t], pw[idx[t - 1]], pw[idx[t + 1]], idx[0], P, S, rtol,
@@ -623,6 +631,19 @@ def _log_s(s, i, k, nd, x):
     for j in range(nd):
         v = s[i, k, j]
         x[j] = math.log(v) if v > 0.0 and math.isfinite(v) else 0.0
+
+
+@jit
+def _lift(q, top, top_y, sst, sw, sm, sdw, sdm, sy, sfo):
+    """Raise the refined slot ``q`` to ``top`` (omega, M) and ``top_y`` where that is
+    higher: the same resonance, climbed higher from another search."""
+    if not (sst[q] == PEAK_REFINED or sst[q] == PEAK_AT_EDGE) or not top[1] > sm[q]:
+        return
+    sst[q] = PEAK_REFINED
+    sw[q], sm[q] = top[0], top[1]
+    sy[q, :] = top_y
+    if sfo[q] != FOLD_FOUND:
+        sdw[q], sdm[q] = sw[q], sm[q]
 
 
 @jit
@@ -822,12 +843,15 @@ def _member(i, omega, modal_f, zeta, u, force, a, b, mu0, N0, kc, tol, max_iter,
             top[0], top[1] = sw[p], sm[p]
             g_from, g_to = max(k_lo - FLANK, 0), min(k_hi + FLANK, n_f - 1)
             found, complete = _flanks(g_from, g_to, i, omega, y, s, status, M, P, S, rtol,
-                                      x, top, top_y, width)
+                                      x, top, top_y, width, 0.0)
             if complete:
                 covered[g_from:g_to] = True
             for q in range(p):
-                # a resonance an earlier peak reported already (their flanks overlap)
-                found = found and not abs(top[0] - sw[q]) < width
+                if found and abs(top[0] - sw[q]) < width:
+                    # a resonance an earlier peak reported already (their flanks
+                    # overlap): that peak takes the point where it is higher
+                    found = False
+                    _lift(np.int64(q), top, top_y, sst, sw, sm, sdw, sdm, sy, sfo)
             if not complete:
                 # a flank where a higher resonance may hide was not searched
                 sst[p] = PEAK_GRID
@@ -850,10 +874,11 @@ def _member(i, omega, modal_f, zeta, u, force, a, b, mu0, N0, kc, tol, max_iter,
                 sst[p] = PEAK_NONE
                 sw[p] = sm[p] = sdw[p] = sdm[p] = math.nan
                 continue
-        _fold(p, k, i, omega, y, s, status, M, P, S, rtol, window, x, sfo, sdw, sdm)
+        _fold(np.int64(p), np.int64(k), i, omega, y, s, status, M, P, S, rtol, window, x,
+              sfo, sdw, sdm)
     # the gap search: a resonance more than FLANK intervals from every kept bracket,
     # hidden between grid points on a slope, can peak above the largest value found (a
-    # review: 5.7 % low, called resolved). Every other grid interval whose larger end
+    # review: 5.4 % low, called resolved). Every other grid interval whose larger end
     # could belong to such a peak (the width rule) is searched as the flanks are, in
     # stretches of consecutive intervals; a member already a lower estimate is left so
     flagged = False
@@ -895,7 +920,7 @@ def _member(i, omega, modal_f, zeta, u, force, a, b, mu0, N0, kc, tol, max_iter,
         g_to = g_end + 1 if g_end < n_f - 1 and covered[g_end] else g_end
         top[0], top[1] = -1.0, v_max
         found, complete = _flanks(g_from, g_to, i, omega, y, s, status, M, P, S, rtol,
-                                  x, top, top_y, width)
+                                  x, top, top_y, width, v_max)
         p = n_done
         if not complete:
             # not searched: the stretch's largest grid value, a lower estimate
@@ -911,8 +936,12 @@ def _member(i, omega, modal_f, zeta, u, force, a, b, mu0, N0, kc, tol, max_iter,
             break
         dup = False
         for q in range(n_done):
-            # a kept resonance climbed again from the interval searched twice
-            dup = dup or abs(top[0] - sw[q]) < width
+            if found and not dup and abs(top[0] - sw[q]) < width:
+                # a kept resonance climbed again from the interval searched twice: it
+                # takes the point where it is higher (never below a point solved)
+                dup = True
+                _lift(np.int64(q), top, top_y, sst, sw, sm, sdw, sdm, sy, sfo)
+                v_max = max(v_max, sm[q])
         if found and not dup:
             n_done += 1
             sst[p] = PEAK_REFINED
@@ -923,7 +952,8 @@ def _member(i, omega, modal_f, zeta, u, force, a, b, mu0, N0, kc, tol, max_iter,
             for kk in range(g_from, g_to + 1):
                 if abs(omega[kk] - top[0]) < abs(omega[k] - top[0]):
                     k = kk
-            _fold(p, k, i, omega, y, s, status, M, P, S, rtol, window, x, sfo, sdw, sdm)
+            _fold(np.int64(p), np.int64(k), i, omega, y, s, status, M, P, S, rtol, window,
+                  x, sfo, sdw, sdm)
             v_max = max(v_max, sm[p], sdm[p]) if sdm[p] == sdm[p] else max(v_max, sm[p])
         g = g_end
     # reported: the largest value, by the larger of the two branches (what largest()

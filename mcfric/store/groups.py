@@ -92,7 +92,8 @@ def write_file(path, coords, groups, attrs):
     for variables, gattrs in groups.values():
         size += sum(len(str(v)) for v in (gattrs or {}).values())
         size += sum(np.asarray(a).nbytes + _DATASET_BYTES for _, a, _ in variables.values())
-    free = shutil.disk_usage(path.resolve().parent).free
+    # the directory of the .partial (beside a symbolic link, not at its target)
+    free = shutil.disk_usage(path.absolute().parent).free
     if free < size:
         raise StoreError(f"{path}: no space for the file ({human(size)} needed, "
                          f"{human(free)} free)")
