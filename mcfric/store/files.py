@@ -10,6 +10,7 @@ and renamed when complete (:func:`replacing`).
 from __future__ import annotations
 
 import os
+import re
 import stat
 from contextlib import contextmanager
 from pathlib import Path
@@ -21,6 +22,29 @@ DONE = "done"
 
 class StoreError(Exception):
     """A results file that cannot be used as asked (incomplete, damaged, wrong layout)."""
+
+
+def hdf5_reason(e):
+    """One line from an HDF5 error (which spans lines and quotes the system's message)."""
+    m = re.search(r"error message = '([^']*)'", str(e))
+    if m:
+        return m.group(1)
+    return str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+
+
+def abandon(h5, part, path, e):
+    """Close ``h5`` (a close that fails too, as on a full disk, is ignored) and remove
+    the half-written ``part``: nothing of a failed write stays. Returns the error to
+    raise: one line (:class:`StoreError`) for the system's or HDF5's, ``e`` otherwise."""
+    if h5 is not None:
+        try:
+            h5.close()
+        except Exception:
+            pass
+    Path(part).unlink(missing_ok=True)
+    if isinstance(e, (OSError, RuntimeError)):      # a full disk's is a RuntimeError
+        return StoreError(f"{path}: cannot be written ({hdf5_reason(e)})")
+    return e
 
 
 def partial_path(path):

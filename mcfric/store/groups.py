@@ -10,7 +10,7 @@ import h5py
 import numpy as np
 
 from ..memory import human
-from .files import LAYOUT_VERSION, StoreError, fsync_path, partial_path
+from .files import LAYOUT_VERSION, StoreError, abandon, fsync_path, partial_path
 from .reader import read_attrs
 
 
@@ -114,16 +114,7 @@ def write_file(path, coords, groups, attrs):
         part.replace(path)
     except BaseException as e:
         # nothing half-written stays: a .partial of a bounds file cannot be resumed
-        if h5 is not None:
-            try:
-                h5.close()
-            except Exception:
-                pass
-        part.unlink(missing_ok=True)
-        if isinstance(e, (OSError, RuntimeError)):
-            first = (str(e).strip().splitlines() or [""])[0]
-            raise StoreError(f"{path}: could not be written ({first})") from None
-        raise
+        raise abandon(h5, part, path, e) from None
     return path
 
 

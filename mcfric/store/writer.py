@@ -32,7 +32,6 @@ from __future__ import annotations
 import ctypes
 import errno
 import os
-import re
 import shutil
 import sys
 from pathlib import Path
@@ -41,7 +40,16 @@ import h5py
 import numpy as np
 
 from ..memory import human
-from .files import DONE, LAYOUT_VERSION, StoreError, fsync_dir, fsync_path, partial_path
+from .files import (
+    DONE,
+    LAYOUT_VERSION,
+    StoreError,
+    abandon,
+    fsync_dir,
+    fsync_path,
+    hdf5_reason,
+    partial_path,
+)
 from .groups import write_group
 
 #: Target size of one HDF5 chunk (HDF5 guidance: ~1 MiB).
@@ -53,12 +61,6 @@ CACHE_BYTES = 0
 MIN_FREE = 256 * 1024
 
 
-def _reason(e):
-    """One line from an HDF5 error (which spans lines and quotes the system's message)."""
-    m = re.search(r"error message = '([^']*)'", str(e))
-    if m:
-        return m.group(1)
-    return str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
 
 
 def _fallocate(fd, size):
@@ -229,17 +231,7 @@ class Store:
             fsync_path(part)
             fsync_dir(part)
         except BaseException as e:
-            # nothing half-written stays (on a full disk HDF5's close can fail too)
-            if h5 is not None:
-                try:
-                    h5.close()
-                except Exception:
-                    pass
-            part.unlink(missing_ok=True)
-            if isinstance(e, (OSError, RuntimeError)):
-                # HDF5's errors span lines (a full disk's is a RuntimeError)
-                raise StoreError(f"{path}: cannot be written ({_reason(e)})") from None
-            raise
+            raise abandon(h5, part, path, e) from None
         return cls(h5, path, record_dim)
 
     @classmethod
@@ -290,7 +282,7 @@ class Store:
         try:
             self._write(start, arrays)
         except (OSError, RuntimeError) as e:
-            raise StoreError(f"{self.path}: writing failed: {_reason(e)}") from None
+            raise StoreError(f"{self.path}: writing failed: {hdf5_reason(e)}") from None
 
     def _write(self, start, arrays):
         for name, arr in arrays.items():
@@ -335,7 +327,7 @@ class Store:
             for a, b in ranges:
                 self._write(a, {DONE: np.ones(b - a, np.int8)})
         except (OSError, RuntimeError) as e:
-            raise StoreError(f"{self.path}: writing failed: {_reason(e)}") from None
+            raise StoreError(f"{self.path}: writing failed: {hdf5_reason(e)}") from None
 
     def finish(self, summary):
         """Set the summary attributes, mark complete, fsync and rename to the final path.
