@@ -11,9 +11,12 @@ from __future__ import annotations
 
 import os
 import re
+import shutil
 import stat
 from contextlib import contextmanager
 from pathlib import Path
+
+from ..memory import human
 
 SUFFIX = ".partial"
 LAYOUT_VERSION = 1
@@ -30,6 +33,17 @@ def hdf5_reason(e):
     if m:
         return m.group(1)
     return str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+
+
+def require_room(part, need, path, what):
+    """Raise :class:`StoreError` unless ``part``'s directory has ``need`` bytes free
+    (the directory itself, beside a symbolic link, not at its target): HDF5 that runs
+    out of space while it creates or closes a file can crash the process, past any
+    cleanup (seen with a few kB free)."""
+    free = shutil.disk_usage(Path(part).absolute().parent).free
+    if free < need:
+        raise StoreError(f"{path}: no space for {what} ({human(need)} needed, "
+                         f"{human(free)} free)")
 
 
 def abandon(h5, part, path, e):

@@ -3,14 +3,12 @@ coordinates and groups alone, written atomically."""
 
 from __future__ import annotations
 
-import shutil
 from pathlib import Path
 
 import h5py
 import numpy as np
 
-from ..memory import human
-from .files import LAYOUT_VERSION, StoreError, abandon, fsync_path, partial_path
+from .files import LAYOUT_VERSION, StoreError, abandon, fsync_path, partial_path, require_room
 from .reader import read_attrs
 
 
@@ -85,18 +83,13 @@ def write_file(path, coords, groups, attrs):
     """
     path = Path(path)
     part = partial_path(path)
-    # room first: HDF5 that runs out of space while closing a file can crash the process
-    # (seen on a full disk), past any cleanup
+    # room first (require_room)
     size = _FILE_BYTES + sum(len(str(v)) for v in attrs.values())
     size += sum(np.asarray(v).nbytes + _DATASET_BYTES for v, _ in coords.values())
     for variables, gattrs in groups.values():
         size += sum(len(str(v)) for v in (gattrs or {}).values())
         size += sum(np.asarray(a).nbytes + _DATASET_BYTES for _, a, _ in variables.values())
-    # the directory of the .partial (beside a symbolic link, not at its target)
-    free = shutil.disk_usage(path.absolute().parent).free
-    if free < size:
-        raise StoreError(f"{path}: no space for the file ({human(size)} needed, "
-                         f"{human(free)} free)")
+    require_room(part, size, path, "the file")
     h5 = None
     try:
         h5 = h5py.File(part, "w")

@@ -8,7 +8,7 @@ import h5py
 import numpy as np
 
 from ..scalars import is_bool, is_int
-from .files import DONE, StoreError
+from .files import DONE, StoreError, hdf5_reason
 
 
 def _open_read(path):
@@ -75,8 +75,8 @@ def describe(path):
                 out["done"] = int(np.count_nonzero(h5[DONE][...]))
         except (AttributeError, KeyError, RuntimeError, TypeError, ValueError,
                 OSError) as e:
-            first = (str(e).strip().splitlines() or [""])[0]
-            raise StoreError(f"{path}: a damaged or edited results file ({first})") from None
+            raise StoreError(f"{path}: a damaged or edited results file "
+                             f"({hdf5_reason(e)})") from None
         return out
 
 

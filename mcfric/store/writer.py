@@ -49,6 +49,7 @@ from .files import (
     fsync_path,
     hdf5_reason,
     partial_path,
+    require_room,
 )
 from .groups import write_group
 
@@ -59,8 +60,6 @@ CHUNK_BYTES = 1 << 20
 CACHE_BYTES = 0
 #: Free bytes needed before a results file is created at all (its layout and metadata).
 MIN_FREE = 256 * 1024
-
-
 
 
 def _fallocate(fd, size):
@@ -189,11 +188,7 @@ class Store:
         """
         part = partial_path(path)
         part.unlink(missing_ok=True)
-        free = shutil.disk_usage(Path(part).resolve().parent).free
-        if free < MIN_FREE:
-            # HDF5 that runs out of space while it creates a file can crash the process
-            # (seen with 8 kB free), past any cleanup: not even the layout fits
-            raise StoreError(f"{path}: no space for the results file ({human(free)} free)")
+        require_room(part, MIN_FREE, path, "the results file")   # not even the layout fits
         h5 = None
         try:
             h5 = h5py.File(part, "w", rdcc_nbytes=CACHE_BYTES)
