@@ -74,7 +74,7 @@ def main(argv=None):
     grid = r.metric().max(axis=1)
     best = r.peaks.largest()
     before, after = statistics(grid), statistics(best)
-    folds = int(np.count_nonzero((r.peaks.fold == 1).any(axis=1)))
+    folds = int(np.count_nonzero((r.peaks.fold >= 1).any(axis=1)))
     res = {"members": args.members, "frequencies": len(f),
            "ratio_median": float(np.median(ratios)), "ratios": ratios,
            "plain_best_s": min(t_plain), "refined_best_s": min(t_refined),

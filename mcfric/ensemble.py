@@ -272,8 +272,9 @@ def layout(spec):
                 "flag_values": [-1, 0, 1, 2], "flag_meanings": "none refined at_edge grid"}),
             "fold": (pk, np.int8, {
                 "long_name": "1: sweeping down around the peak reaches another steady state; "
-                "0: it does not; -1: not checked", "flag_values": [-1, 0, 1],
-                "flag_meanings": "unchecked none fold"}),
+                "2: so does it, and that branch was not followed to its peak "
+                "(peak_metric_down a lower estimate); 0: it does not; -1: not checked",
+                "flag_values": [-1, 0, 1, 2], "flag_meanings": "unchecked none fold open"}),
             "peak_metric_down": (pk, np.float64, {
                 "units": unit, "long_name": "peak of the branch reached from above (equal "
                 "to peak_metric without a fold)"}),

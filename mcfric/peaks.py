@@ -29,8 +29,8 @@ CONFIDENCE = 0.95
 #: Status and fold codes (see :mod:`mcfric.core.peaks`).
 REFINED, AT_EDGE, GRID, NONE = (_kernel.PEAK_REFINED, _kernel.PEAK_AT_EDGE,
                                 _kernel.PEAK_GRID, _kernel.PEAK_NONE)
-FOLD_NONE, FOLD_FOUND, FOLD_UNCHECKED = (_kernel.FOLD_NONE, _kernel.FOLD_FOUND,
-                                         _kernel.FOLD_UNCHECKED)
+FOLD_NONE, FOLD_FOUND, FOLD_UNCHECKED, FOLD_OPEN = (
+    _kernel.FOLD_NONE, _kernel.FOLD_FOUND, _kernel.FOLD_UNCHECKED, _kernel.FOLD_OPEN)
 
 
 @dataclass(frozen=True)
@@ -93,11 +93,14 @@ class Peaks:
         to search): the grid value; -1 no such peak (NaN).
     fold : ndarray of int8, shape (n_s, count)
         1 where the downward sweep around the peak reached another steady state, 0 where
-        it reproduced the upward one, -1 where it could not be checked.
+        it reproduced the upward one, -1 where it could not be checked; 2 a fold whose
+        branch from above was not followed to its peak (largest at the window's lower
+        end and still apart from the upward branch there, or its refinement failed):
+        ``metric_down`` is then a lower estimate.
     freq_hz_down, metric_down : ndarray, shape (n_s, count)
         The peak of the branch reached from above (equal to the above without a fold;
-        where its refinement fails, the largest converged point of the downward sweep;
-        NaN where a grid neighbour did not converge or the point is isolated).
+        with ``fold`` 2, the largest converged point of the downward sweep; NaN where a
+        grid neighbour did not converge or the point is isolated).
     """
 
     freq_hz: np.ndarray
@@ -112,16 +115,20 @@ class Peaks:
         """Each member's largest peak of the metric over both branches, shape (n_s,).
 
         Only a lower estimate where :meth:`resolved` is False: a peak left at its grid
-        value may lie far above it (a narrow resonance between grid points).
+        value may lie far above it (a narrow resonance between grid points), and so may
+        an open fold's branch from above (``fold`` 2) not below its upward peak.
         """
         both = np.concatenate([self.metric, self.metric_down], axis=1)
         with np.errstate(invalid="ignore"):
             return np.nanmax(np.where(np.isnan(both), -np.inf, both), axis=1)
 
     def resolved(self):
-        """True for a member none of whose peaks is a grid value (status 2), shape (n_s,):
-        its :meth:`largest` is then its largest peak, refined."""
-        return unresolved(self.status, self.metric) == 0
+        """True for a member none of whose peaks is a grid value (status 2) and none of
+        whose open folds (``fold`` 2) may hold its largest value
+        (:func:`open_fold_largest`), shape (n_s,): its :meth:`largest` is then its
+        largest peak, refined."""
+        return (unresolved(self.status, self.metric) == 0) & ~open_fold_largest(
+            self.fold, self.metric, self.metric_down)
 
 
 def refine(model, result, omega, modal_freq_hz, settings, mu0, N0, kc, tol, max_iter):
@@ -263,6 +270,15 @@ def unresolved(status, metric):
     return np.count_nonzero((status == GRID) & np.isfinite(metric), axis=1)
 
 
+def open_fold_largest(fold, metric, metric_down):
+    """Per member, whether an open fold (``fold`` 2: the branch from above was not
+    followed to its peak) may hold its largest value, shape (n_s,): where that branch
+    is not below its own peak's upward branch. One below it (a hardening fold) climbs on
+    to where the two branches join, below the upward peak."""
+    with np.errstate(invalid="ignore"):
+        return ((fold == FOLD_OPEN) & ~(metric_down < metric)).any(axis=1)
+
+
 def file_report(path):
     """Peak statistics of a results file (None if it has no refined peaks).
 
@@ -271,8 +287,11 @@ def file_report(path):
     dict or None
         ``statistics`` of the members' largest peaks (:func:`statistics`), ``grid_ratio``
         (median over members of the grid's maximum over the refined peak), ``folds``
-        (members with a fold), ``unchecked`` (members whose fold check failed),
-        ``members``, ``unresolved`` (members with a peak not refined: their largest is a
+        (members with a fold), ``open_folds`` (members with a fold whose branch from
+        above was not followed to its peak), ``unchecked`` (members whose fold check
+        failed), ``members``, ``unresolved`` (members with a peak not refined, or an open
+        fold that may hold their largest, :func:`open_fold_largest`; ``unresolved_fold``
+        of them for the second reason alone: their largest is a
         lower estimate, and they are left out of ``grid_ratio``), ``at_end`` (members
         whose largest value lies at an end of the band, not at a resonance peak; left out
         of ``grid_ratio`` too), and the bound's peak (``bound_peak``, ``bound_peak_hz``,
@@ -286,7 +305,8 @@ def file_report(path):
         return None
     from .store import read
 
-    largest, ratio, folds, unchecked, n_unresolved, n_end = [], [], 0, 0, 0, 0
+    largest, ratio, folds, open_folds, unchecked, n_unresolved, n_end = [], [], 0, 0, 0, 0, 0
+    n_by_fold = 0
     # blocks of ~1 MB of metric: memory stays flat in the number of members (8 bytes per
     # member are kept for the percentiles)
     block = max(1, (1 << 17) // max(1, len(read(path, "frequency"))))
@@ -299,7 +319,10 @@ def file_report(path):
         big = np.where(np.isfinite(big), big, np.nan)
         # any peak left at its grid value may be the member's true largest (a narrow
         # resonance between grid points): that member's largest is a lower estimate
-        open_ = (unresolved(arr["peak_status"], arr["peak_metric"]) > 0) & np.isfinite(big)
+        grid_ = unresolved(arr["peak_status"], arr["peak_metric"]) > 0
+        by_fold = open_fold_largest(arr["fold"], arr["peak_metric"], arr["peak_metric_down"])
+        open_ = (grid_ | by_fold) & np.isfinite(big)
+        n_by_fold += int(np.count_nonzero(by_fold & ~grid_ & np.isfinite(big)))
         n_unresolved += int(np.count_nonzero(open_))
         # a largest value at an end of the band is no resonance peak (the band cuts it)
         st = np.concatenate([arr["peak_status"]] * 2, axis=1)
@@ -312,7 +335,9 @@ def file_report(path):
             grid = np.nanmax(np.where(np.isnan(arr["metric"]), -np.inf, arr["metric"]), axis=1)
         largest.append(big)
         ratio.append(np.where(open_ | end, np.nan, grid / big))
-        folds += int(np.count_nonzero((arr["fold"] == FOLD_FOUND).any(axis=1)))
+        folds += int(np.count_nonzero(((arr["fold"] == FOLD_FOUND)
+                                       | (arr["fold"] == FOLD_OPEN)).any(axis=1)))
+        open_folds += int(np.count_nonzero((arr["fold"] == FOLD_OPEN).any(axis=1)))
         # an empty peak slot (fewer peaks than asked) has no fold to check either
         unchecked += int(np.count_nonzero(((arr["fold"] == FOLD_UNCHECKED)
                                            & (arr["peak_status"] != NONE)).any(axis=1)))
@@ -321,7 +346,8 @@ def file_report(path):
     out = {"statistics": statistics(largest, raised=n_unresolved),
            "members": int(largest.size),
            "grid_ratio": float(np.nanmedian(ratio)) if np.isfinite(ratio).any() else np.nan,
-           "folds": folds, "unchecked": unchecked, "unresolved": n_unresolved,
+           "folds": folds, "open_folds": open_folds, "unchecked": unchecked,
+           "unresolved": n_unresolved, "unresolved_fold": n_by_fold,
            "at_end": n_end}
     out.update(bound_peak(path))
     return out
@@ -374,6 +400,7 @@ def report_text(report, unit):
     """The lines ``mcfric info`` and the run summary print about the peaks."""
     st = report["statistics"]
     k = report.get("unresolved", 0)
+    kf = report.get("unresolved_fold", 0)
     e = report.get("at_end", 0)
     share = (f"the grid's maximum is {report['grid_ratio']:.3g} of the refined peak, median"
              + (f" of the {st['members'] - k - e} fully refined inside the band" if k or e
@@ -385,13 +412,19 @@ def report_text(report, unit):
              f"{_interval(st, 'p95_ci')}, max {st['max']:.4g} {unit} "
              f"({st['members']} members; {share})"
              + (f"; {k} of these {'is a lower estimate' if k == 1 else 'are lower estimates'}"
-                f": a peak of the member was not refined (a solver failed near it, or the "
-                f"grid is too coarse to search) and may lie higher" if k else "")
+                + (": a peak of the member was not refined (a solver failed near it, or "
+                   "the grid is too coarse to search) and may lie higher" if k > kf else "")
+                + (f"{'; ' if k > kf else ': '}{kf} because a fold's branch from above was "
+                   f"not followed to its peak, which may lie higher" if kf else "")
+                if k else "")
              + (f"; {e} of these {'lies' if e == 1 else 'lie'} at an end of the band (the "
                 f"largest value there, not a resonance peak: the band cuts it)" if e else ""),
              f"folds:       {report['folds']} of {report['members']} members have more than "
              f"one steady state near a peak"
              + (f" ({report['unchecked']} could not be checked)" if report["unchecked"]
+                else "")
+             + (f"; in {report['open_folds']} the branch from above was not followed to "
+                f"its peak (peak_metric_down a lower estimate)" if report.get("open_folds")
                 else "")]
     if not st["members"]:
         # a partial file with no sample done yet, or no member converged at its peaks:

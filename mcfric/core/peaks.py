@@ -54,7 +54,9 @@ sweep on a grid underestimates the member's peak. After the sweep, for every mem
    from the upward solution above it. Where the downward branch differs from the upward
    one (relative ``FOLD_RTOL`` in ``M``), the member has more than one steady state
    there: the fold is flagged and the downward branch's peak is refined the same way,
-   continued from above.
+   continued from above (flagged open where it is a lower estimate: the branch from
+   above is largest at the lowest point the downward sweep reached and still apart from
+   the upward one there, or the refinement failed).
 
 Points are solved from receptances formed here at each new frequency (per-member modal
 frequencies allowed): on a chain or a ring of friction dampers by the O(nd) Newton of
@@ -84,6 +86,9 @@ PEAK_NONE = -1          # fewer local maxima than asked (or no converged point):
 #: Fold flags.
 FOLD_NONE = 0           # the downward sweep reproduces the upward one
 FOLD_FOUND = 1          # the two directions reach different steady states
+FOLD_OPEN = 2           # a fold whose branch from above was not followed to its peak (it
+                        # is largest, and still apart, where the downward sweep ends, or
+                        # its refinement failed): the downward peak is a lower estimate
 FOLD_UNCHECKED = -1     # the downward sweep failed to converge somewhere
 #: Relative difference of M between the sweep directions that counts as another branch
 #: (converged points agree to ~1e-9; the tolerance of the residual is 1e-10).
@@ -642,7 +647,7 @@ def _lift(q, top, top_y, sst, sw, sm, sdw, sdm, sy, sfo):
     sst[q] = PEAK_REFINED
     sw[q], sm[q] = top[0], top[1]
     sy[q, :] = top_y
-    if sfo[q] != FOLD_FOUND:
+    if sfo[q] != FOLD_FOUND and sfo[q] != FOLD_OPEN:
         sdw[q], sdm[q] = sw[q], sm[q]
 
 
@@ -651,7 +656,10 @@ def _fold(p, k, i, omega, y, s, status, M, P, S, rtol, window, x, sfo, sdw, sdm)
     """The fold check of slot ``p`` at grid point ``k``: the ``window`` grid points on
     each side swept downward, from the upward state above them; where the downward
     branch differs from the upward one (``FOLD_RTOL``), its own peak refined, continued
-    from above, into ``sdw[p]``, ``sdm[p]`` (rad/s, metric). Sets ``sfo[p]``."""
+    from above, into ``sdw[p]``, ``sdm[p]`` (rad/s, metric). Sets ``sfo[p]``:
+    ``FOLD_OPEN`` where that peak is a lower estimate (the largest downward point is the
+    lowest one solved, not the band's first, and differs from the upward one there or
+    has none to compare with, so the branch goes on below; or the refinement failed)."""
     n_f = omega.shape[0]
     nd = x.shape[0]
     k_top = min(k + window, n_f - 1)
@@ -667,6 +675,8 @@ def _fold(p, k, i, omega, y, s, status, M, P, S, rtol, window, x, sfo, sdw, sdm)
     dn = np.full(k_top - k_bot + 1, -1, np.int64)
     dn[k_top - k_bot] = first
     prev2 = -1
+    # the lowest point solved, and whether it differs (or is not compared: counted apart)
+    g_end, end_differs = k_top, False
     for g in range(k_top - 1, k_bot - 1, -1):
         # the start: extrapolated linearly from the last two points of the way down
         if prev2 >= 0:
@@ -682,10 +692,13 @@ def _fold(p, k, i, omega, y, s, status, M, P, S, rtol, window, x, sfo, sdw, sdm)
             break
         dn[g - k_bot] = n
         prev2, prev = prev, n
+        g_end, end_differs = g, True
         if status[i, g] < 0:
             complete = False              # no upward point to compare with here
         elif abs(S[1][n] - M[g]) > FOLD_RTOL * max(S[1][n], M[g]):
             differs = True
+        else:
+            end_differs = False
     if not differs:
         sfo[p] = FOLD_NONE if complete else FOLD_UNCHECKED
         return
@@ -695,6 +708,12 @@ def _fold(p, k, i, omega, y, s, status, M, P, S, rtol, window, x, sfo, sdw, sdm)
     for g in range(k_bot, k_top + 1):
         if dn[g - k_bot] >= 0 and S[1][dn[g - k_bot]] > S[1][dn[gb - k_bot]]:
             gb = g
+    if gb == g_end and end_differs and g_end > 0:
+        # the branch from above climbs on below (at the band's first point the band cuts
+        # it): its peak is not here, and refining towards the end would gain nothing
+        sfo[p] = FOLD_OPEN
+        sdw[p], sdm[p] = S[0][dn[gb - k_bot]], S[1][dn[gb - k_bot]]
+        return
     g_lo = gb - 1 if gb > k_bot and dn[gb - 1 - k_bot] >= 0 else gb
     g_hi = gb + 1 if gb < k_top else gb
     if g_lo == g_hi:
@@ -708,6 +727,8 @@ def _fold(p, k, i, omega, y, s, status, M, P, S, rtol, window, x, sfo, sdw, sdm)
     best, ok = _refine(idx, np.bool_(False), P, S, rtol)
     j = best if best >= 0 else dn[gb - k_bot]
     sdw[p], sdm[p] = S[0][j], S[1][j]
+    if not ok:
+        sfo[p] = FOLD_OPEN
 
 
 @jit
