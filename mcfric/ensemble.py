@@ -659,6 +659,8 @@ def _run_locked(spec, final, resume, force, progress, groups, t_start, space_che
         check_solvable(spec)
         if space_check:
             check_space(spec, final, what == "resume")
+        if what == "new":
+            Store.require_floor(final)
         cluster = _connect(spec, progress) if spec.execution.scheduler else None
     except BaseException:
         if what == "resume":

@@ -112,9 +112,10 @@ def test_no_space_is_refused_before_any_work(tmp_path, capsys, monkeypatch):
 
     out = tmp_path / "r.h5"
     real = shutil.disk_usage
-    # above the floor every results file needs (writer.MIN_FREE), below this run's size
+    # above the floor every results file needs (writer.MIN_FREE, and the bounds group
+    # written at creation), below this run's size
     monkeypatch.setattr(shutil, "disk_usage",
-                        lambda p: real(p)._replace(free=writer.MIN_FREE + (40 << 10)))
+                        lambda p: real(p)._replace(free=writer.MIN_FREE + (200 << 10)))
     argv = ["run", *SMALL, "--samples", "300", "-o", str(out)]
     assert cli.main(argv) == 2
     err = capsys.readouterr().err
@@ -122,9 +123,23 @@ def test_no_space_is_refused_before_any_work(tmp_path, capsys, monkeypatch):
     assert not list(tmp_path.iterdir())
     assert cli.main([*argv, "--skip-space-check"]) == 0
     # below the floor even --skip-space-check stops (HDF5 out of space at creation
-    # crashed the process): one line, nothing left
+    # crashed the process): one line, nothing left, and before the bounds' work
     out.unlink()
+    import mcfric.bounds
+
+    computed = []
+    real_bounds = mcfric.bounds.from_spec
+    monkeypatch.setattr(mcfric.bounds, "from_spec",
+                        lambda *a, **k: computed.append(1) or real_bounds(*a, **k))
     monkeypatch.setattr(shutil, "disk_usage", lambda p: real(p)._replace(free=8 << 10))
+    assert cli.main([*argv, "--skip-space-check"]) == 1
+    err = capsys.readouterr().err.strip()
+    assert "no space for the results file" in err and len(err.splitlines()) == 1, err
+    assert not computed
+    assert not list(tmp_path.iterdir())
+    # past the floor, the bounds group written at creation must fit too
+    monkeypatch.setattr(shutil, "disk_usage",
+                        lambda p: real(p)._replace(free=writer.MIN_FREE + (4 << 10)))
     assert cli.main([*argv, "--skip-space-check"]) == 1
     err = capsys.readouterr().err.strip()
     assert "no space for the results file" in err and len(err.splitlines()) == 1, err

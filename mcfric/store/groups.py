@@ -84,11 +84,8 @@ def write_file(path, coords, groups, attrs):
     path = Path(path)
     part = partial_path(path)
     # room first (require_room)
-    size = _FILE_BYTES + sum(len(str(v)) for v in attrs.values())
+    size = _FILE_BYTES + sum(len(str(v)) for v in attrs.values()) + groups_bytes(groups)
     size += sum(np.asarray(v).nbytes + _DATASET_BYTES for v, _ in coords.values())
-    for variables, gattrs in groups.values():
-        size += sum(len(str(v)) for v in (gattrs or {}).values())
-        size += sum(np.asarray(a).nbytes + _DATASET_BYTES for _, a, _ in variables.values())
     require_room(part, size, path, "the file")
     h5 = None
     try:
@@ -115,4 +112,14 @@ def write_file(path, coords, groups, attrs):
 #: file of two beams at 20 frequencies: 31 kB, 3.4 kB of it data, in 20 datasets).
 _FILE_BYTES = 64 * 1024
 _DATASET_BYTES = 4 * 1024
+
+
+def groups_bytes(groups):
+    """Bytes that ``groups`` (the form of :func:`add_group`) need in a file, allowing
+    for HDF5's metadata (the room checks)."""
+    size = 0
+    for variables, gattrs in (groups or {}).values():
+        size += sum(len(str(v)) for v in (gattrs or {}).values())
+        size += sum(np.asarray(a).nbytes + _DATASET_BYTES for _, a, _ in variables.values())
+    return size
 

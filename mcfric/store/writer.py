@@ -51,7 +51,7 @@ from .files import (
     partial_path,
     require_room,
 )
-from .groups import write_group
+from .groups import groups_bytes, write_group
 
 #: Target size of one HDF5 chunk (HDF5 guidance: ~1 MiB).
 CHUNK_BYTES = 1 << 20
@@ -160,6 +160,15 @@ class Store:
 
     # -- creation ---------------------------------------------------------------------
 
+    @staticmethod
+    def require_floor(path):
+        """Raise :class:`StoreError` unless ``path``'s directory has the room that
+        :meth:`create` needs at least (``MIN_FREE``): checked before a run's work (the
+        bounds take minutes), even where the space check is skipped."""
+        part = partial_path(path)
+        if not part.exists():                   # create() removes it first
+            require_room(part, MIN_FREE, path, "the results file")
+
     @classmethod
     def create(cls, path, *, record_dim, n_records, coords, variables, attrs, placeholders,
                groups=None):
@@ -188,7 +197,8 @@ class Store:
         """
         part = partial_path(path)
         part.unlink(missing_ok=True)
-        require_room(part, MIN_FREE, path, "the results file")   # not even the layout fits
+        # not even the layout and the groups written with it fit
+        require_room(part, MIN_FREE + groups_bytes(groups), path, "the results file")
         h5 = None
         try:
             h5 = h5py.File(part, "w", rdcc_nbytes=CACHE_BYTES)
