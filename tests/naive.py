@@ -155,13 +155,14 @@ def describing_function_cubic(s, kc):
 
 
 def solve_point(omega, beams, pairs, F, mu0, N0, kc, contact=0, output=1, drive=2, starts=None,
-                tol=1e-12, accept=1e-10, law="coulomb"):
+                tol=1e-12, accept=1e-10, law="coulomb", first=False):
     """Nonlinear single-harmonic solve at one frequency (see module docstring for the formulation).
     Unknowns are s_j of the active dampers (mu0 N0 > 0 and kc > 0), solved in x = log s.
     tol: solver xtol; accept: a candidate is kept only if max_j |r_j|/(mu0_j N0_j) <= accept,
     r_j = s_j kc_j A_j(s) - mu0_j N0_j checked directly (solver flags are ignored).
     starts: optional list of s-vectors over the active dampers (or over all dampers).
     law: "coulomb" (the paper's damper) or "cubic" (describing_function_cubic).
+    first: stop at the first root accepted (the full search's first root, found sooner).
     Returns a list of distinct roots dict(s, y_output, y_contact, residual); s is 0 for
     mu0 N0 == 0 dampers (also when kc == 0 too) and inf for kc == 0 dampers with mu0 N0 > 0.
     Note: if q_j vanishes identically (e.g. identical beams driven in phase) the stuck root is s = inf;
@@ -213,7 +214,6 @@ def solve_point(omega, beams, pairs, F, mu0, N0, kc, contact=0, output=1, drive=
 
     def attempts(x0):
         """Candidates from a few solvers; exceptions and flags are ignored, residuals decide."""
-        out = []
         for g in (g_log, g_rel):
             for run in (lambda: optimize.fsolve(g, x0, xtol=tol, full_output=True)[0],
                         lambda: optimize.root(g, x0, method="hybr", options=dict(xtol=tol)).x,
@@ -223,8 +223,7 @@ def solve_point(omega, beams, pairs, F, mu0, N0, kc, contact=0, output=1, drive=
                 except Exception:
                     continue
                 if np.all(np.isfinite(x)):
-                    out.append(x)
-        return out
+                    yield x
 
     def polish(x):
         best, best_r = x, np.max(np.abs(g_rel(x)))
@@ -255,6 +254,10 @@ def solve_point(omega, beams, pairs, F, mu0, N0, kc, contact=0, output=1, drive=
             resp = response(s_act)
             roots.append(dict(_s=s_act, s=full_s(s_act), y_output=resp["y_output"],
                               y_contact=resp["y_contact"], residual=float(r)))
+            if first:
+                break
+        if first and roots:
+            break
     for rt in roots:
         del rt["_s"]
     return roots

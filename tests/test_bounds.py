@@ -17,6 +17,7 @@ from mcfric.bounds import compute_bounds, force_limit
 
 from . import naive
 from .conftest import naive_beams, naive_pairs
+from .test_certified import physical_grid
 
 K_MAX = 15000.0
 N0 = 0.5
@@ -30,7 +31,7 @@ class PhysicalMetric:
     """M(K) = max_b |y_b| at one frequency from the physical-space solve of naive.py."""
 
     def __init__(self, model, freq_hz):
-        self.model = model
+        self.model, self.freq_hz = model, freq_hz
         self.D, self.Fext, self.index = naive._assemble(2 * np.pi * freq_hz, naive_beams(model),
                                                         model.force, 0, 1, 2)
         self.pairs = naive_pairs(model)
@@ -49,7 +50,8 @@ def _dense_box_extremes(metric, n_grid=121, n_edge=4001):
     e = np.linspace(0, K_MAX, n_edge)
     pts += [complex(v, 0) for v in e] + [complex(v, K_MAX) for v in e]
     pts += [complex(0, v) for v in e] + [complex(K_MAX, v) for v in e]
-    vals = np.array([metric([z]) for z in pts])
+    # the grid in batches (the same physical-space equations, (I - D K) Y = D F)
+    vals = physical_grid(metric.model, metric.freq_hz, np.array(pts)[:, None])[0]
     out = []
     for sign, pick in ((1.0, np.argmin), (-1.0, np.argmax)):
         z0 = pts[pick(vals)]

@@ -31,16 +31,22 @@ def _random_points(model, n, seed):
 
 
 def _assert_matches_a_reference_root(model, f, mu0, kc, y, s, rtol=1e-8):
-    roots = naive.solve_point(2 * np.pi * f, naive_beams(model), naive_pairs(model),
-                              model.force, mu0, np.full(len(mu0), N0), kc,
-                              starts=[np.ones(len(mu0))])
-    assert roots, f"reference found no root at f={f}"
-    errs = []
-    for root in roots:
+    def err(root):
         ey = np.max(np.abs(root["y_output"] - y)) / np.max(np.abs(root["y_output"]))
         finite = np.isfinite(root["s"]) & (root["s"] < 1e12)
         es = np.max(np.abs(root["s"][finite] - s[finite]) / root["s"][finite], initial=0.0)
-        errs.append(max(ey, es))
+        return max(ey, es)
+
+    # the reference's first root, and every root only where that is not ours (the same
+    # verdict as the full search at once, in a sixth of the solver runs)
+    for first in (True, False):
+        roots = naive.solve_point(2 * np.pi * f, naive_beams(model), naive_pairs(model),
+                                  model.force, mu0, np.full(len(mu0), N0), kc,
+                                  starts=[np.ones(len(mu0))], first=first)
+        assert roots, f"reference found no root at f={f}"
+        errs = [err(root) for root in roots]
+        if min(errs) <= rtol:
+            return
     assert min(errs) <= rtol, (f, mu0, kc, min(errs))
 
 
