@@ -116,19 +116,17 @@ class Peaks:
 
         Only a lower estimate where :meth:`resolved` is False: a peak left at its grid
         value may lie far above it (a narrow resonance between grid points), and so may
-        an open fold's branch from above (``fold`` 2) not below its upward peak.
+        an open fold's branch from above (``fold`` 2).
         """
         both = np.concatenate([self.metric, self.metric_down], axis=1)
         with np.errstate(invalid="ignore"):
             return np.nanmax(np.where(np.isnan(both), -np.inf, both), axis=1)
 
     def resolved(self):
-        """True for a member none of whose peaks is a grid value (status 2) and none of
-        whose open folds (``fold`` 2) may hold its largest value
-        (:func:`open_fold_largest`), shape (n_s,): its :meth:`largest` is then its
+        """True for a member none of whose peaks is a grid value (status 2) and which
+        has no open fold (``fold`` 2), shape (n_s,): its :meth:`largest` is then its
         largest peak, refined."""
-        return (unresolved(self.status, self.metric) == 0) & ~open_fold_largest(
-            self.fold, self.metric, self.metric_down)
+        return (unresolved(self.status, self.metric) == 0) & ~has_open_fold(self.fold)
 
 
 def refine(model, result, omega, modal_freq_hz, settings, mu0, N0, kc, tol, max_iter):
@@ -270,13 +268,10 @@ def unresolved(status, metric):
     return np.count_nonzero((status == GRID) & np.isfinite(metric), axis=1)
 
 
-def open_fold_largest(fold, metric, metric_down):
-    """Per member, whether an open fold (``fold`` 2: the branch from above was not
-    followed to its peak) may hold its largest value, shape (n_s,): where that branch
-    is not below its own peak's upward branch. One below it (a hardening fold) climbs on
-    to where the two branches join, below the upward peak."""
-    with np.errstate(invalid="ignore"):
-        return ((fold == FOLD_OPEN) & ~(metric_down < metric)).any(axis=1)
+def has_open_fold(fold):
+    """Per member, whether it has an open fold (``fold`` 2: the branch from above was
+    not followed to its peak, which may lie above every peak reported), shape (n_s,)."""
+    return (fold == FOLD_OPEN).any(axis=1)
 
 
 def file_report(path):
@@ -289,10 +284,9 @@ def file_report(path):
         (median over members of the grid's maximum over the refined peak), ``folds``
         (members with a fold), ``open_folds`` (members with a fold whose branch from
         above was not followed to its peak), ``unchecked`` (members whose fold check
-        failed), ``members``, ``unresolved`` (members with a peak not refined, or an open
-        fold that may hold their largest, :func:`open_fold_largest`; ``unresolved_fold``
-        of them for the second reason alone: their largest is a
-        lower estimate, and they are left out of ``grid_ratio``), ``at_end`` (members
+        failed), ``members``, ``unresolved`` (members with a peak not refined or an open
+        fold: their largest is a lower estimate, and they are left out of
+        ``grid_ratio``; ``unresolved_fold`` of them for an open fold alone), ``at_end`` (members
         whose largest value lies at an end of the band, not at a resonance peak; left out
         of ``grid_ratio`` too), and the bound's peak (``bound_peak``, ``bound_peak_hz``,
         ``bound_peak_refined``, ``bound_peak_at_end``, ``bound_peak_coarse_step``,
@@ -320,7 +314,7 @@ def file_report(path):
         # any peak left at its grid value may be the member's true largest (a narrow
         # resonance between grid points): that member's largest is a lower estimate
         grid_ = unresolved(arr["peak_status"], arr["peak_metric"]) > 0
-        by_fold = open_fold_largest(arr["fold"], arr["peak_metric"], arr["peak_metric_down"])
+        by_fold = has_open_fold(arr["fold"])
         open_ = (grid_ | by_fold) & np.isfinite(big)
         n_by_fold += int(np.count_nonzero(by_fold & ~grid_ & np.isfinite(big)))
         n_unresolved += int(np.count_nonzero(open_))

@@ -445,11 +445,11 @@ def test_folds_are_flagged_and_confirmed_by_independent_sweeps():
 
 def test_a_fold_whose_branch_from_above_goes_on_below_the_window_is_open():
     """Where the branch reached from above still climbs at the fold window's lower end,
-    its peak lies below the window: the fold is flagged open (2) and its value is a lower
-    estimate. Independent stepped sines (tests/naive.py) confirm both: below the window
-    the branch from above is higher than the value stored, and still apart from the
-    upward one. The member whose largest such a value is counts as a lower estimate."""
-    from mcfric.peaks import FOLD_OPEN, open_fold_largest
+    its peak lies below the window: the fold is flagged open (2), its value is a lower
+    estimate and so is the member's largest. Independent stepped sines (tests/naive.py)
+    confirm it: they reach the value stored on the branch from above, and below the
+    window that branch is higher and still apart from the upward one."""
+    from mcfric.peaks import FOLD_OPEN, has_open_fold, report_text, statistics
 
     model = Model.identical(TABLE_1, 2, excitation=Excitation("single", 0.05, beam=1),
                             contact_law="cubic")
@@ -460,21 +460,24 @@ def test_a_fold_whose_branch_from_above_goes_on_below_the_window_is_open():
     f_dn, m_dn = P.freq_hz_down[0, p], P.metric_down[0, p]
     assert f_dn < P.freq_hz[0, p]
     check = f_dn - np.array([1.0, 0.6, 0.3])          # below the window
-    down = _naive_sweep(model, np.concatenate([np.arange(80.0, check[-1], -0.25),
-                                               check[::-1]]), mu0, kc, N0, "cubic")[-3:]
+    down = _naive_sweep(model, np.concatenate([np.arange(80.0, f_dn, -0.25), [f_dn],
+                                               check[::-1]]), mu0, kc, N0, "cubic")[-4:]
+    np.testing.assert_allclose(down[0], m_dn, rtol=1e-6)   # the same branch from above
+    down = down[1:][::-1]
     # the upward branch in the grid's steps from below its linear resonance (about 22 Hz;
     # coarser steps, or a start above it, miss the upper branch)
     up = _naive_sweep(model, np.concatenate([f[(f > 18.0) & (f < check[0])], check]),
                       mu0, kc, N0, "cubic")[-3:]
     assert np.all(down > m_dn)                        # the branch from above climbs on
-    assert np.all(down < 0.1 * up[::-1])              # still apart from the upward branch
-    # an open fold may hold the member's largest where its branch from above is not below
-    # its own upward peak (that branch climbs on: no bound on it)
-    fold = np.array([[FOLD_OPEN, 0], [FOLD_OPEN, 0], [1, 0], [FOLD_OPEN, 0]])
-    metric = np.array([[1.0, 2.0], [1.0, 0.5], [1.0, 0.5], [1.0, 0.5]])
-    metric_down = np.array([[1.5, 2.0], [1.5, 0.5], [1.5, 0.5], [0.5, 0.5]])
-    assert list(open_fold_largest(fold, metric, metric_down)) == [True, True, False, False]
-    assert P.metric_down[0, p] < P.metric[0, p] or not P.resolved()[0]
+    assert np.all(down < 0.1 * up)                    # still apart from the upward branch
+    assert has_open_fold(P.fold)[0] and not P.resolved()[0]
+    # the summary says why such a member is a lower estimate
+    rep = {"statistics": statistics([1e-3, 2e-3]), "grid_ratio": 0.7, "unresolved": 1,
+           "unresolved_fold": 1, "members": 2, "folds": 1, "open_folds": 1, "unchecked": 0}
+    peaks_line, folds_line = report_text(rep, "m")[:2]
+    assert "1 of these is a lower estimate: 1 because a fold's branch from above" in peaks_line
+    assert "not refined (a solver" not in peaks_line
+    assert "in 1 the branch from above was not followed to its peak" in folds_line
 
 
 def test_a_peak_beside_a_failed_neighbour_is_flagged_not_refined():

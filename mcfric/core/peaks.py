@@ -10,9 +10,9 @@ sweep on a grid underestimates the member's peak. After the sweep, for every mem
    grid value could belong to a higher peak than the ``n_peaks``-th refined so far (a
    resonance as wide as the narrowest mode, peaking midway between grid points:
    ``_hidden_fraction``);
-   reported, ``n_peaks`` in all: the largest result, the unrefined maxima (lower
-   estimates; with one place, one of them instead of the largest), then the largest of
-   the rest;
+   reported, ``n_peaks`` in all: the largest result, the unrefined maxima and open
+   folds of 5 (lower estimates; with one place, one of them instead of the largest),
+   then the largest of the rest;
 2. each is refined in frequency: parabolic steps on ``1/M^2`` from its grid neighbours
    (golden-section steps where no parabola fits, or where two steps have not halved the
    bracket: a parabola fitted across a corner of ``M``, where a damper starts to slip,
@@ -95,7 +95,8 @@ FOLD_UNCHECKED = -1     # the downward sweep failed to converge somewhere
 FOLD_RTOL = 1e-6
 #: Sub-intervals of the bracket sampled before the golden-section search.
 N_SUB = 8
-#: Rank of an unrefined slot among the reported: above every value, below the largest.
+#: Rank of an unrefined slot (or an open fold) among the reported: above every value,
+#: below the largest.
 _GRID_KEY = 1e300
 #: Parabolic (or golden-section) steps at most per peak.
 MAX_STEPS = 40
@@ -978,14 +979,16 @@ def _member(i, omega, modal_f, zeta, u, force, a, b, mu0, N0, kc, tol, max_iter,
             v_max = max(v_max, sm[p], sdm[p]) if sdm[p] == sdm[p] else max(v_max, sm[p])
         g = g_end
     # reported: the largest value, by the larger of the two branches (what largest()
-    # reports, never below a peak the member solved); then the unrefined slots whatever
-    # their grid values (lower estimates: dropping all would call the member resolved);
-    # then the rest, largest first. With one place, an unrefined slot takes it.
+    # reports, never below a peak the member solved); then the unrefined slots and the
+    # open folds whatever their values (lower estimates: dropping all would call the
+    # member resolved); then the rest, largest first. With one place, such a slot takes
+    # it.
     key = np.empty(n_slot)
     q_max, v_max = -1, -math.inf
     for q in range(n_slot):
         v = max(sm[q], sdm[q]) if sdm[q] == sdm[q] else sm[q]
-        key[q] = _GRID_KEY if sst[q] == PEAK_GRID else (v if v == v else -math.inf)
+        open_ = sst[q] == PEAK_GRID or sfo[q] == FOLD_OPEN
+        key[q] = _GRID_KEY if open_ else (v if v == v else -math.inf)
         if v > v_max:
             q_max, v_max = q, v
     if q_max >= 0 and n_peaks > 1:
