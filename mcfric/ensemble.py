@@ -277,7 +277,7 @@ def layout(spec):
                 "flag_values": [-1, 0, 1, 2], "flag_meanings": "unchecked none fold open"}),
             "peak_metric_down": (pk, np.float64, {
                 "units": unit, "long_name": "peak of the branch reached from above (equal "
-                "to peak_metric without a fold)"}),
+                "to peak_metric without a fold; a lower estimate where fold is 2)"}),
             "peak_frequency_down": (pk, np.float64, {
                 "units": "Hz", "long_name": "frequency of peak_metric_down"}),
         })
@@ -519,6 +519,9 @@ def run(spec, path, *, resume=False, force=False, progress=True, groups="auto",
         Existing files do not allow the run as asked (nothing was written). The message
         names the command line's flags: ``--resume`` and ``--force`` are ``resume=True``
         and ``force=True`` here.
+    StoreError
+        The disk cannot hold the results file's layout and bounds (checked before any
+        work, even with ``space_check=False``), or a write failed (one line).
     Interrupted
         Ctrl-C: the samples finished so far are committed in ``path + ".partial"``.
     """
@@ -660,7 +663,7 @@ def _run_locked(spec, final, resume, force, progress, groups, t_start, space_che
         if space_check:
             check_space(spec, final, what == "resume")
         if what == "new":
-            Store.require_floor(final)
+            Store.require_floor(final, _bounds_bytes(spec) if spec.bounds else 0)
         cluster = _connect(spec, progress) if spec.execution.scheduler else None
     except BaseException:
         if what == "resume":
@@ -705,6 +708,13 @@ def _run_store(spec, final, what, found, progress, groups, t_start, cluster):
         return summary
     finally:
         store.close()
+
+
+def _bounds_bytes(spec):
+    """The bounds group's bytes at most (checked before the bounds are computed)."""
+    from .bounds.results import group_bytes
+
+    return group_bytes(len(spec.freq_hz), spec.model.n_dampers)
 
 
 def _bounds_groups(spec, verbose, timing):

@@ -20,6 +20,7 @@ from mcfric import cli, ensemble, store
 from mcfric.cli.inputs import load_config
 from mcfric.cli.parser import build_parser
 from mcfric.store import Store, writer
+from mcfric.store.groups import groups_bytes
 from mcfric.store.lock import OutputLock, lock_path
 
 SMALL = ["two-beam", "--samples", "12", "--n-freq", "20", "--no-progress", "--no-figure"]
@@ -137,13 +138,45 @@ def test_no_space_is_refused_before_any_work(tmp_path, capsys, monkeypatch):
     assert "no space for the results file" in err and len(err.splitlines()) == 1, err
     assert not computed
     assert not list(tmp_path.iterdir())
-    # past the floor, the bounds group written at creation must fit too
+    # past the floor, the bounds group written at creation must fit too (its size is
+    # known before the bounds are computed)
     monkeypatch.setattr(shutil, "disk_usage",
                         lambda p: real(p)._replace(free=writer.MIN_FREE + (4 << 10)))
     assert cli.main([*argv, "--skip-space-check"]) == 1
     err = capsys.readouterr().err.strip()
     assert "no space for the results file" in err and len(err.splitlines()) == 1, err
+    assert not computed
     assert not list(tmp_path.iterdir())
+    # an old .partial that --force would replace frees only its own blocks: a small one
+    # does not lift the floor (it stays, as everything else)
+    part = tmp_path / "r.h5.partial"
+    part.write_bytes(b"x" * 4096)
+    assert cli.main([*argv, "--skip-space-check", "--force"]) == 1
+    err = capsys.readouterr().err.strip()
+    assert "no space for the results file" in err and len(err.splitlines()) == 1, err
+    assert not computed
+    assert [q.name for q in tmp_path.iterdir()] == [part.name]
+
+
+@pytest.mark.parametrize("preset", ["two-beam", "eight-beam"])
+def test_the_bounds_group_fits_the_room_checked_before_it_is_computed(preset):
+    """The room a run asks for before computing the bounds (``group_bytes``: datasets,
+    values per frequency and damper, attributes) holds the certified bounds group."""
+    import mcfric
+    from mcfric.bounds import compute_bounds, force_limit, to_group
+    from mcfric.bounds import results as bounds_results
+
+    model = mcfric.preset(preset, 1.1)
+    f = np.array([16.0, 40.0, 90.0])
+    B = compute_bounds(model, f, 15000.0, F_lim=force_limit(1.0, 0.5))
+    variables, attrs = to_group(B)
+    assert B.certificate is not None
+    assert len(variables) <= bounds_results._DATASETS
+    per_freq = sum(np.asarray(a).nbytes for _, a, _ in variables.values()) / len(f)
+    assert per_freq <= bounds_results._PER_FREQ + bounds_results._PER_DAMPER * model.n_dampers
+    assert sum(len(str(v)) for v in attrs.values()) <= 8192
+    assert groups_bytes({"bounds": (variables, attrs)}) <= bounds_results.group_bytes(
+        len(f), model.n_dampers)
 
 
 def test_the_size_estimate_is_the_file_size(tmp_path):

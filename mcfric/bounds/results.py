@@ -12,6 +12,29 @@ from ..metric import METRIC_UNITS
 from .certified import Certificate
 from .equivalent_linear import Bounds
 
+#: The bounds group's datasets at most (18 with a certificate), and its values per
+#: frequency at most: 16 of 8 bytes and 4 complex ones per damper (:func:`to_group`).
+_DATASETS, _PER_FREQ, _PER_DAMPER = 32, 16 * 8, 4 * 16
+
+
+def group_bytes(n_freq, n_dampers):
+    """Bytes the ``bounds/`` group of :func:`to_group` needs in a file at most (its data,
+    4 kB of HDF5 metadata per dataset, 8 kB of attributes), known before the bounds are
+    computed: a run checks its disk for them first (tests compare it with the group's
+    own size).
+
+    Parameters
+    ----------
+    n_freq, n_dampers : int
+
+    Returns
+    -------
+    int
+        Bytes.
+    """
+    return (_DATASETS * 4096 + 8192
+            + n_freq * (_PER_FREQ + _PER_DAMPER * n_dampers))
+
 
 def to_group(B):
     """The ``bounds/`` group of a results file: ``{var: (dims, array, attrs)}, attrs``."""

@@ -122,4 +122,3 @@ def groups_bytes(groups):
         size += sum(len(str(v)) for v in (gattrs or {}).values())
         size += sum(np.asarray(a).nbytes + _DATASET_BYTES for _, a, _ in variables.values())
     return size
-

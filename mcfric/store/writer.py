@@ -33,6 +33,7 @@ import ctypes
 import errno
 import os
 import shutil
+import stat
 import sys
 from pathlib import Path
 
@@ -161,13 +162,35 @@ class Store:
     # -- creation ---------------------------------------------------------------------
 
     @staticmethod
-    def require_floor(path):
-        """Raise :class:`StoreError` unless ``path``'s directory has the room that
-        :meth:`create` needs at least (``MIN_FREE``): checked before a run's work (the
-        bounds take minutes), even where the space check is skipped."""
+    def require_floor(path, groups_bytes=0):
+        """Check that ``path``'s directory has the room :meth:`create` needs at least,
+        before a run's work (the bounds take minutes), even where the space check is
+        skipped.
+
+        Parameters
+        ----------
+        path : str or Path
+            Final path of the results file.
+        groups_bytes : int
+            Bytes of the groups :meth:`create` will write (e.g. an estimate of the
+            bounds group, known before the bounds are computed).
+
+        Raises
+        ------
+        StoreError
+            Less free than ``MIN_FREE + groups_bytes``, counting the blocks of an old
+            ``.partial`` that :meth:`create` removes first (a regular file with no other
+            link: removing a symbolic link or one of two links frees nothing).
+        """
         part = partial_path(path)
-        if not part.exists():                   # create() removes it first
-            require_room(part, MIN_FREE, path, "the results file")
+        freed = 0
+        try:
+            st = part.lstat()
+            if stat.S_ISREG(st.st_mode) and st.st_nlink == 1:
+                freed = st.st_blocks * 512
+        except OSError:
+            pass
+        require_room(part, MIN_FREE + groups_bytes - freed, path, "the results file")
 
     @classmethod
     def create(cls, path, *, record_dim, n_records, coords, variables, attrs, placeholders,
