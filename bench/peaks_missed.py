@@ -9,8 +9,8 @@ peaks=2)``) on grids of ``--n-freq`` points over 10-150 Hz (default 200, 300, 40
 0.0005 Hz sweep over the first resonance (15-18 Hz), the baseline. Printed per grid: the
 members whose largest refined peak is more than 1e-4 below the fine sweep's maximum
 (among those whose every peak was refined; the others, ``Peaks.resolved()`` False, are
-lower estimates by their status and counted apart), and the largest ratio fine / refined
-among them. Nothing is saved.
+lower estimates by their status or an open fold and counted apart), and the largest
+ratio fine / refined among them. Nothing is saved.
 """
 
 import argparse

@@ -520,8 +520,9 @@ def run(spec, path, *, resume=False, force=False, progress=True, groups="auto",
         names the command line's flags: ``--resume`` and ``--force`` are ``resume=True``
         and ``force=True`` here.
     StoreError
-        The disk cannot hold the results file's layout and bounds (checked before any
-        work, even with ``space_check=False``), or a write failed (one line).
+        A new file's directory has less free than 256 kB and the bounds group (checked
+        before any work, even with ``space_check=False``), or a write failed (one
+        line).
     Interrupted
         Ctrl-C: the samples finished so far are committed in ``path + ".partial"``.
     """
@@ -663,7 +664,9 @@ def _run_locked(spec, final, resume, force, progress, groups, t_start, space_che
         if space_check:
             check_space(spec, final, what == "resume")
         if what == "new":
-            Store.require_floor(final, _bounds_bytes(spec) if spec.bounds else 0)
+            # the bounds group that "auto" computes after this (a callable's is unknown)
+            Store.require_floor(final, _bounds_bytes(spec)
+                                if groups == "auto" and spec.bounds else 0)
         cluster = _connect(spec, progress) if spec.execution.scheduler else None
     except BaseException:
         if what == "resume":

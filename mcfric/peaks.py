@@ -73,9 +73,9 @@ class PeakSettings:
 @dataclass
 class Peaks:
     """Refined peaks of ``n_s`` members, ``count`` per member, largest first (which ones:
-    the member's largest, the unrefined ones, status 2, then the largest of the rest;
-    with ``count`` 1 an unrefined one takes the place of the largest, so that the member
-    is not called resolved).
+    the member's largest, the unrefined ones, status 2, and the open folds, fold 2, then
+    the largest of the rest; with ``count`` 1 one of those takes the place of the
+    largest, unless the largest is one, so that the member is not called resolved).
 
     Attributes
     ----------
@@ -176,7 +176,8 @@ def refine(model, result, omega, modal_freq_hz, settings, mu0, N0, kc, tol, max_
         float(settings.rtol), np.int64(settings.window),
         out_w, out_m, out_y, out_st, out_fold, out_wd, out_md,
         np.int64(CONTACT_LAWS.index(model.contact_law)))
-    # largest first by the upward value (the kernel chose which: an unrefined one is kept)
+    # largest first by the upward value (the kernel chose which: an unrefined one or an
+    # open fold is kept)
     order = np.argsort(np.where(np.isnan(out_m), np.inf, -out_m), axis=1, kind="stable")
     take = np.take_along_axis
     to_hz = 1.0 / (2.0 * np.pi)
@@ -197,8 +198,8 @@ def statistics(largest, confidence=CONFIDENCE, raised=0):
     confidence : float
         Least coverage of the intervals (:func:`mcfric.quantiles.quantile_interval`).
     raised : int
-        How many of the values are lower estimates (a peak not refined): the intervals'
-        upper ends move up by that many members.
+        How many of the values are lower estimates (a peak not refined, or an open
+        fold): the intervals' upper ends move up by that many members.
 
     Returns
     -------

@@ -449,7 +449,7 @@ def test_a_fold_whose_branch_from_above_goes_on_below_the_window_is_open():
     estimate and so is the member's largest. Independent stepped sines (tests/naive.py)
     confirm it: they reach the value stored on the branch from above, and below the
     window that branch is higher and still apart from the upward one."""
-    from mcfric.peaks import FOLD_OPEN, has_open_fold, report_text, statistics
+    from mcfric.peaks import FOLD_OPEN, Peaks, has_open_fold, report_text, statistics
 
     model = Model.identical(TABLE_1, 2, excitation=Excitation("single", 0.05, beam=1),
                             contact_law="cubic")
@@ -471,6 +471,12 @@ def test_a_fold_whose_branch_from_above_goes_on_below_the_window_is_open():
     assert np.all(down > m_dn)                        # the branch from above climbs on
     assert np.all(down < 0.1 * up)                    # still apart from the upward branch
     assert has_open_fold(P.fold)[0] and not P.resolved()[0]
+    # an open fold below its own upward peak, every peak refined: still not resolved
+    one = Peaks(*(np.array([[v, v]]) for v in (16.0, 1.0)),
+                             np.ones((1, 2, 2), complex), np.zeros((1, 2), np.int8),
+                             np.array([[FOLD_OPEN, 0]], np.int8), np.array([[15.8, 16.0]]),
+                             np.array([[0.5, 1.0]]))
+    assert list(one.resolved()) == [False] and list(has_open_fold(one.fold)) == [True]
     # the summary says why such a member is a lower estimate
     rep = {"statistics": statistics([1e-3, 2e-3]), "grid_ratio": 0.7, "unresolved": 1,
            "unresolved_fold": 1, "members": 2, "folds": 1, "open_folds": 1, "unchecked": 0}

@@ -47,9 +47,9 @@ sweep on a grid underestimates the member's peak. After the sweep, for every mem
    maximum's search covered it), climbing only samples that could belong to such a
    peak; a resonance found above the largest value becomes a refined peak of its own
    (with the fold check of 5), or raises the peak it belongs to, and a stretch that
-   could not be searched makes a lower estimate. A member that is
-   a lower estimate already is not searched (past the largest value, a lower peak
-   hidden so is not looked for);
+   could not be searched makes a lower estimate. A member with a peak left at its
+   grid value is not searched (past the largest value, a lower peak hidden so is not
+   looked for);
 5. the sweep is repeated downward over ``window`` grid points on each side of the peak,
    from the upward solution above it. Where the downward branch differs from the upward
    one (relative ``FOLD_RTOL`` in ``M``), the member has more than one steady state
@@ -902,7 +902,7 @@ def _member(i, omega, modal_f, zeta, u, force, a, b, mu0, N0, kc, tol, max_iter,
     # hidden between grid points on a slope, can peak above the largest value found (a
     # review: 5.4 % low, called resolved). Every other grid interval whose larger end
     # could belong to such a peak (the width rule) is searched as the flanks are, in
-    # stretches of consecutive intervals; a member already a lower estimate is left so
+    # stretches of consecutive intervals; a member with a peak at its grid value is left so
     flagged = False
     v_max = -math.inf
     for q in range(n_done):
@@ -991,8 +991,8 @@ def _member(i, omega, modal_f, zeta, u, force, a, b, mu0, N0, kc, tol, max_iter,
         key[q] = _GRID_KEY if open_ else (v if v == v else -math.inf)
         if v > v_max:
             q_max, v_max = q, v
-    if q_max >= 0 and n_peaks > 1:
-        key[q_max] = math.inf
+    if q_max >= 0 and (n_peaks > 1 or key[q_max] == _GRID_KEY):
+        key[q_max] = math.inf             # with one place: the largest, if a lower estimate
     rank = np.argsort(-key, kind="mergesort")
     for p in range(n_peaks):
         q = rank[p]

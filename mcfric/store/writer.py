@@ -162,7 +162,7 @@ class Store:
     # -- creation ---------------------------------------------------------------------
 
     @staticmethod
-    def require_floor(path, groups_bytes=0):
+    def require_floor(path, extra_bytes=0):
         """Check that ``path``'s directory has the room :meth:`create` needs at least,
         before a run's work (the bounds take minutes), even where the space check is
         skipped.
@@ -171,16 +171,18 @@ class Store:
         ----------
         path : str or Path
             Final path of the results file.
-        groups_bytes : int
+        extra_bytes : int
             Bytes of the groups :meth:`create` will write (e.g. an estimate of the
             bounds group, known before the bounds are computed).
 
         Raises
         ------
         StoreError
-            Less free than ``MIN_FREE + groups_bytes``, counting the blocks of an old
+            Less free than ``MIN_FREE + extra_bytes``, counting the blocks of an old
             ``.partial`` that :meth:`create` removes first (a regular file with no other
-            link: removing a symbolic link or one of two links frees nothing).
+            link: removing a symbolic link or one of two links frees nothing; on a
+            copy-on-write file system with snapshots even that may free less, and
+            :meth:`create` then refuses after the work).
         """
         part = partial_path(path)
         freed = 0
@@ -190,7 +192,7 @@ class Store:
                 freed = st.st_blocks * 512
         except OSError:
             pass
-        require_room(part, MIN_FREE + groups_bytes - freed, path, "the results file")
+        require_room(part, MIN_FREE + extra_bytes - freed, path, "the results file")
 
     @classmethod
     def create(cls, path, *, record_dim, n_records, coords, variables, attrs, placeholders,
