@@ -332,7 +332,7 @@ def file_report(path):
         ratio.append(np.where(open_ | end, np.nan, grid / big))
         folds += int(np.count_nonzero(((arr["fold"] == FOLD_FOUND)
                                        | (arr["fold"] == FOLD_OPEN)).any(axis=1)))
-        open_folds += int(np.count_nonzero((arr["fold"] == FOLD_OPEN).any(axis=1)))
+        open_folds += int(np.count_nonzero(by_fold))
         # an empty peak slot (fewer peaks than asked) has no fold to check either
         unchecked += int(np.count_nonzero(((arr["fold"] == FOLD_UNCHECKED)
                                            & (arr["peak_status"] != NONE)).any(axis=1)))

@@ -222,8 +222,8 @@ class Store:
         """
         part = partial_path(path)
         part.unlink(missing_ok=True)
-        # not even the layout and the groups written with it fit
-        require_room(part, MIN_FREE + groups_bytes(groups), path, "the results file")
+        # not even the layout and the groups written with it fit (nothing to credit now)
+        cls.require_floor(path, groups_bytes(groups))
         h5 = None
         try:
             h5 = h5py.File(part, "w", rdcc_nbytes=CACHE_BYTES)
