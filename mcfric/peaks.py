@@ -94,8 +94,9 @@ class Peaks:
     fold : ndarray of int8, shape (n_s, count)
         1 where the downward sweep around the peak reached another steady state, 0 where
         it reproduced the upward one, -1 where it could not be checked; 2 a fold whose
-        branch from above was not followed to its peak (largest at the window's lower
-        end and still apart from the upward branch there, or its refinement failed):
+        branch from above was not followed to its peak (largest at the lowest point the
+        downward sweep reached and still apart from the upward branch there, or its
+        refinement failed):
         ``metric_down`` is then a lower estimate.
     freq_hz_down, metric_down : ndarray, shape (n_s, count)
         The peak of the branch reached from above (equal to the above without a fold;

@@ -486,6 +486,37 @@ def test_a_fold_whose_branch_from_above_goes_on_below_the_window_is_open():
     assert "in 1 the branch from above was not followed to its peak" in folds_line
 
 
+def test_a_file_with_an_open_fold_counts_that_member_as_a_lower_estimate(tmp_path):
+    """A results file in which one member's fold is open (set by hand in a small two-beam
+    run, where every peak is refined and none has a fold): `file_report` counts that
+    member as unresolved for its fold alone and leaves it out of the grid ratio, which is
+    the median of the other members' grid maximum over their largest peak."""
+    import h5py
+
+    from mcfric.peaks import FOLD_OPEN
+
+    cfg = config.load("two-beam", {"sampling.samples": (5, "--samples"),
+                                   "frequency.n": (120, "--n-freq"),
+                                   "bounds.certify": (False, "--no-certify")})
+    summary = ensemble.run(cfg, tmp_path / "r.h5", progress=False)
+    clean = file_report(summary.path)
+    assert (clean["unresolved"], clean["open_folds"], clean["folds"]) == (0, 0, 0), clean
+    with h5py.File(summary.path, "r+") as h5:
+        assert np.all(h5["peak_status"][()] != 2)
+        h5["fold"][2, 0] = FOLD_OPEN
+        metric, peak = h5["metric"][()], h5["peak_metric"][()]
+        peak_down = h5["peak_metric_down"][()]
+    rep = file_report(summary.path)
+    assert rep["members"] == 5
+    assert (rep["unresolved"], rep["unresolved_fold"], rep["open_folds"], rep["folds"]) \
+        == (1, 1, 1, 1), rep
+    largest = np.nanmax(np.concatenate([peak, peak_down], axis=1), axis=1)
+    ratio = np.nanmax(metric, axis=1) / largest
+    assert np.median(ratio) != pytest.approx(np.median(np.delete(ratio, 2)), rel=1e-9)
+    assert rep["grid_ratio"] == pytest.approx(np.median(np.delete(ratio, 2)), rel=1e-12)
+    assert rep["statistics"]["max"] == pytest.approx(largest.max(), rel=1e-12)
+
+
 def test_a_peak_beside_a_failed_neighbour_is_flagged_not_refined():
     """Where a grid neighbour of a member's largest point did not converge, the peak may
     lie in that gap: the peak is the grid value with status 2 (not refined), not a flank

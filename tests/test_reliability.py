@@ -158,6 +158,37 @@ def test_no_space_is_refused_before_any_work(tmp_path, capsys, monkeypatch):
     assert [q.name for q in tmp_path.iterdir()] == [part.name]
 
 
+def test_an_old_partial_counts_as_room_only_if_removing_it_frees_its_blocks(tmp_path,
+                                                                           monkeypatch):
+    """`Store.require_floor` credits the blocks of an old ``.partial`` that `create`
+    removes first: a regular file with one link frees them; a symbolic link (the target
+    stays) or one of two hard links frees nothing."""
+    import shutil
+
+    out = tmp_path / "r.h5"
+    part = tmp_path / "r.h5.partial"
+    big = tmp_path / "big.bin"
+    big.write_bytes(os.urandom(1 << 20))
+    real = shutil.disk_usage
+    monkeypatch.setattr(shutil, "disk_usage",
+                        lambda p: real(p)._replace(free=writer.MIN_FREE - (256 << 10)))
+    with pytest.raises(store.StoreError, match="no space for the results file"):
+        Store.require_floor(out)                             # nothing to remove
+    os.link(big, part)                                       # one of two links
+    with pytest.raises(store.StoreError, match="no space"):
+        Store.require_floor(out)
+    part.unlink()
+    part.symlink_to(big)                                     # the target would stay
+    with pytest.raises(store.StoreError, match="no space"):
+        Store.require_floor(out)
+    part.unlink()
+    shutil.copyfile(big, part)                               # removed, 1 MiB freed
+    assert part.stat().st_blocks * 512 >= 1 << 20
+    Store.require_floor(out)
+    with pytest.raises(store.StoreError, match="no space"):  # but not 1 MiB more
+        Store.require_floor(out, extra_bytes=1 << 20)
+
+
 @pytest.mark.parametrize("preset", ["two-beam", "eight-beam"])
 def test_the_bounds_group_fits_the_room_checked_before_it_is_computed(preset):
     """The room a run asks for before computing the bounds (``group_bytes``: datasets,
