@@ -486,6 +486,33 @@ def test_a_fold_whose_branch_from_above_goes_on_below_the_window_is_open():
     assert "in 1 the branch from above was not followed to its peak" in folds_line
 
 
+def test_open_folds_and_unrefined_slots_are_reported_before_larger_refined_peaks():
+    """The kernel's report order (each case written out by hand): the largest first, then
+    every lower-estimate slot (an open fold, a peak not refined) above larger refined
+    peaks, empty slots last; with one place a lower-estimate slot takes it unless the
+    largest is itself one."""
+    from mcfric.core import peaks as kernel
+
+    def order(st, fo, up, down, n):
+        return list(kernel.report_order(np.array(st, np.int64), np.array(fo, np.int64),
+                                 np.array(up, float), np.array(down, float), np.int64(n)))
+
+    R, G, E = kernel.PEAK_REFINED, kernel.PEAK_GRID, kernel.PEAK_NONE
+    N, O = kernel.FOLD_NONE, kernel.FOLD_OPEN
+    nan = np.nan
+    # an open fold (slot 1, 3.0 m, its branch from above 2.9) beside a larger refined peak
+    assert order([R, R, R], [N, O, N], [5.0, 3.0, 4.0], [5.0, 2.9, 4.0], 2)[:2] == [0, 1]
+    assert order([R, R, R], [N, N, N], [5.0, 3.0, 4.0], [5.0, 3.0, 4.0], 2)[:2] == [0, 2]
+    # the branch from above decides the largest
+    assert order([R, R, R], [N, N, N], [5.0, 3.0, 4.0], [5.0, 6.0, 4.0], 1)[:1] == [1]
+    # an unrefined slot, and an empty one last
+    assert order([E, R, G, R], [N, N, N, N], [nan, 5.0, 1.0, 4.0], [nan, 5.0, 1.0, 4.0],
+                 3) == [1, 2, 3, 0]
+    # one place: a lower estimate takes it, but the largest keeps it if it is one itself
+    assert order([R, R], [N, O], [5.0, 3.0], [5.0, 3.0], 1)[:1] == [1]
+    assert order([R, G, R], [O, N, N], [5.0, 1.0, 4.0], [5.0, 1.0, 4.0], 1)[:1] == [0]
+
+
 def test_a_file_with_an_open_fold_counts_that_member_as_a_lower_estimate(tmp_path):
     """A results file in which one member's fold is open (set by hand in a small two-beam
     run, where every peak is refined and none has a fold): `file_report` counts that

@@ -978,11 +978,40 @@ def _member(i, omega, modal_f, zeta, u, force, a, b, mu0, N0, kc, tol, max_iter,
                   x, sfo, sdw, sdm)
             v_max = max(v_max, sm[p], sdm[p]) if sdm[p] == sdm[p] else max(v_max, sm[p])
         g = g_end
-    # reported: the largest value, by the larger of the two branches (what largest()
-    # reports, never below a peak the member solved); then the unrefined slots and the
-    # open folds whatever their values (lower estimates: dropping all would call the
-    # member resolved); then the rest, largest first. With one place, such a slot takes
-    # it.
+    rank = report_order(sst, sfo, sm, sdm, n_peaks)
+    for p in range(n_peaks):
+        q = rank[p]
+        pk_st[i, p], fold[i, p] = sst[q], sfo[q]
+        pk_w[i, p], pk_m[i, p], pkd_w[i, p], pkd_m[i, p] = sw[q], sm[q], sdw[q], sdm[q]
+        for bb in range(n_beams):
+            pk_y[i, p, bb] = sy[q, bb]
+
+
+@jit
+def report_order(sst, sfo, sm, sdm, n_peaks):
+    """The order in which a member's peak slots are reported (the first ``n_peaks``).
+
+    First the largest value, by the larger of the two branches (what ``largest()``
+    reports, never below a peak the member solved); then the unrefined slots and the open
+    folds whatever their values (lower estimates: dropping all would call the member
+    resolved); then the rest, largest first, slot order among equals. With one place a
+    lower-estimate slot takes it, unless the largest is itself one.
+
+    Parameters
+    ----------
+    sst, sfo : ndarray of int64, shape (n_slot,)
+        Each slot's peak status and fold flag.
+    sm, sdm : ndarray, shape (n_slot,)
+        Each slot's metric on the upward and downward branch (NaN: none), m.
+    n_peaks : int
+        Places in the report.
+
+    Returns
+    -------
+    ndarray of int64, shape (n_slot,)
+        Slot indices, reported first to last.
+    """
+    n_slot = sst.size
     key = np.empty(n_slot)
     q_max, v_max = -1, -math.inf
     for q in range(n_slot):
@@ -992,14 +1021,8 @@ def _member(i, omega, modal_f, zeta, u, force, a, b, mu0, N0, kc, tol, max_iter,
         if v > v_max:
             q_max, v_max = q, v
     if q_max >= 0 and (n_peaks > 1 or key[q_max] == _GRID_KEY):
-        key[q_max] = math.inf             # with one place: the largest, if a lower estimate
-    rank = np.argsort(-key, kind="mergesort")
-    for p in range(n_peaks):
-        q = rank[p]
-        pk_st[i, p], fold[i, p] = sst[q], sfo[q]
-        pk_w[i, p], pk_m[i, p], pkd_w[i, p], pkd_m[i, p] = sw[q], sm[q], sdw[q], sdm[q]
-        for bb in range(n_beams):
-            pk_y[i, p, bb] = sy[q, bb]
+        key[q_max] = math.inf
+    return np.argsort(-key, kind="mergesort")
 
 
 @jit(parallel=True, nogil=True)
