@@ -93,7 +93,8 @@ class Peaks:
         to search): the grid value; -1 no such peak (NaN).
     fold : ndarray of int8, shape (n_s, count)
         1 where the downward sweep around the peak reached another steady state, 0 where
-        it reproduced the upward one, -1 where it could not be checked; 2 a fold whose
+        it reproduced the upward one, -1 where it could not be checked (a branch from
+        above, if any, is unknown: the member's largest is a lower estimate); 2 a fold whose
         branch from above was not followed to its peak (largest at the lowest point the
         downward sweep reached and still apart from the upward branch there, or its
         refinement failed):
@@ -124,10 +125,11 @@ class Peaks:
             return np.nanmax(np.where(np.isnan(both), -np.inf, both), axis=1)
 
     def resolved(self):
-        """True for a member none of whose peaks is a grid value (status 2) and which
-        has no open fold (``fold`` 2), shape (n_s,): its :meth:`largest` is then its
-        largest peak, refined."""
-        return (unresolved(self.status, self.metric) == 0) & ~has_open_fold(self.fold)
+        """True for a member none of whose peaks is a grid value (status 2) and none of
+        whose folds is open or unchecked (``fold`` 2 or -1, :func:`fold_unsettled`), shape
+        (n_s,): its :meth:`largest` is then its largest peak, refined."""
+        return ((unresolved(self.status, self.metric) == 0)
+                & ~fold_unsettled(self.fold, self.status))
 
 
 def refine(model, result, omega, modal_freq_hz, settings, mu0, N0, kc, tol, max_iter):
@@ -189,37 +191,40 @@ def refine(model, result, omega, modal_freq_hz, settings, mu0, N0, kc, tol, max_
 
 
 def statistics(largest, confidence=CONFIDENCE, raised=0):
-    """Median, 95th percentile and maximum of the members' largest peaks (NaN ignored),
-    with distribution-free confidence intervals of the first two.
+    """Median, 95th percentile and maximum of the members' largest peaks, with
+    distribution-free confidence intervals of the first two.
 
     Parameters
     ----------
     largest : array_like, shape (n_s,)
-        Each member's largest peak of the metric.
+        Each member's largest peak of the metric; NaN for a member without one (no
+        converged point): left out of the values, allowed anywhere by the intervals.
     confidence : float
         Least coverage of the intervals (:func:`mcfric.quantiles.quantile_interval`).
     raised : int
-        How many of the values are lower estimates (a peak not refined, or an open
-        fold): the intervals' upper ends move up by that many members.
+        How many of the values are lower estimates (a peak not refined, an open or
+        unchecked fold): the intervals' upper ends move up by that many members.
 
     Returns
     -------
     dict
-        ``members`` (with a peak), ``median``, ``p95``, ``max`` (the metric's unit),
+        ``members`` (with a peak), ``unknown`` (members without one), ``median``,
+        ``p95``, ``max`` (the metric's unit),
         ``median_ci`` and ``p95_ci`` (two members' values holding the population's
         median, or 95th percentile, with at least ``confidence``; ``inf`` on a side too
         few members close) and ``confidence``.
     """
     v = np.asarray(largest, dtype=float)
+    unknown = int(np.count_nonzero(~np.isfinite(v)))
     v = v[np.isfinite(v)]
     if v.size == 0:
         nan2 = (np.nan, np.nan)
-        return {"members": 0, "median": np.nan, "p95": np.nan, "max": np.nan,
-                "median_ci": nan2, "p95_ci": nan2, "confidence": confidence}
-    return {"members": int(v.size), "median": float(np.median(v)),
+        return {"members": 0, "unknown": unknown, "median": np.nan, "p95": np.nan,
+                "max": np.nan, "median_ci": nan2, "p95_ci": nan2, "confidence": confidence}
+    return {"members": int(v.size), "unknown": unknown, "median": float(np.median(v)),
             "p95": float(np.percentile(v, 95)), "max": float(v.max()),
-            "median_ci": quantile_interval(v, 0.5, confidence, raised),
-            "p95_ci": quantile_interval(v, 0.95, confidence, raised),
+            "median_ci": quantile_interval(v, 0.5, confidence, raised, unknown),
+            "p95_ci": quantile_interval(v, 0.95, confidence, raised, unknown),
             "confidence": confidence}
 
 
@@ -276,6 +281,19 @@ def has_open_fold(fold):
     return (fold == FOLD_OPEN).any(axis=1)
 
 
+def has_unchecked_fold(fold, status):
+    """Per member, whether the fold check failed at one of its peaks (``fold`` -1 where
+    ``status`` is not -1: the downward sweep did not converge, so a branch from above,
+    which may lie above every peak reported, is unknown), shape (n_s,)."""
+    return ((fold == FOLD_UNCHECKED) & (status != NONE)).any(axis=1)
+
+
+def fold_unsettled(fold, status):
+    """Per member, whether a fold leaves its largest a lower estimate: an open or an
+    unchecked one (:func:`has_open_fold`, :func:`has_unchecked_fold`), shape (n_s,)."""
+    return has_open_fold(fold) | has_unchecked_fold(fold, status)
+
+
 def file_report(path):
     """Peak statistics of a results file (None if it has no refined peaks).
 
@@ -286,9 +304,9 @@ def file_report(path):
         (median over members of the grid's maximum over the refined peak), ``folds``
         (members with a fold), ``open_folds`` (members with a fold whose branch from
         above was not followed to its peak), ``unchecked`` (members whose fold check
-        failed), ``members``, ``unresolved`` (members with a peak not refined or an open
-        fold: their largest is a lower estimate, and they are left out of
-        ``grid_ratio``; ``unresolved_fold`` of them for an open fold alone), ``at_end`` (members
+        failed), ``members``, ``unresolved`` (members with a peak not refined, an open
+        fold or an unchecked one: their largest is a lower estimate, and they are left out
+        of ``grid_ratio``; ``unresolved_fold`` of them for a fold alone), ``at_end`` (members
         whose largest value lies at an end of the band, not at a resonance peak; left out
         of ``grid_ratio`` too), and the bound's peak (``bound_peak``, ``bound_peak_hz``,
         ``bound_peak_refined``, ``bound_peak_at_end``, ``bound_peak_coarse_step``,
@@ -316,7 +334,7 @@ def file_report(path):
         # any peak left at its grid value may be the member's true largest (a narrow
         # resonance between grid points): that member's largest is a lower estimate
         grid_ = unresolved(arr["peak_status"], arr["peak_metric"]) > 0
-        by_fold = has_open_fold(arr["fold"])
+        by_fold = fold_unsettled(arr["fold"], arr["peak_status"])
         open_ = (grid_ | by_fold) & np.isfinite(big)
         n_by_fold += int(np.count_nonzero(by_fold & ~grid_ & np.isfinite(big)))
         n_unresolved += int(np.count_nonzero(open_))
@@ -333,10 +351,9 @@ def file_report(path):
         ratio.append(np.where(open_ | end, np.nan, grid / big))
         folds += int(np.count_nonzero(((arr["fold"] == FOLD_FOUND)
                                        | (arr["fold"] == FOLD_OPEN)).any(axis=1)))
-        open_folds += int(np.count_nonzero(by_fold))
-        # an empty peak slot (fewer peaks than asked) has no fold to check either
-        unchecked += int(np.count_nonzero(((arr["fold"] == FOLD_UNCHECKED)
-                                           & (arr["peak_status"] != NONE)).any(axis=1)))
+        open_folds += int(np.count_nonzero(has_open_fold(arr["fold"])))
+        unchecked += int(np.count_nonzero(has_unchecked_fold(arr["fold"],
+                                                             arr["peak_status"])))
     largest = np.concatenate(largest) if largest else np.empty(0)
     ratio = np.concatenate(ratio) if ratio else np.empty(0)
     out = {"statistics": statistics(largest, raised=n_unresolved),
@@ -359,7 +376,8 @@ def bound_peak(path):
     """The bound's refined peak stored in a file's ``bounds/`` group: ``bound_peak``,
     ``bound_peak_hz`` (Hz), ``bound_peak_refined``, ``bound_peak_at_end`` (-1, 0 or 1:
     at the band's lower end, inside, at its upper end) and ``bound_peak_coarse_step``
-    (Hz, 0 unless the grid is too coarse to find it); where the bounds were certified,
+    (Hz, 0 unless the grid is too coarse to find it), ``bound_peak_failed`` (frequencies
+    where the search failed: the peak may lie there); where the bounds were certified,
     ``certified_peak``, a dict of the certified bound near the peak (``certified``,
     ``witness``, their ``*_frequency``, ``peak_sub_grid_step`` and the grid's largest
     certified upper bound ``grid`` at ``grid_frequency``); empty where none was
@@ -375,7 +393,8 @@ def bound_peak(path):
            "bound_peak_hz": float(a["peak_upper_frequency"]),
            "bound_peak_refined": bool(a.get("peak_upper_refined", 0)),
            "bound_peak_at_end": int(a.get("peak_upper_at_end", 0)),
-           "bound_peak_coarse_step": float(a.get("peak_upper_coarse_step", 0.0))}
+           "bound_peak_coarse_step": float(a.get("peak_upper_coarse_step", 0.0)),
+           "bound_peak_failed": int(a.get("n_failed", 0))}
     if nominal_bounds(read_attrs(path)):
         out["bound_peak_nominal"] = True
     if "peak_upper_certified" in a:
@@ -406,19 +425,23 @@ def report_text(report, unit):
     lines = [f"peaks:       each member's largest, refined: median {st['median']:.4g}"
              f"{_interval(st, 'median_ci')}, 95th percentile {st['p95']:.4g}"
              f"{_interval(st, 'p95_ci')}, max {st['max']:.4g} {unit} "
-             f"({st['members']} members; {share})"
+             f"({st['members']} members"
+             + (f", and {st['unknown']} with no converged point, whose largest is "
+                f"unknown (the intervals allow any value)" if st.get("unknown") else "")
+             + f"; {share})"
              + (f"; {k} of these {'is a lower estimate' if k == 1 else 'are lower estimates'}"
                 + (": a peak of the member was not refined (a solver failed near it, or "
                    "the grid is too coarse to search) and may lie higher" if k > kf else "")
                 + (f"{'; ' if k > kf else ': '}{kf} because a fold's branch from above was "
-                   f"not followed to its peak, which may lie higher" if kf else "")
+                   f"not followed to its peak, or could not be checked, and may lie higher"
+                   if kf else "")
                 if k else "")
              + (f"; {e} of these {'lies' if e == 1 else 'lie'} at an end of the band (the "
                 f"largest value there, not a resonance peak: the band cuts it)" if e else ""),
              f"folds:       {report['folds']} of {report['members']} members have more than "
              f"one steady state near a peak"
-             + (f" ({report['unchecked']} could not be checked)" if report["unchecked"]
-                else "")
+             + (f" ({report['unchecked']} could not be checked: their largest is a lower "
+                f"estimate)" if report["unchecked"] else "")
              + (f"; in {report['open_folds']} the branch from above was not followed to "
                 f"its peak (peak_metric_down a lower estimate)" if report.get("open_folds")
                 else "")]
@@ -452,6 +475,8 @@ def bound_peak_lines(pk, unit, largest_member=None):
                              pk.get("bound_peak_coarse_step", 0.0))
              + ("; the nominal rig's bounds (the members are mistuned)"
                 if pk.get("bound_peak_nominal") else "")
+             + (f"; the search failed at {pk['bound_peak_failed']} frequencies, where the "
+                f"bound's peak may lie" if pk.get("bound_peak_failed") else "")
              + ("" if largest_member is None else
                 f"; largest member / bound {largest_member / pk['bound_peak']:.4g}")]
     if "certified_peak" in pk:

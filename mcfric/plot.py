@@ -206,13 +206,18 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
         # no member done (a partial file): nothing to draw
         px, py, ps = (np.concatenate(v) if v else np.empty(0) for v in (px, py, ps))
         py = py * omega_power(px, quantity, stored)
+        # peaks refined in another quantity, converted at their own frequency: the
+        # converted quantity peaks a little higher up (omega^k |y|), so a lower estimate
+        conv = ("" if quantity == stored else
+                f"; refined as {stored}, converted: may lie slightly low")
         ok = np.isfinite(py) & (px >= lo_f) & (px <= hi_f) & (py > 0)
         grid = ok & (ps == PEAK_GRID)
         end = ok & cut_by_band(ps, px, f)
         n_unrefined = int(np.count_nonzero(grid))
         if (ok & ~grid & ~end).any():
             ax.plot(px[ok & ~grid & ~end], py[ok & ~grid & ~end], ".", color="0.15", ms=2.5,
-                    alpha=0.6, rasterized=True, label="refined member peaks (every member)")
+                    alpha=0.6, rasterized=True,
+                    label=f"refined member peaks (every member{conv})")
         if end.any():
             # the band cuts a resonance: the largest value at its end is no peak
             ax.plot(px[end], py[end], "|", color="0.4", ms=5,
@@ -275,8 +280,10 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
                     if g.get("peak_upper_coarse_step", 0) > 0 else
                     "refined peak of the upper bound" if g.get("peak_upper_refined", 1)
                     else "largest (not refined) peak of the upper bound")
+            conv = ("" if quantity == stored else
+                    f"; refined as {stored}, converted: may lie slightly low")
             ax.plot([fb], [g["peak_upper"] * omega_power(fb, quantity, stored)], "*",
-                    color="tab:blue", ms=9, label=f"{what} (searched)")
+                    color="tab:blue", ms=9, label=f"{what} (searched{conv})")
             marked.append("searched")
         fc = g.get("peak_upper_certified_frequency", np.nan)
         if (np.isfinite(g.get("peak_upper_certified", np.nan)) and lo_f <= fc <= hi_f):

@@ -18,6 +18,11 @@ Where ``k`` of the values are lower estimates (each true value at or above the o
 given), the true ``u``-th order statistic is at most ``x_(u + k)``: of the ``u + k``
 smallest values at least ``u`` are exact. The interval ``x_(l)`` to ``x_(u + k)`` holds
 the quantile with the same confidence (``x_(l)`` lies below the true ``l``-th anyway).
+
+Where ``m`` members have no value at all (unknown: anywhere), ``n`` counts them, and of
+the known values sorted, ``y_(1) <= ... <= y_(n - m)``, the true ``j``-th order
+statistic lies between ``y_(j - m)`` (all unknown below it) and ``y_(j)`` (all above):
+the interval ``y_(l - m)`` to ``y_(u + k)`` holds the quantile with the same confidence.
 """
 
 from __future__ import annotations
@@ -25,7 +30,7 @@ from __future__ import annotations
 import numpy as np
 
 
-def quantile_interval(values, p, confidence=0.95, raised=0):
+def quantile_interval(values, p, confidence=0.95, raised=0, unknown=0):
     """Confidence interval of the ``p``-quantile of the population behind ``values``.
 
     Parameters
@@ -39,6 +44,9 @@ def quantile_interval(values, p, confidence=0.95, raised=0):
     raised : int
         How many of the values are lower estimates (their true values lie at or above):
         the upper end moves up by that many order statistics.
+    unknown : int
+        How many members have no value (not in ``values``; each may lie anywhere): they
+        count in the sample size, and the lower end moves down by that many.
 
     Returns
     -------
@@ -50,8 +58,9 @@ def quantile_interval(values, p, confidence=0.95, raised=0):
     if not 0.0 < p < 1.0 or not 0.0 < confidence < 1.0:
         raise ValueError(f"quantile_interval: expected 0 < p, confidence < 1, got {p!r}, "
                          f"{confidence!r}")
-    if isinstance(raised, bool) or not isinstance(raised, (int, np.integer)) or raised < 0:
-        raise ValueError(f"quantile_interval: raised: expected an integer >= 0, got {raised!r}")
+    for name, v in (("raised", raised), ("unknown", unknown)):
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 0:
+            raise ValueError(f"quantile_interval: {name}: expected an integer >= 0, got {v!r}")
     try:
         x = np.asarray(values, dtype=float)
     except (TypeError, ValueError):
@@ -60,9 +69,10 @@ def quantile_interval(values, p, confidence=0.95, raised=0):
         raise ValueError(f"quantile_interval: values: expected shape (n,), got {x.shape}")
     x = np.sort(x)
     x = x[np.isfinite(x)]
-    n = x.size
-    if n == 0:
+    known = x.size
+    if known == 0:
         return float("nan"), float("nan")
+    n = known + int(unknown)
     # imported here, not at the top: slow to import, and every command would wait for it
     from scipy import stats
 
@@ -73,7 +83,7 @@ def quantile_interval(values, p, confidence=0.95, raised=0):
     above = stats.binom.sf(k - 1, n, p)
     l_ok = np.flatnonzero(below <= tail)
     u_ok = np.flatnonzero(above <= tail)
-    lo = int(l_ok[-1]) if l_ok.size else 0
+    lo = (int(l_ok[-1]) if l_ok.size else 0) - int(unknown)
     hi = (int(u_ok[0]) if u_ok.size else n + 1) + int(raised)
     return (float(x[lo - 1]) if lo >= 1 else -np.inf,
-            float(x[hi - 1]) if hi <= n else np.inf)
+            float(x[hi - 1]) if hi <= known else np.inf)

@@ -488,7 +488,7 @@ def test_a_fold_whose_branch_from_above_goes_on_below_the_window_is_open():
 
 def test_open_folds_and_unrefined_slots_are_reported_before_larger_refined_peaks():
     """The kernel's report order (each case written out by hand): the largest first, then
-    every lower-estimate slot (an open fold, a peak not refined) above larger refined
+    every lower-estimate slot (an open or unchecked fold, a peak not refined) above larger refined
     peaks, empty slots last; with one place a lower-estimate slot takes it unless the
     largest is itself one."""
     from mcfric.core import peaks as kernel
@@ -503,6 +503,10 @@ def test_open_folds_and_unrefined_slots_are_reported_before_larger_refined_peaks
     # an open fold (slot 1, 3.0 m, its branch from above 2.9) beside a larger refined peak
     assert order([R, R, R], [N, O, N], [5.0, 3.0, 4.0], [5.0, 2.9, 4.0], 2)[:2] == [0, 1]
     assert order([R, R, R], [N, N, N], [5.0, 3.0, 4.0], [5.0, 3.0, 4.0], 2)[:2] == [0, 2]
+    # an unchecked fold likewise; an empty slot's fold (-1 too) is no fold
+    U = kernel.FOLD_UNCHECKED
+    assert order([R, R, R], [N, U, N], [5.0, 3.0, 4.0], [5.0, 3.0, 4.0], 2)[:2] == [0, 1]
+    assert order([R, E, R], [N, U, N], [5.0, nan, 4.0], [5.0, nan, 4.0], 2)[:2] == [0, 2]
     # the branch from above decides the largest
     assert order([R, R, R], [N, N, N], [5.0, 3.0, 4.0], [5.0, 6.0, 4.0], 1)[:1] == [1]
     # an unrefined slot, and an empty one last
@@ -513,35 +517,56 @@ def test_open_folds_and_unrefined_slots_are_reported_before_larger_refined_peaks
     assert order([R, G, R], [O, N, N], [5.0, 1.0, 4.0], [5.0, 1.0, 4.0], 1)[:1] == [0]
 
 
-def test_a_file_with_an_open_fold_counts_that_member_as_a_lower_estimate(tmp_path):
-    """A results file in which one member's fold is open (set by hand in a small two-beam
-    run, where every peak is refined and none has a fold): `file_report` counts that
-    member as unresolved for its fold alone and leaves it out of the grid ratio, which is
-    the median of the other members' grid maximum over their largest peak."""
+def test_a_file_with_open_and_unchecked_folds_counts_those_as_lower_estimates(tmp_path):
+    """A small two-beam file (every peak refined, no fold) edited by hand: one member's
+    fold open, another's unchecked (the two of smallest grid ratio, so that leaving them
+    out moves the median), a third without any converged point. `file_report` counts the
+    first two as lower estimates for a fold alone, leaves them out of the grid ratio (the
+    median of the others' grid maximum over their largest peak, computed here from the
+    datasets), and widens the intervals for the third, whose largest is unknown."""
     import h5py
 
-    from mcfric.peaks import FOLD_OPEN
+    from mcfric.peaks import FOLD_OPEN, FOLD_UNCHECKED, NONE, report_text, statistics
 
-    cfg = config.load("two-beam", {"sampling.samples": (5, "--samples"),
+    def row_max(x):
+        return np.max(np.where(np.isnan(x), -np.inf, x), axis=1)
+
+    cfg = config.load("two-beam", {"sampling.samples": (7, "--samples"),
                                    "frequency.n": (120, "--n-freq"),
                                    "bounds.certify": (False, "--no-certify")})
     summary = ensemble.run(cfg, tmp_path / "r.h5", progress=False)
     clean = file_report(summary.path)
-    assert (clean["unresolved"], clean["open_folds"], clean["folds"]) == (0, 0, 0), clean
+    assert (clean["unresolved"], clean["open_folds"], clean["folds"], clean["unchecked"]) \
+        == (0, 0, 0, 0), clean
     with h5py.File(summary.path, "r+") as h5:
         assert np.all(h5["peak_status"][()] != 2)
-        h5["fold"][2, 0] = FOLD_OPEN
         metric, peak = h5["metric"][()], h5["peak_metric"][()]
-        peak_down = h5["peak_metric_down"][()]
+        largest = row_max(np.concatenate([peak, h5["peak_metric_down"][()]], axis=1))
+        ratio = row_max(metric) / largest
+        i_open, i_unchecked, *_, i_none = np.argsort(ratio)
+        h5["fold"][i_open, 0] = FOLD_OPEN
+        h5["fold"][i_unchecked, 0] = FOLD_UNCHECKED
+        for name in ("metric", "peak_metric", "peak_metric_down"):
+            h5[name][i_none] = np.nan
+        h5["peak_status"][i_none] = NONE
+        h5["converged"][i_none] = False
     rep = file_report(summary.path)
-    assert rep["members"] == 5
-    assert (rep["unresolved"], rep["unresolved_fold"], rep["open_folds"], rep["folds"]) \
-        == (1, 1, 1, 1), rep
-    largest = np.nanmax(np.concatenate([peak, peak_down], axis=1), axis=1)
-    ratio = np.nanmax(metric, axis=1) / largest
-    assert np.median(ratio) != pytest.approx(np.median(np.delete(ratio, 2)), rel=1e-9)
-    assert rep["grid_ratio"] == pytest.approx(np.median(np.delete(ratio, 2)), rel=1e-12)
-    assert rep["statistics"]["max"] == pytest.approx(largest.max(), rel=1e-12)
+    assert rep["members"] == 7 and rep["statistics"]["unknown"] == 1
+    assert (rep["unresolved"], rep["unresolved_fold"], rep["open_folds"], rep["folds"],
+            rep["unchecked"]) == (2, 2, 1, 1, 1), rep
+    kept = np.delete(ratio, [i_open, i_unchecked, i_none])
+    assert np.median(np.delete(ratio, i_none)) != pytest.approx(np.median(kept), rel=1e-9)
+    assert rep["grid_ratio"] == pytest.approx(np.median(kept), rel=1e-12)
+    assert rep["statistics"]["max"] == pytest.approx(np.delete(largest, i_none).max(),
+                                                     rel=1e-12)
+    # the unknown member widens the median's interval (7 members: open below with it)
+    assert rep["statistics"]["median_ci"][0] == -np.inf
+    assert np.isfinite(statistics(np.delete(largest, i_none), raised=2)["median_ci"][0])
+    text = " ".join(report_text(rep, "m"))
+    assert "and 1 with no converged point, whose largest is unknown" in text
+    assert "2 because a fold's branch from above was not followed to its peak, or could " \
+           "not be checked" in text
+    assert "(1 could not be checked: their largest is a lower estimate)" in text
 
 
 def test_a_peak_beside_a_failed_neighbour_is_flagged_not_refined():

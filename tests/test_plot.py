@@ -430,6 +430,11 @@ def test_the_cloud_draws_at_most_max_lines_and_the_envelope_of_all(tmp_path):
     assert drawn["n_drawn"] == 400
     assert "envelope of all 1,000 members" in drawn["legend"]
     assert "refined member peaks (every member)" in drawn["legend"]
+    # peaks refined as displacements, drawn as accelerations: said to be lower estimates
+    acc = plot.results_figure(path, tmp_path / "a.png", quantity="acceleration",
+                              max_lines=10, indicator=False)
+    assert ("refined member peaks (every member; refined as displacement, converted: may "
+            "lie slightly low)") in acc["legend"]
     for n, k in ((1000, 400), (799, 400), (10, 400), (7, 3), (1, 1)):
         assert np.count_nonzero(plot._drawn(np.arange(n), n, k)) == min(n, k)
     with pytest.raises(ValueError, match="member: expected None or a member in 0..999"):

@@ -67,3 +67,36 @@ def test_intervals_with_lower_estimates_still_hold_the_quantile(k):
             lo, hi = quantile_interval(x, p, 0.95, raised=k)
             hits += lo <= true <= hi
         assert hits / trials >= 0.95 - 3 * np.sqrt(0.95 * 0.05 / trials)
+
+
+def test_intervals_with_unknown_members_still_hold_the_quantile():
+    """m members without a value (a member with no converged point has no peak): with
+    ``unknown=m`` the interval holds the true quantile as often as claimed, whether the
+    values lost were the m smallest or the m largest (the worst cases of each end);
+    without it, losing the smallest moves the lower end above the quantile too often."""
+    rng = np.random.default_rng(12)
+    n, trials, m = 400, 1500, 10
+    need = 0.95 - 3 * np.sqrt(0.95 * 0.05 / trials)
+    for p in (0.5, 0.95):
+        true = np.exp(stats.norm.ppf(p))
+        hits = {"smallest": 0, "largest": 0, "ignored": 0}
+        for _ in range(trials):
+            x = np.sort(rng.lognormal(size=n))
+            for lost, kept in (("smallest", x[m:]), ("largest", x[:-m])):
+                lo, hi = quantile_interval(kept, p, 0.95, unknown=m)
+                hits[lost] += lo <= true <= hi
+            lo, hi = quantile_interval(x[m:], p, 0.95)
+            hits["ignored"] += lo <= true <= hi
+        assert hits["smallest"] / trials >= need and hits["largest"] / trials >= need, hits
+        if p == 0.5:
+            assert hits["ignored"] / trials < need, hits
+
+
+def test_unknown_members_count_in_the_sample_size():
+    x = np.arange(1.0, 101.0)
+    lo, hi = quantile_interval(x, 0.5, 0.95)
+    lo3, hi3 = quantile_interval(x, 0.5, 0.95, unknown=3)
+    assert lo3 < lo and hi3 >= hi
+    assert quantile_interval([1.0, 2.0], 0.5, unknown=5)[0] == -np.inf
+    with pytest.raises(ValueError, match="unknown"):
+        quantile_interval(x, 0.5, unknown=-1)

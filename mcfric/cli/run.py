@@ -14,8 +14,10 @@ from .outputs import not_replacing_hdf5, order_path, output_path
 def _check_members(path):
     """Count converged ensemble points outside the stored bounds (a validity check), on
     the members the bounds' constraints admit (:meth:`Bounds.admits`): ``(outside, total,
-    outside_certified, left_out)``, ``outside_certified`` None if not certified,
-    ``left_out`` the members not admitted (not checked)."""
+    outside_certified, left_out, unbounded)``, ``outside_certified`` None if not
+    certified, ``left_out`` the members not admitted (not checked), ``unbounded`` the
+    points at frequencies where the search failed (no searched bounds: those points are
+    not counted in ``outside`` and ``total``, only in the certified check)."""
     import numpy as np
 
     from ..bounds import read_bounds
@@ -25,16 +27,18 @@ def _check_members(path):
     if B is None:
         return None
     C = B.certificate
-    outside = total = outside_cert = left_out = 0
+    searched = np.isfinite(B.upper) & np.isfinite(B.lower)
+    outside = total = outside_cert = left_out = unbounded = 0
     for _, arr in iter_records(path, ["metric", "converged", "mu0", "kc", "N0"]):
         admitted = B.admits(arr["mu0"], arr["kc"], arr["N0"])
         left_out += int(np.count_nonzero(~admitted))
         ok = arr["converged"] & admitted[:, None]
-        outside += int(np.count_nonzero(~B.contains(arr["metric"]) & ok))
+        outside += int(np.count_nonzero(~B.contains(arr["metric"]) & ok & searched))
         if C is not None:
             outside_cert += int(np.count_nonzero(~C.contains(arr["metric"]) & ok))
-        total += int(np.count_nonzero(ok))
-    return outside, total, None if C is None else outside_cert, left_out
+        total += int(np.count_nonzero(ok & searched))
+        unbounded += int(np.count_nonzero(ok & ~searched))
+    return outside, total, None if C is None else outside_cert, left_out, unbounded
 
 
 def _kept_bounds_note(cfg, out):
@@ -194,7 +198,7 @@ def _report_run(args, cfg, out, summary):
     if summary.complete:
         check = _check_members(out)
         if check is not None:
-            outside, total, outside_cert, left_out = check
+            outside, total, outside_cert, left_out, unbounded = check
             from ..store import read_attrs
 
             H = int(read_attrs(out).get("harmonics", 1))
@@ -209,7 +213,9 @@ def _report_run(args, cfg, out, summary):
                     if outside and held and H == 1 and not mis else
                     _outside_note(outside, H, "the bounds search missed them", mis))
             print(f"searched bounds check: {outside} of {total:,} converged member points "
-                  f"outside [lower, upper]" + note)
+                  f"outside [lower, upper]" + note
+                  + (f"; {unbounded:,} at the frequencies where the search failed, which "
+                     f"have no searched bounds, not checked" if unbounded else ""))
             if outside_cert is not None:
                 print(f"certified bounds check: {outside_cert} outside [lower_certified, "
                       f"upper_certified]" + _outside_note(outside_cert, H,

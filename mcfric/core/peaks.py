@@ -95,7 +95,7 @@ FOLD_UNCHECKED = -1     # the downward sweep failed to converge somewhere
 FOLD_RTOL = 1e-6
 #: Sub-intervals of the bracket sampled before the golden-section search.
 N_SUB = 8
-#: Rank of an unrefined slot (or an open fold) among the reported: above every value,
+#: Rank of an unrefined slot (or an open or unchecked fold) among the reported: above every value,
 #: below the largest.
 _GRID_KEY = 1e300
 #: Parabolic (or golden-section) steps at most per peak.
@@ -993,8 +993,8 @@ def report_order(sst, sfo, sm, sdm, n_peaks):
 
     First the largest value, by the larger of the two branches (what ``largest()``
     reports, never below a peak the member solved); then the unrefined slots and the open
-    folds whatever their values (lower estimates: dropping all would call the member
-    resolved); then the rest, largest first, slot order among equals. With one place a
+    or unchecked folds whatever their values (lower estimates: dropping all would call
+    the member resolved); then the rest, largest first, slot order among equals. With one place a
     lower-estimate slot takes it, unless the largest is itself one.
 
     Parameters
@@ -1016,7 +1016,8 @@ def report_order(sst, sfo, sm, sdm, n_peaks):
     q_max, v_max = -1, -math.inf
     for q in range(n_slot):
         v = max(sm[q], sdm[q]) if sdm[q] == sdm[q] else sm[q]
-        open_ = sst[q] == PEAK_GRID or sfo[q] == FOLD_OPEN
+        open_ = (sst[q] == PEAK_GRID or sfo[q] == FOLD_OPEN
+                 or (sfo[q] == FOLD_UNCHECKED and sst[q] != PEAK_NONE))
         key[q] = _GRID_KEY if open_ else (v if v == v else -math.inf)
         if v > v_max:
             q_max, v_max = q, v
