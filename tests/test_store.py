@@ -188,8 +188,11 @@ def test_add_group_for_later_stages(tmp_path):
         assert g["upper"].dims == ("frequency",)
         np.testing.assert_array_equal(g["lower"].values, lower)
         assert g.attrs["method"] == "test"
+    before = path.read_bytes()
     with pytest.raises(ValueError, match="does not match"):
         store.add_group(path, "bounds", {"x": (("frequency",), np.arange(3.0), {})})
+    # a failed change leaves the file as it was, and nothing beside it
+    assert path.read_bytes() == before and [p.name for p in tmp_path.iterdir()] == ["r.h5"]
     # the root is untouched
     with store.open_results(path) as ds:
         assert ds["y"].shape == (4, 7, 3)

@@ -3,11 +3,13 @@ coordinates and groups alone, written atomically."""
 
 from __future__ import annotations
 
+import shutil
 from pathlib import Path
 
 import h5py
 import numpy as np
 
+from . import files
 from .files import LAYOUT_VERSION, StoreError, abandon, fsync_path, partial_path, require_room
 from .reader import read_attrs
 
@@ -17,7 +19,10 @@ def add_group(path, name, variables, attrs=None):
 
     The hook for later stages (e.g. ``bounds/`` from the bounds stage): each variable is
     labelled with dimensions of the root (``frequency``, ``beam``, ...), so
-    ``xarray.open_dataset(path, engine="h5netcdf", group=name)`` reads it.
+    ``xarray.open_dataset(path, engine="h5netcdf", group=name)`` reads it. The file is
+    copied, the copy changed and renamed over it (:func:`~mcfric.store.files.replacing`):
+    an error or a crash on the way leaves the file as it was, never half-changed (at the
+    cost of a copy of the file; mcfric itself writes its groups at creation).
 
     Parameters
     ----------
@@ -34,9 +39,12 @@ def add_group(path, name, variables, attrs=None):
     a = read_attrs(path)
     if a.get("complete") != 1:
         raise StoreError(f"{path}: add_group needs a complete results file")
-    with h5py.File(path, "r+") as h5:
-        write_group(h5, name, variables, attrs)
-        h5.flush()
+    with files.replacing(path, "results file") as tmp:
+        shutil.copyfile(path, tmp)
+        with h5py.File(tmp, "r+") as h5:
+            write_group(h5, name, variables, attrs)
+        fsync_path(tmp)
+    files.fsync_dir(path)
 
 
 def write_group(h5, name, variables, attrs):
