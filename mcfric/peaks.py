@@ -348,7 +348,8 @@ def file_report(path):
         with np.errstate(invalid="ignore"):
             grid = np.nanmax(np.where(np.isnan(arr["metric"]), -np.inf, arr["metric"]), axis=1)
         largest.append(big)
-        ratio.append(np.where(open_ | end, np.nan, grid / big))
+        with np.errstate(invalid="ignore", divide="ignore"):    # a metric zero everywhere
+            ratio.append(np.where(open_ | end, np.nan, grid / big))
         folds += int(np.count_nonzero(((arr["fold"] == FOLD_FOUND)
                                        | (arr["fold"] == FOLD_OPEN)).any(axis=1)))
         open_folds += int(np.count_nonzero(has_open_fold(arr["fold"])))

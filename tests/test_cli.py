@@ -638,3 +638,31 @@ def test_run_onto_a_bounds_file_says_it_holds_bounds(tmp_path, capsys):
     assert rc == 0, err
     with h5py.File(out) as h:
         assert int(h.attrs["samples"]) == 40 and h["done"][...].all()
+
+
+@pytest.mark.parametrize("held", ["out-eo2.png", "out-eo2.h5", "out-eo1.h5.partial"])
+def test_every_engine_orders_names_are_checked_before_the_first_order(tmp_path, capsys,
+                                                                      monkeypatch, held):
+    """A directory holding a later order's figure, results file or partial name: refused
+    in one line before any order runs (order 1 ran, and order 2 failed after its work,
+    before)."""
+    monkeypatch.chdir(tmp_path)
+    Path("s.toml").write_text('[model]\npreset = "disk-24"\n[sampling]\nsamples = 2\n'
+                              '[frequency]\nn = 8\n[bounds]\nenabled = false\n'
+                              '[excitation]\nengine_orders = [1, 2]\n')
+    Path(held).mkdir()
+    rc = cli.main(["run", "s.toml", "-o", "out.h5", "--no-progress", "--force"])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and err.endswith(f"{held} is a directory") and "\n" not in err, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([held, "s.toml"])
+
+
+def test_a_default_output_directory_that_cannot_be_made_is_one_line(tmp_path, capsys,
+                                                                     monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    Path("mcfric-results").write_text("a file, not a directory\n")
+    rc = cli.main(["run", "two-beam", "--samples", "2", "--n-freq", "8", "--no-bounds",
+                   "--no-figure", "--no-progress"])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and err == ("mcfric: error: cannot make the default output directory "
+                               "mcfric-results (File exists); give -o FILE"), err

@@ -167,6 +167,11 @@ def test_config_json_round_trips_floats_exactly():
     ({"sampling": {"samples": True}}, "sampling.samples"),
     ({"frequency": {"f_min": float("nan")}}, "frequency.f_min"),
     ({"frequency": 3}, "frequency"),
+    # a band narrower than rounding: the grid repeats frequencies (the run crashed, a
+    # .partial left, before it was refused)
+    ({"frequency": {"f_min": 10.0, "f_max": 10.000000000001}}, "frequency.n"),
+    ({"frequency": {"f_min": 999999.9999999, "f_max": 1e6, "spacing": "log"}},
+     "frequency.n"),
     ({"bogus": {}}, "bogus"),
     ({"model": {"table": {"shapes": [[1.0, 2.0], [3.0]]}}}, "model.table.shapes"),
     ({"model": {"table": {"positions": [1, 2]}}}, "model.table.positions"),

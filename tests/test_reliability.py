@@ -972,6 +972,24 @@ def test_a_file_that_cannot_fit_fails_before_any_work(small_fs, capsys):
     assert not list(small_fs.iterdir())
 
 
+def test_a_full_disk_while_the_file_is_created_is_one_line(tmp_path, capsys, monkeypatch):
+    """h5py reports a full disk met while it allocates a dataset as a ValueError (seen
+    with 1e10 samples and --skip-space-check): one line, exit 1, nothing left."""
+    def full(*a, **k):
+        raise ValueError("Unable to synchronously create dataset (file write failed: time "
+                         "= Tue Dec  1 04:00:00 2026, filename = 'r.h5.partial', file "
+                         "descriptor = 5, errno = 28, error message = 'No space left on "
+                         "device', buf = 0x1, total write size = 8, bytes this sub-write "
+                         "= 8, bytes actually written = 18446744073709551615, offset = 0)")
+
+    monkeypatch.setattr(writer, "_create_allocated", full)
+    out = tmp_path / "r.h5"
+    assert cli.main(["run", *SMALL, "-o", str(out)]) == 1
+    err = capsys.readouterr().err.strip()
+    assert err == f"mcfric: error: {out}: cannot be written (No space left on device)", err
+    assert not list(tmp_path.iterdir())
+
+
 def test_a_disk_that_fills_mid_run_leaves_a_resumable_partial(small_fs, tmp_path, capsys,
                                                               monkeypatch):
     """Without the reservation (a file system without fallocate), a real ENOSPC mid-run

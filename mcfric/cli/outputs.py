@@ -42,17 +42,23 @@ def output_path(args, suffix, prefix="", figure=False):
         out = Path(args.output)
         if not out.parent.is_dir():
             raise UsageError(f"-o: directory {out.parent} does not exist")
-        if out.is_dir():
-            raise UsageError(f"-o: {out} is a directory")
-        if out.exists() and not out.is_file():
-            # --force would replace a device (/dev/null) with a results file; a pipe hangs
-            raise UsageError(f"-o: {out} is not a regular file (a device or a pipe)")
+        regular_or_none(out)
     else:
         out = _default_output(args, suffix, prefix)
         if not out.parent.is_dir():
-            out.parent.mkdir(parents=True, exist_ok=True)
+            try:
+                out.parent.mkdir(parents=True, exist_ok=True)
+            except OSError as e:
+                # a file of that name, or a directory that cannot be written
+                raise UsageError(f"cannot make the default output directory {out.parent} "
+                                 f"({e.strerror or e}); give -o FILE") from None
             MADE_DIRS.append(out.parent)
+        regular_or_none(out, "")
     writable_dir(out)
+    if suffix == ".h5":
+        from ..store import partial_path
+
+        regular_or_none(partial_path(out))
     what = "results file" if suffix == ".h5" else f"{suffix[1:].upper()} output"
     if suffix == ".h5" and out.name.endswith(".partial"):
         raise UsageError(f"-o: {out.name} ends in .partial, the name of an interrupted "
@@ -81,6 +87,15 @@ def output_path(args, suffix, prefix="", figure=False):
         raise UsageError(f"-o: {out.name}: this command writes {fmt}; give a name ending "
                          f"in {suffix}")
     return out
+
+
+def regular_or_none(path, label="-o: "):
+    """Refuse an output name held by a directory, a device or a pipe (``--force`` would
+    replace a device such as /dev/null with a results file; a pipe hangs)."""
+    if path.is_dir():
+        raise UsageError(f"{label}{path} is a directory")
+    if path.exists() and not path.is_file():
+        raise UsageError(f"{label}{path} is not a regular file (a device or a pipe)")
 
 
 def writable_dir(out):

@@ -8,7 +8,7 @@ import sys
 
 from .errors import EXIT_FAIL, EXIT_INTERRUPTED, EXIT_OK, UsageError, one_line
 from .inputs import load_config, shortfall_note
-from .outputs import not_replacing_hdf5, order_path, output_path
+from .outputs import not_replacing_hdf5, order_path, output_path, regular_or_none
 
 
 def _check_members(path):
@@ -82,6 +82,7 @@ def cmd_run(args):
     """``mcfric run``: run (or resume) an ensemble, check it against its bounds, draw it;
     with ``excitation.engine_orders``, one such run and file per engine order."""
     from .. import ensemble
+    from ..store import partial_path
     from ..store.lock import LockError, OutputLock
 
     if args.resume and args.force:
@@ -98,6 +99,9 @@ def cmd_run(args):
     # the refusals of every order's files before the first order starts (with --resume
     # too: a later order's file of another run was found only after the earlier orders)
     for c, o in runs:
+        # the checks output_path makes of -o's own names, for each order's
+        for path in (o, partial_path(o)) + (() if args.no_figure else (o.with_suffix(".png"),)):
+            regular_or_none(path, f"engine order {c.data['excitation']['engine_order']}: ")
         if not args.no_figure:
             not_replacing_hdf5(o.with_suffix(".png"), "figure")
         try:

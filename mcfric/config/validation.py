@@ -12,6 +12,8 @@ from __future__ import annotations
 import json
 import math
 
+import numpy as np
+
 from .. import sampling
 from ..bounds.equivalent_linear import K_MAX_LIMIT, past_limits
 from ..validators import InputError, choices, is_num, show
@@ -246,6 +248,12 @@ def _cross_checks(c):
                          f"got {fr['f_max']:g}",
                          alt=("frequency.f_min", f"expected a number < f_max "
                                                   f"({fr['f_max']:g}), got {fr['f_min']:g}"))
+    space = np.linspace if fr["spacing"] == "linear" else np.geomspace
+    if not np.all(np.diff(space(fr["f_min"], fr["f_max"], fr["n"])) > 0):
+        # a band narrower than rounding repeats frequencies (the peaks need them rising)
+        raise InputError("frequency.n", f"{fr['n']} points between f_min = {fr['f_min']!r} "
+                         f"and f_max = {fr['f_max']!r} Hz repeat frequencies in floating "
+                         f"point; widen the band or use fewer points")
     beams = c["metric"]["beams"]
     if beams != "all":
         for b in beams:

@@ -56,7 +56,9 @@ def abandon(h5, part, path, e):
         except Exception:
             pass
     Path(part).unlink(missing_ok=True)
-    if isinstance(e, (OSError, RuntimeError)):      # a full disk's is a RuntimeError
+    # a full disk's is a RuntimeError, or (creating a dataset) a ValueError naming errno
+    if (isinstance(e, (OSError, RuntimeError))
+            or isinstance(e, ValueError) and re.search(r"errno = \d+", str(e))):
         return StoreError(f"{path}: cannot be written ({hdf5_reason(e)})")
     return e
 
