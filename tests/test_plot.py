@@ -117,7 +117,8 @@ def test_bad_input_is_one_line_exit_2(case, results, tmp_path, capsys):
     words = {"f-min above f-max": "--f-min: expected f-min < f-max",
              "infinite f-max": "--f-max: expected a frequency",
              "NaN f-min": "--f-min: expected a frequency",
-             "a directory": "a directory, not a results file"}.get(case, "")
+             "a directory": "a directory, not a results file",
+             "window outside the grid": "--f-min/--f-max: no frequencies of"}.get(case, "")
     rc, out, err = call(argv, capsys)
     assert rc == 2
     lines = err.strip().splitlines()

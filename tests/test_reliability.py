@@ -606,6 +606,27 @@ def test_edited_results_files_give_one_line_exit_2(tmp_path, capsys, how, messag
     assert not (tmp_path / "f.png").exists() and not (tmp_path / "v.csv").exists()
 
 
+@pytest.mark.parametrize("how, commands", [
+    # attributes edited into another type (info gave a traceback; verify reads neither)
+    (lambda h: h.attrs.__setitem__("harmonics", "x"), ("info", "plot")),
+    (lambda h: h["bounds"].attrs.__setitem__("k_max_re", "x"), ("info", "plot")),
+    # a peak dataset missing (info exited 1; plot draws without it)
+    (lambda h: h.__delitem__("fold"), ("info",)),
+], ids=["harmonics", "k_max_re", "fold"])
+def test_info_and_plot_on_edited_attributes_are_one_line_exit_2(tmp_path, capsys, how,
+                                                                 commands):
+    res = _damaged(tmp_path, how)
+    capsys.readouterr()
+    for command in commands:
+        argv = [command, str(res)] + (["-o", str(tmp_path / "f.png")]
+                                      if command == "plot" else [])
+        rc = cli.main(argv)
+        err = capsys.readouterr().err.strip()
+        assert rc == 2 and len(err.splitlines()) == 1, (argv, err)
+        assert "'x'" in err or "'fold'" in err, err
+    assert not (tmp_path / "f.png").exists()
+
+
 def test_a_nan_metric_marked_converged_is_reported_not_ranged(tmp_path, capsys):
     def nan(h):
         m = h["metric"][...]

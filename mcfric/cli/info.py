@@ -44,6 +44,21 @@ def cmd_config(args):
 
 def cmd_info(args):
     """``mcfric info``: a summary of a results file (complete or partial)."""
+    from ..store import StoreError
+
+    try:
+        return _info(args)
+    except StoreError as e:             # a dataset missing: 2, as for the others (was 1)
+        raise UsageError(str(e)) from None
+    except (AttributeError, KeyError, TypeError, ValueError) as e:
+        # an attribute or dataset edited into another type or shape: one line
+        from .errors import one_line
+
+        raise UsageError(f"{args.file}: a damaged or edited results file ({type(e).__name__}:"
+                         f" {one_line(e)})") from None
+
+
+def _info(args):
     from ..indicator import file_report as indicator_report
     from ..metric import METRIC_UNITS
     from ..peaks import file_report as peak_report

@@ -61,7 +61,8 @@ def cmd_plot(args):
                                     member=None if args.member < 0 else args.member,
                                     measured=measured, indicator=not args.no_indicator)
     except ValueError as e:
-        raise UsageError(str(e)) from None
+        # the Python argument's name, f_window, is the flags' here
+        raise UsageError(str(e).replace("f_window: ", "--f-min/--f-max: ", 1)) from None
     gaps = drawn["n_not_converged"]
     grid = drawn["n_peaks_unrefined"]
     print(f"figure: {out} ({drawn['n_drawn']} of {drawn['n_members']} members drawn"
