@@ -378,7 +378,8 @@ def bound_peak(path):
     ``bound_peak_hz`` (Hz), ``bound_peak_refined``, ``bound_peak_at_end`` (-1, 0 or 1:
     at the band's lower end, inside, at its upper end) and ``bound_peak_coarse_step``
     (Hz, 0 unless the grid is too coarse to find it), ``bound_peak_failed`` (frequencies
-    where the search failed: the peak may lie there); where the bounds were certified,
+    where the upper bound's search failed: the peak may lie there); where the bounds were
+    certified,
     ``certified_peak``, a dict of the certified bound near the peak (``certified``,
     ``witness``, their ``*_frequency``, ``peak_sub_grid_step`` and the grid's largest
     certified upper bound ``grid`` at ``grid_frequency``); empty where none was
@@ -395,7 +396,9 @@ def bound_peak(path):
            "bound_peak_refined": bool(a.get("peak_upper_refined", 0)),
            "bound_peak_at_end": int(a.get("peak_upper_at_end", 0)),
            "bound_peak_coarse_step": float(a.get("peak_upper_coarse_step", 0.0)),
-           "bound_peak_failed": int(a.get("n_failed", 0))}
+           "bound_peak_failed": (int(np.count_nonzero(np.isnan(np.asarray(g[0]["upper"],
+                                                                         float))))
+                                 if "upper" in g[0] else 0)}
     if nominal_bounds(read_attrs(path)):
         out["bound_peak_nominal"] = True
     if "peak_upper_certified" in a:

@@ -36,7 +36,9 @@ def quantile_interval(values, p, confidence=0.95, raised=0, unknown=0):
     Parameters
     ----------
     values : array_like, shape (n,)
-        Independent draws (non-finite values are left out), any unit.
+        Independent draws, any unit. Non-finite values are left out and not counted:
+        members without a value go in ``unknown`` (as :func:`mcfric.peaks.statistics`
+        does with NaN).
     p : float
         Probability of the quantile, ``0 < p < 1`` (0.95: the 95th percentile).
     confidence : float

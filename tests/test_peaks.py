@@ -656,6 +656,18 @@ def test_band_ends_and_coarse_grids_are_not_called_refined_peaks(tmp_path):
     r = mcfric.solve(cfg.model(), f, mu0, kc, N0)
     assert np.all(f[np.argmax(r.metric(), axis=1)] < 16.3)
 
+    # the band's upper end below the resonance (15-16.1 Hz): the largest values lie at
+    # its last point, where there is no branch from above to check (fold 0: they were
+    # counted unchecked, and so lower estimates)
+    summary = ensemble.run(two_beam(30, 15.0, 16.1), tmp_path / "top.h5", progress=False)
+    rep = file_report(summary.path)
+    with __import__("h5py").File(summary.path) as h:
+        st, fp, fo = h["peak_status"][:, 0], h["peak_frequency"][:, 0], h["fold"][:, 0]
+    assert np.all(fp == pytest.approx(16.1)) and np.all(st == 1) and np.all(fo == 0)
+    assert (rep["at_end"], rep["unresolved"], rep["unchecked"]) == (6, 0, 0), rep
+    assert "could not be checked" not in summary.text()
+    assert "6 of these lie at an end of the band" in summary.text()
+
     # the grid's maximum at the band's first point, the peak refined inside the first
     # interval (16.2 Hz): a resonance peak, not cut by the band
     summary = ensemble.run(two_beam(20, 16.1, 30.0), tmp_path / "inside.h5", progress=False)

@@ -94,9 +94,12 @@ def test_intervals_with_unknown_members_still_hold_the_quantile():
 
 def test_unknown_members_count_in_the_sample_size():
     x = np.arange(1.0, 101.0)
-    lo, hi = quantile_interval(x, 0.5, 0.95)
-    lo3, hi3 = quantile_interval(x, 0.5, 0.95, unknown=3)
-    assert lo3 < lo and hi3 >= hi
+    # the order statistics of 103 members (binomial, written out), the lower one 3 lower
+    k = np.arange(105)
+    l_ = np.flatnonzero(stats.binom.cdf(k - 1, 103, 0.5) <= 0.025)[-1]
+    u_ = np.flatnonzero(stats.binom.sf(k - 1, 103, 0.5) <= 0.025)[0]
+    assert quantile_interval(x, 0.5, 0.95, unknown=3) == (x[l_ - 3 - 1], x[u_ - 1])
+    assert quantile_interval(x, 0.5, 0.95, raised=2, unknown=3) == (x[l_ - 4], x[u_ + 1])
     assert quantile_interval([1.0, 2.0], 0.5, unknown=5)[0] == -np.inf
     with pytest.raises(ValueError, match="unknown"):
         quantile_interval(x, 0.5, unknown=-1)

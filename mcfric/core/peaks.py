@@ -10,9 +10,9 @@ sweep on a grid underestimates the member's peak. After the sweep, for every mem
    grid value could belong to a higher peak than the ``n_peaks``-th refined so far (a
    resonance as wide as the narrowest mode, peaking midway between grid points:
    ``_hidden_fraction``);
-   reported, ``n_peaks`` in all: the largest result, the unrefined maxima and open
-   folds of 5 (lower estimates; with one place, one of them instead of the largest),
-   then the largest of the rest;
+   reported, ``n_peaks`` in all: the largest result, the unrefined maxima and open or
+   unchecked folds of 5 (lower estimates; with one place, one of them instead of the
+   largest, unless the largest is one), then the largest of the rest;
 2. each is refined in frequency: parabolic steps on ``1/M^2`` from its grid neighbours
    (golden-section steps where no parabola fits, or where two steps have not halved the
    bracket: a parabola fitted across a corner of ``M``, where a damper starts to slip,
@@ -84,12 +84,14 @@ PEAK_GRID = 2           # not refined (a solver did not converge in the refineme
                         # grid neighbour, where the peak may lie): the grid value
 PEAK_NONE = -1          # fewer local maxima than asked (or no converged point): NaN
 #: Fold flags.
-FOLD_NONE = 0           # the downward sweep reproduces the upward one
+FOLD_NONE = 0           # the downward sweep reproduces the upward one (or the peak is
+                        # the band's last point: nothing above it to sweep down from)
 FOLD_FOUND = 1          # the two directions reach different steady states
 FOLD_OPEN = 2           # a fold whose branch from above was not followed to its peak (it
                         # is largest, and still apart, where the downward sweep ends, or
                         # its refinement failed): the downward peak is a lower estimate
-FOLD_UNCHECKED = -1     # the downward sweep failed to converge somewhere
+FOLD_UNCHECKED = -1     # the downward sweep failed to converge somewhere, or the
+                        # upward point it starts from did not: a branch from above unknown
 #: Relative difference of M between the sweep directions that counts as another branch
 #: (converged points agree to ~1e-9; the tolerance of the residual is 1e-10).
 FOLD_RTOL = 1e-6
@@ -657,7 +659,8 @@ def _fold(p, k, i, omega, y, s, status, M, P, S, rtol, window, x, sfo, sdw, sdm)
     """The fold check of slot ``p`` at grid point ``k``: the ``window`` grid points on
     each side swept downward, from the upward state above them; where the downward
     branch differs from the upward one (``FOLD_RTOL``), its own peak refined, continued
-    from above, into ``sdw[p]``, ``sdm[p]`` (rad/s, metric). Sets ``sfo[p]``:
+    from above, into ``sdw[p]``, ``sdm[p]`` (rad/s, metric). Sets ``sfo[p]`` (left
+    ``FOLD_UNCHECKED`` where the check fails; ``FOLD_NONE`` at the band's last point):
     ``FOLD_OPEN`` where that peak is a lower estimate (the largest downward point is the
     lowest one solved, not the band's first, and differs from the upward one there or
     has none to compare with, so the branch goes on below; or the refinement failed)."""
@@ -665,8 +668,12 @@ def _fold(p, k, i, omega, y, s, status, M, P, S, rtol, window, x, sfo, sdw, sdm)
     nd = x.shape[0]
     k_top = min(k + window, n_f - 1)
     k_bot = max(k - window, 0)
-    if k_top == k or status[i, k_top] < 0:
-        return                            # nothing above the peak to start from
+    if k_top == k:
+        # the band's last point (window >= 1): no branch comes from above it in the band
+        sfo[p] = FOLD_NONE
+        return
+    if status[i, k_top] < 0:
+        return                            # no upward point to start from: unchecked
     S[4][0] = 0
     _log_s(s, i, k_top, nd, x)
     first = _seed(omega[k_top], x, y[i, k_top], M[k_top], S)
