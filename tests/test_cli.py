@@ -533,9 +533,10 @@ def test_a_mistuned_run_does_not_call_members_outside_the_bounds_a_fault(tmp_pat
 
 def test_points_where_the_bounds_search_failed_are_not_called_outside(tmp_path, capsys,
                                                                       monkeypatch):
-    """A frequency whose searched bounds failed (NaN, set here by hand on the file's
-    bounds as the check reads them) has nothing to check against: its points are counted
-    apart, not as points the search missed ('please report' before)."""
+    """A frequency whose searched (or certified) bounds failed (NaN, set here by hand on
+    the file's bounds as the check reads them) has nothing to check against: its points
+    are counted apart, not as points the search missed ('please report' before) or a
+    broken certificate."""
     import mcfric.bounds
 
     real = mcfric.bounds.read_bounds
@@ -544,25 +545,31 @@ def test_points_where_the_bounds_search_failed_are_not_called_outside(tmp_path, 
         B = real(path)
         B.upper[[2, 5]] = np.nan
         B.lower[7] = np.nan
+        B.certificate.upper[[2, 5]] = np.nan
         return B
 
     monkeypatch.setattr(mcfric.bounds, "read_bounds", failed_at_three)
     out = tmp_path / "r.h5"
-    assert cli.main(["run", "two-beam", "--samples", "5", "--n-freq", "10", "--no-certify",
+    assert cli.main(["run", "two-beam", "--samples", "5", "--n-freq", "10",
                      "--no-progress", "--no-figure", "-o", str(out)]) == 0
     text = capsys.readouterr().out
     line = next(x for x in text.splitlines() if x.startswith("searched bounds check"))
     assert line.startswith("searched bounds check: 0 of 35 converged member points"), line
     assert "; 15 at the frequencies where the search failed" in line
-    assert "please report" not in text
+    line = next(x for x in text.splitlines() if x.startswith("certified bounds check"))
+    assert line.startswith("certified bounds check: 0 outside"), line
+    assert "; 10 at frequencies without certified bounds (a failed search)" in line
+    assert "please report" not in text and "broken" not in text
     # the bound's peak may lie where the search failed: its line says so
     import h5py
 
     from mcfric.peaks import bound_peak, bound_peak_lines
     assert "the search failed" not in " ".join(bound_peak_lines(bound_peak(out), "m"))
     with h5py.File(out, "r+") as h5:
-        h5["bounds"].attrs["n_failed"] = np.int64(3)
-    assert ("; the search failed at 3 frequencies, where the bound's peak may lie"
+        up, lo = h5["bounds/upper"], h5["bounds/lower"]
+        up[[2, 5]] = np.nan
+        lo[7] = np.nan                      # the lower bound's failure hides no peak
+    assert ("; the search failed at 2 frequencies, where the bound's peak may lie"
             in bound_peak_lines(bound_peak(out), "m")[0])
 
 

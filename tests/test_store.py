@@ -188,14 +188,43 @@ def test_add_group_for_later_stages(tmp_path):
         assert g["upper"].dims == ("frequency",)
         np.testing.assert_array_equal(g["lower"].values, lower)
         assert g.attrs["method"] == "test"
-    before = path.read_bytes()
     with pytest.raises(ValueError, match="does not match"):
         store.add_group(path, "bounds", {"x": (("frequency",), np.arange(3.0), {})})
-    # a failed change leaves the file as it was, and nothing beside it
-    assert path.read_bytes() == before and [p.name for p in tmp_path.iterdir()] == ["r.h5"]
     # the root is untouched
     with store.open_results(path) as ds:
         assert ds["y"].shape == (4, 7, 3)
+
+
+def test_add_group_that_fails_midway_leaves_the_file_as_it_was(tmp_path, monkeypatch):
+    """A failure after the old group was deleted and part of the new one written (here
+    the second dataset's creation): the file is byte for byte as before, with its old
+    group, and nothing is left beside it (in place, the old group was gone)."""
+    import h5py
+
+    path = tmp_path / "r.h5"
+    s = make(path, n=4)
+    s.write(0, records(0, 4))
+    s.commit([(0, 4)])
+    s.finish({"count": np.int64(0), "wall": np.float64(0.0)})
+    store.add_group(path, "bounds", {"lower": (("frequency",), np.arange(7.0), {})})
+    before = path.read_bytes()
+    real, calls = h5py.Group.create_dataset, []
+
+    def fails_second(self, *a, **k):
+        calls.append(a[0] if a else k.get("name"))
+        if len(calls) == 2:
+            raise OSError(28, "No space left on device")
+        return real(self, *a, **k)
+
+    monkeypatch.setattr(h5py.Group, "create_dataset", fails_second)
+    with pytest.raises(OSError, match="No space left"):
+        store.add_group(path, "bounds", {"upper": (("frequency",), np.ones(7), {}),
+                                         "lower": (("frequency",), np.zeros(7), {})})
+    monkeypatch.undo()
+    assert calls == ["upper", "lower"]                      # it failed midway
+    assert path.read_bytes() == before and [p.name for p in tmp_path.iterdir()] == ["r.h5"]
+    with h5py.File(path, "r") as h5:
+        assert list(h5["bounds"]) == ["lower"]
 
 
 def test_reading_a_missing_or_foreign_file(tmp_path):

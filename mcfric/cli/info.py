@@ -42,23 +42,24 @@ def cmd_config(args):
     return EXIT_OK
 
 
-def cmd_info(args):
-    """``mcfric info``: a summary of a results file (complete or partial)."""
+def _read(path, fn, *args):
+    """``fn(*args)``, a reader of ``path``'s groups or attributes: a dataset missing (a
+    StoreError) or an attribute edited into another type or shape is one line, exit 2
+    (a traceback, or exit 1, before)."""
     from ..store import StoreError
+    from .errors import one_line
 
     try:
-        return _info(args)
-    except StoreError as e:             # a dataset missing: 2, as for the others (was 1)
+        return fn(*args)
+    except StoreError as e:
         raise UsageError(str(e)) from None
     except (AttributeError, KeyError, TypeError, ValueError) as e:
-        # an attribute or dataset edited into another type or shape: one line
-        from .errors import one_line
-
-        raise UsageError(f"{args.file}: a damaged or edited results file ({type(e).__name__}:"
-                         f" {one_line(e)})") from None
+        raise UsageError(f"{path}: a damaged or edited results file ({type(e).__name__}: "
+                         f"{one_line(e)})") from None
 
 
-def _info(args):
+def cmd_info(args):
+    """``mcfric info``: a summary of a results file (complete or partial)."""
     from ..indicator import file_report as indicator_report
     from ..metric import METRIC_UNITS
     from ..peaks import file_report as peak_report
@@ -137,17 +138,17 @@ def _info(args):
         lines.append(f"WARNING:     the file's attribute n_not_converged = {int(stored):,}, "
                      f"but {bad:,} points are marked not converged (the file was edited "
                      f"or damaged)")
-    report = peak_report(path)
+    report = _read(path, peak_report, path)
     if report is not None:
         lines += report_text(report, METRIC_UNITS[q])
     else:
         # a bounds file: the bound's peak alone, when it was refined
         from ..peaks import bound_peak, bound_peak_lines
 
-        lines += bound_peak_lines(bound_peak(path), METRIC_UNITS[q])
-    lines += indicator_report(path)
+        lines += bound_peak_lines(_read(path, bound_peak, path), METRIC_UNITS[q])
+    lines += _read(path, indicator_report, path)
     from ..bounds import read_bounds
-    B = read_bounds(path)
+    B = _read(path, read_bounds, path)
     if B is not None:
         # what run and bounds printed: the searched line, witnesses past it, the certificate
         text = B.summary() + ("" if B.certificate is not None else
@@ -173,7 +174,7 @@ def _info(args):
     if B is not None:
         from ..store import read_group
 
-        names = sorted(read_group(path, "bounds")[0])
+        names = sorted(_read(path, read_group, path, "bounds")[0])
         lines.append(f"  bounds/ (group)      {len(names)} datasets per frequency: "
                      + ", ".join(names))
     print("\n".join(lines))

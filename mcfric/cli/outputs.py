@@ -58,7 +58,7 @@ def output_path(args, suffix, prefix="", figure=False):
     if suffix == ".h5":
         from ..store import partial_path
 
-        regular_or_none(partial_path(out))
+        regular_or_none(partial_path(out), "" if args.output is None else "-o: ")
     what = "results file" if suffix == ".h5" else f"{suffix[1:].upper()} output"
     if suffix == ".h5" and out.name.endswith(".partial"):
         raise UsageError(f"-o: {out.name} ends in .partial, the name of an interrupted "

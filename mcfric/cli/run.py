@@ -14,10 +14,10 @@ from .outputs import not_replacing_hdf5, order_path, output_path, regular_or_non
 def _check_members(path):
     """Count converged ensemble points outside the stored bounds (a validity check), on
     the members the bounds' constraints admit (:meth:`Bounds.admits`): ``(outside, total,
-    outside_certified, left_out, unbounded)``, ``outside_certified`` None if not
-    certified, ``left_out`` the members not admitted (not checked), ``unbounded`` the
-    points at frequencies where the search failed (no searched bounds: those points are
-    not counted in ``outside`` and ``total``, only in the certified check)."""
+    outside_certified, left_out, unbounded, uncertified)``, ``outside_certified`` None if
+    not certified, ``left_out`` the members not admitted (not checked), ``unbounded``
+    and ``uncertified`` the points at frequencies without searched (or certified) bounds,
+    NaN where a search failed: not counted as outside them, not checked."""
     import numpy as np
 
     from ..bounds import read_bounds
@@ -28,17 +28,22 @@ def _check_members(path):
         return None
     C = B.certificate
     searched = np.isfinite(B.upper) & np.isfinite(B.lower)
-    outside = total = outside_cert = left_out = unbounded = 0
+    # a certified upper bound may be inf (nothing proved): a bound, unlike NaN
+    certified = C is not None and ~np.isnan(C.upper) & ~np.isnan(C.lower)
+    outside = total = outside_cert = left_out = unbounded = uncertified = 0
     for _, arr in iter_records(path, ["metric", "converged", "mu0", "kc", "N0"]):
         admitted = B.admits(arr["mu0"], arr["kc"], arr["N0"])
         left_out += int(np.count_nonzero(~admitted))
         ok = arr["converged"] & admitted[:, None]
         outside += int(np.count_nonzero(~B.contains(arr["metric"]) & ok & searched))
         if C is not None:
-            outside_cert += int(np.count_nonzero(~C.contains(arr["metric"]) & ok))
+            outside_cert += int(np.count_nonzero(~C.contains(arr["metric"]) & ok
+                                                 & certified))
+            uncertified += int(np.count_nonzero(ok & ~certified))
         total += int(np.count_nonzero(ok & searched))
         unbounded += int(np.count_nonzero(ok & ~searched))
-    return outside, total, None if C is None else outside_cert, left_out, unbounded
+    return (outside, total, None if C is None else outside_cert, left_out, unbounded,
+            uncertified)
 
 
 def _kept_bounds_note(cfg, out):
@@ -202,7 +207,7 @@ def _report_run(args, cfg, out, summary):
     if summary.complete:
         check = _check_members(out)
         if check is not None:
-            outside, total, outside_cert, left_out, unbounded = check
+            outside, total, outside_cert, left_out, unbounded, uncertified = check
             from ..store import read_attrs
 
             H = int(read_attrs(out).get("harmonics", 1))
@@ -223,7 +228,9 @@ def _report_run(args, cfg, out, summary):
             if outside_cert is not None:
                 print(f"certified bounds check: {outside_cert} outside [lower_certified, "
                       f"upper_certified]" + _outside_note(outside_cert, H,
-                                                          "a broken certificate", mis))
+                                                          "a broken certificate", mis)
+                      + (f"; {uncertified:,} at frequencies without certified bounds (a "
+                         f"failed search), not checked" if uncertified else ""))
     if summary.complete and not args.no_figure:
         png = out.with_suffix(".png")
         plot.results_figure(out, png)

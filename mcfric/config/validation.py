@@ -249,8 +249,9 @@ def _cross_checks(c):
                          alt=("frequency.f_min", f"expected a number < f_max "
                                                   f"({fr['f_max']:g}), got {fr['f_min']:g}"))
     space = np.linspace if fr["spacing"] == "linear" else np.geomspace
-    if not np.all(np.diff(space(fr["f_min"], fr["f_max"], fr["n"])) > 0):
-        # a band narrower than rounding repeats frequencies (the peaks need them rising)
+    if not np.all(np.diff(2.0 * np.pi * space(fr["f_min"], fr["f_max"], fr["n"])) > 0):
+        # a band narrower than rounding repeats frequencies (the peaks need them rising,
+        # in rad/s as the kernels take them)
         raise InputError("frequency.n", f"{fr['n']} points between f_min = {fr['f_min']!r} "
                          f"and f_max = {fr['f_max']!r} Hz repeat frequencies in floating "
                          f"point; widen the band or use fewer points")
