@@ -93,8 +93,9 @@ class Peaks:
         to search): the grid value; -1 no such peak (NaN).
     fold : ndarray of int8, shape (n_s, count)
         1 where the downward sweep around the peak reached another steady state, 0 where
-        it reproduced the upward one, -1 where it could not be checked (a branch from
-        above, if any, is unknown: the member's largest is a lower estimate); 2 a fold whose
+        it reproduced the upward one (or the peak is the band's last point), -1 where it
+        could not be checked (a branch from above, if any, is unknown: the member's
+        largest is a lower estimate); 2 a fold whose
         branch from above was not followed to its peak (largest at the lowest point the
         downward sweep reached and still apart from the upward branch there, or its
         refinement failed):
