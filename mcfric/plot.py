@@ -19,6 +19,7 @@ from .metric import METRIC_UNITS, omega_power
 from .peaks import GRID as PEAK_GRID
 from .peaks import cut_by_band, nominal_bounds
 from .store import dataset_names, iter_records, read, read_attrs, read_group, replacing
+from .validators import InputError
 
 #: Colours of measured files, in the order given.
 MEASURED_COLORS = ("tab:green", "tab:olive", "tab:cyan", "tab:brown", "tab:pink")
@@ -103,12 +104,15 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
     stored = _stored_quantity(attrs)
     quantity = quantity or stored
     scale = omega_power(f, quantity, stored)
+    # peaks refined in another quantity, converted at their own frequency: the
+    # converted quantity peaks a little higher up (omega^k |y|), so a lower estimate
+    conv = "" if quantity == stored else f"; refined as {stored}, converted: may lie slightly low"
     lo_f, hi_f = (f.min(), f.max()) if f_window is None else map(float, f_window)
     if not hi_f > lo_f:
-        raise ValueError(f"f_window: expected f_min < f_max, got {lo_f:g}, {hi_f:g}")
+        raise InputError("f_window", f"expected f_min < f_max, got {lo_f:g}, {hi_f:g}")
     win = (f >= lo_f) & (f <= hi_f)
     if not win.any():
-        raise ValueError(f"f_window: no frequencies of {path} in {lo_f:g}..{hi_f:g} Hz")
+        raise InputError("f_window", f"no frequencies of {path} in {lo_f:g}..{hi_f:g} Hz")
     fw = f[win]
 
     fig = _figure((8, 6.0))      # the extra height holds the legend below the axes
@@ -123,13 +127,13 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
     member_flags = None
     n_failed = 0
     if not (isinstance(max_lines, (int, np.integer)) and max_lines >= 1):
-        raise ValueError(f"max_lines: expected an integer >= 1, got {max_lines!r}")
+        raise InputError("max_lines", f"expected an integer >= 1, got {max_lines!r}")
     # the envelope of every member (the cloud may draw only some)
     env_hi = np.full(len(fw), -np.inf)
     env_lo = np.full(len(fw), np.inf)
     if "sample" in names:
         if member is not None and not 0 <= member < n:
-            raise ValueError(f"member: expected None or a member in 0..{n - 1}, got {member}")
+            raise InputError("member", f"expected None or a member in 0..{n - 1}, got {member}")
         segs, dots, highlight = [], [], None
         fields = ["metric", "sample", "converged"] + (["harmonic_indicator"] if mark else [])
         for _, arr in iter_records(path, fields):
@@ -206,10 +210,6 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
         # no member done (a partial file): nothing to draw
         px, py, ps = (np.concatenate(v) if v else np.empty(0) for v in (px, py, ps))
         py = py * omega_power(px, quantity, stored)
-        # peaks refined in another quantity, converted at their own frequency: the
-        # converted quantity peaks a little higher up (omega^k |y|), so a lower estimate
-        conv = ("" if quantity == stored else
-                f"; refined as {stored}, converted: may lie slightly low")
         ok = np.isfinite(py) & (px >= lo_f) & (px <= hi_f) & (py > 0)
         grid = ok & (ps == PEAK_GRID)
         end = ok & cut_by_band(ps, px, f)
@@ -280,8 +280,6 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
                     if g.get("peak_upper_coarse_step", 0) > 0 else
                     "refined peak of the upper bound" if g.get("peak_upper_refined", 1)
                     else "largest (not refined) peak of the upper bound")
-            conv = ("" if quantity == stored else
-                    f"; refined as {stored}, converted: may lie slightly low")
             ax.plot([fb], [g["peak_upper"] * omega_power(fb, quantity, stored)], "*",
                     color="tab:blue", ms=9, label=f"{what} (searched{conv})")
             marked.append("searched")

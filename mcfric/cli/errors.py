@@ -14,3 +14,22 @@ def one_line(e):
     """An error's text on one line: a key or a library's message may hold line breaks
     (a quoted TOML key with a line break in it, HDF5's own errors)."""
     return " ".join(str(e).split())
+
+
+def reading(path, fn, *args, **kwargs):
+    """``fn(*args, **kwargs)``, which reads the results file ``path``: a dataset missing
+    (a StoreError) or an attribute edited into another type or shape is one line, exit 2
+    (a traceback, or exit 1, before). An :class:`~mcfric.validators.InputError` (bad
+    arguments, not a bad file) passes through, for the caller to name its flag."""
+    from ..store import StoreError
+    from ..validators import InputError
+
+    try:
+        return fn(*args, **kwargs)
+    except InputError:
+        raise
+    except StoreError as e:
+        raise UsageError(str(e)) from None
+    except (AttributeError, KeyError, TypeError, ValueError) as e:
+        raise UsageError(f"{path}: a damaged or edited results file ({type(e).__name__}: "
+                         f"{one_line(e)})") from None

@@ -7,7 +7,7 @@ import json
 import sys
 from pathlib import Path
 
-from .errors import EXIT_OK, UsageError
+from .errors import EXIT_OK, UsageError, reading
 from .inputs import load_config
 from .outputs import checked_file, is_hdf5
 
@@ -40,22 +40,6 @@ def cmd_config(args):
     cfg = load_config(args)
     sys.stdout.write(cfg.toml())
     return EXIT_OK
-
-
-def _read(path, fn, *args):
-    """``fn(*args)``, a reader of ``path``'s groups or attributes: a dataset missing (a
-    StoreError) or an attribute edited into another type or shape is one line, exit 2
-    (a traceback, or exit 1, before)."""
-    from ..store import StoreError
-    from .errors import one_line
-
-    try:
-        return fn(*args)
-    except StoreError as e:
-        raise UsageError(str(e)) from None
-    except (AttributeError, KeyError, TypeError, ValueError) as e:
-        raise UsageError(f"{path}: a damaged or edited results file ({type(e).__name__}: "
-                         f"{one_line(e)})") from None
 
 
 def cmd_info(args):
@@ -138,17 +122,17 @@ def cmd_info(args):
         lines.append(f"WARNING:     the file's attribute n_not_converged = {int(stored):,}, "
                      f"but {bad:,} points are marked not converged (the file was edited "
                      f"or damaged)")
-    report = _read(path, peak_report, path)
+    report = reading(path, peak_report, path)
     if report is not None:
         lines += report_text(report, METRIC_UNITS[q])
     else:
         # a bounds file: the bound's peak alone, when it was refined
         from ..peaks import bound_peak, bound_peak_lines
 
-        lines += bound_peak_lines(_read(path, bound_peak, path), METRIC_UNITS[q])
-    lines += _read(path, indicator_report, path)
+        lines += bound_peak_lines(reading(path, bound_peak, path), METRIC_UNITS[q])
+    lines += reading(path, indicator_report, path)
     from ..bounds import read_bounds
-    B = _read(path, read_bounds, path)
+    B = reading(path, read_bounds, path)
     if B is not None:
         # what run and bounds printed: the searched line, witnesses past it, the certificate
         text = B.summary() + ("" if B.certificate is not None else
@@ -174,7 +158,7 @@ def cmd_info(args):
     if B is not None:
         from ..store import read_group
 
-        names = sorted(_read(path, read_group, path, "bounds")[0])
+        names = sorted(reading(path, read_group, path, "bounds")[0])
         lines.append(f"  bounds/ (group)      {len(names)} datasets per frequency: "
                      + ", ".join(names))
     print("\n".join(lines))

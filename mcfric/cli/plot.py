@@ -6,7 +6,7 @@ import json
 import math
 from pathlib import Path
 
-from .errors import EXIT_OK, UsageError
+from .errors import EXIT_OK, UsageError, reading
 from .outputs import checked_file, no_such_file, not_replacing_hdf5, writable_dir
 
 
@@ -14,6 +14,7 @@ def cmd_plot(args):
     """``mcfric plot``: the figure of a results or bounds file, measured data on top."""
     from .. import plot
     from ..store import partial_path
+    from ..validators import InputError
 
     path = Path(args.file)
     if not path.exists():
@@ -57,12 +58,13 @@ def cmd_plot(args):
                          f"got {args.member}")
     measured = _read_measured(args, attrs)
     try:
-        drawn = plot.results_figure(path, out, quantity=args.quantity, f_window=window,
-                                    member=None if args.member < 0 else args.member,
-                                    measured=measured, indicator=not args.no_indicator)
-    except ValueError as e:
-        # the Python argument's name, f_window, is the flags' here
-        raise UsageError(str(e).replace("f_window: ", "--f-min/--f-max: ", 1)) from None
+        drawn = reading(path, plot.results_figure, path, out, quantity=args.quantity,
+                        f_window=window, member=None if args.member < 0 else args.member,
+                        measured=measured, indicator=not args.no_indicator)
+    except InputError as e:
+        # the Python arguments' names are the flags' here
+        flag = {"f_window": "--f-min/--f-max", "member": "--member"}.get(e.key, e.key)
+        raise UsageError(f"{flag}: {e.message}") from None
     gaps = drawn["n_not_converged"]
     grid = drawn["n_peaks_unrefined"]
     print(f"figure: {out} ({drawn['n_drawn']} of {drawn['n_members']} members drawn"
@@ -85,7 +87,8 @@ def _read_measured(args, attrs):
                                       ("--measured-quantity", args.measured_quantity),
                                       ("--measured-force", args.measured_force),
                                       ("--measured-direction", args.measured_direction))
-                 if v]
+                 # a flag given as 0 is given (and 0.0 == False: compare identity)
+                 if v is not None and v is not False]
         if given:
             raise UsageError(f"{given[0]}: applies to --measured data, and none is given")
         return []

@@ -21,6 +21,9 @@ from ..memory import human
 SUFFIX = ".partial"
 LAYOUT_VERSION = 1
 DONE = "done"
+#: Free bytes needed before a results file is created at all (its layout and metadata), and
+#: beyond its size before a complete one is copied to be changed.
+MIN_FREE = 256 * 1024
 
 
 class StoreError(Exception):

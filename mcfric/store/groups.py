@@ -9,8 +9,17 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from . import files
-from .files import LAYOUT_VERSION, StoreError, abandon, fsync_path, partial_path, require_room
+from .files import (
+    LAYOUT_VERSION,
+    MIN_FREE,
+    StoreError,
+    abandon,
+    fsync_dir,
+    fsync_path,
+    partial_path,
+    replacing,
+    require_room,
+)
 from .reader import read_attrs
 
 
@@ -39,14 +48,14 @@ def add_group(path, name, variables, attrs=None):
     a = read_attrs(path)
     if a.get("complete") != 1:
         raise StoreError(f"{path}: add_group needs a complete results file")
-    with files.replacing(path, "results file") as tmp:
+    with replacing(path, "results file") as tmp:
         # the copy needs room of its own (a full disk midway is an error, not a crash)
-        require_room(tmp, Path(path).stat().st_size + (1 << 20), path, "a copy of the file")
+        require_room(tmp, Path(path).stat().st_size + MIN_FREE, path, "a copy of the file")
         shutil.copyfile(path, tmp)
         with h5py.File(tmp, "r+") as h5:
             write_group(h5, name, variables, attrs)
         fsync_path(tmp)
-    files.fsync_dir(path)
+    fsync_dir(path)
 
 
 def write_group(h5, name, variables, attrs):

@@ -44,6 +44,7 @@ from ..memory import human
 from .files import (
     DONE,
     LAYOUT_VERSION,
+    MIN_FREE,
     StoreError,
     abandon,
     fsync_dir,
@@ -59,8 +60,6 @@ CHUNK_BYTES = 1 << 20
 #: No raw-data chunk cache: records are written with os.pwrite, never through HDF5, so a
 #: cached chunk could only be stale.
 CACHE_BYTES = 0
-#: Free bytes needed before a results file is created at all (its layout and metadata).
-MIN_FREE = 256 * 1024
 
 
 def _fallocate(fd, size):
