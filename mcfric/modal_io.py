@@ -389,7 +389,7 @@ _TOML_KEYS = ("freq_hz", "zeta", "shapes", "positions", "modes", "modal_mass")
 
 def _parse_toml_table(path):
     try:
-        doc = tomllib.loads(path.read_text(encoding="utf-8"))
+        doc = tomllib.loads(path.read_text(encoding="utf-8-sig"))
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
         raise ValueError(f"{path}: not valid TOML ({e})") from None
     for keys in ((), ("table",), ("model", "table")):

@@ -459,13 +459,15 @@ def report_text(report, unit):
 
 def _interval(st, key):
     """`` (lo to hi, 95 % conf.)``: the confidence interval of a statistic as the summary
-    prints it (``above lo`` where too few members close its upper side; empty where there
-    is none)."""
+    prints it (``above lo`` or ``below hi`` where the members cannot close one side, as
+    too few members or members without a value leave it; empty where neither is closed)."""
     lo, hi = st.get(key, (np.nan, np.nan))
     pct = f"{100 * st.get('confidence', CONFIDENCE):g} % conf."
-    if not np.isfinite(lo):
-        return ""
-    return f" ({lo:.4g} to {hi:.4g}, {pct})" if np.isfinite(hi) else f" (above {lo:.4g}, {pct})"
+    if np.isfinite(lo) and np.isfinite(hi):
+        return f" ({lo:.4g} to {hi:.4g}, {pct})"
+    if np.isfinite(lo):
+        return f" (above {lo:.4g}, {pct})"
+    return f" (below {hi:.4g}, {pct})" if np.isfinite(hi) else ""
 
 
 def bound_peak_lines(pk, unit, largest_member=None):

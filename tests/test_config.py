@@ -214,6 +214,12 @@ def test_a_toml_date_is_named_as_written(tmp_path):
     assert str(e.value).endswith("got the date or time 1979-05-27")
 
 
+def test_a_toml_file_with_a_byte_order_mark_is_read(tmp_path):
+    path = tmp_path / "bom.toml"
+    path.write_bytes(b"\xef\xbb\xbf[sampling]\nsamples = 3\n")
+    assert config.load(path)["sampling"]["samples"] == 3
+
+
 def test_validate_without_defaults_reports_missing_keys():
     raw = config.defaults("two-beam")
     del raw["solver"]["tol"]

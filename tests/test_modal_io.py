@@ -379,9 +379,10 @@ positions = [1, 2, 3]
 
 def test_csv_and_toml_tables(tmp_path):
     for name, text in (("t.csv", CSV), ("t.toml", TOML),
-                       ("m.toml", TOML.replace("[table]", "[model.table]"))):
+                       ("m.toml", TOML.replace("[table]", "[model.table]")),
+                       ("bom.toml", "\ufeff" + TOML)):
         path = tmp_path / name
-        path.write_text(text)
+        path.write_text(text, encoding="utf-8")
         back = read_modal_table(path)
         assert back.positions == TABLE_1.positions
         for a in ("freq_hz", "zeta", "shapes"):

@@ -395,6 +395,11 @@ def test_report_prints_the_confidence_intervals_of_median_and_p95():
     rep["statistics"] = statistics(x[:20])
     assert re.search(r"95th percentile \S+ \(above \S+, 95 % conf\.\)",
                      report_text(rep, "m")[0])
+    # an interval open below keeps its upper end; open on both sides it is left out
+    rep["statistics"] = dict(statistics(x), median_ci=(-np.inf, 0.0123), p95_ci=(-np.inf, np.inf))
+    line = report_text(rep, "m")[0]
+    assert re.search(r"median \S+ \(below 0\.0123, 95 % conf\.\), 95th percentile \S+, max",
+                     line), line
 
 
 def _naive_sweep(model, freqs, mu0, kc, N0, law):

@@ -343,6 +343,8 @@ def test_measured_options_that_cannot_apply_are_refused_or_said(results, tmp_pat
     data = tmp_path / "b2.csv"
     _beam2_csv(results, data, member=3)
     for argv, message in ((["--normalise"], "--normalise: applies to --measured data"),
+                          (["--measured-force", "0"],
+                           "--measured-force: applies to --measured data"),
                           (["--measured", data, "--nodes", "1,2"], "--nodes: maps UFF"),
                           (["--measured", data, "--measured-force", "-1"],
                            "--measured-force: expected a force > 0 N")):

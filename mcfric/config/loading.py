@@ -72,7 +72,8 @@ def read_toml(path):
             # an empty file read as an empty TOML ran the default ensemble
             raise InputError(str(path), "an empty file, not a TOML configuration (nor a "
                              "results file)")
-        text = data.decode("utf-8")
+        # a byte-order mark (as some Windows editors write) is no TOML error
+        text = data.decode("utf-8-sig")
     except FileNotFoundError:
         raise InputError(str(path), "no such file (and not a preset: "
                          f"{choices(PRESETS)})") from None
