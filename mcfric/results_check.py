@@ -3,16 +3,18 @@
 ``mcfric info`` and ``mcfric plot`` read files that may have been edited, truncated by
 hand or written by another tool. :func:`check_file` checks what they rely on: the layout
 version, the configuration record, the required datasets, every dataset's dimensions
-against its coordinates, and the kinds of the known datasets. It reads metadata only
-(cheap for any file size) and raises one :class:`~mcfric.store.StoreError` naming the
-first problem.
+against its coordinates and the record's sizes, the kinds of the known datasets and the
+frequencies' values. It reads metadata and the frequencies only (cheap for any file size)
+and raises one :class:`~mcfric.store.StoreError` naming the first problem.
 """
 
 from __future__ import annotations
 
 import json
 
-from .store import LAYOUT_VERSION, StoreError, describe, read_group
+import numpy as np
+
+from .store import LAYOUT_VERSION, StoreError, describe, read, read_group
 
 #: dtype kinds of the known datasets (numpy ``dtype.kind``): f float, c complex, b bool,
 #: i/u integer.
@@ -95,10 +97,27 @@ def check_file(path):
             if size != expected:
                 raise StoreError(f"{path}: dataset {name} has {size} along {dim}, expected "
                                  f"{expected}")
+    _check_against_record(path, cfg, ds)
     g = read_group(path, "bounds")
     if g is not None:
         _check_bounds(path, *g, ds["frequency"][1][0])
     return a, cfg
+
+
+def _check_against_record(path, cfg, ds):
+    """The frequencies (finite, positive, rising: the peaks and the plot rely on it) and
+    the sizes the configuration record states against the datasets' (an edited record
+    would otherwise describe another run)."""
+    f = read(path, "frequency")
+    if f.ndim != 1 or not (np.all(np.isfinite(f)) and np.all(f > 0)
+                           and np.all(np.diff(f) > 0)):
+        raise StoreError(f"{path}: dataset frequency is not finite, positive and rising")
+    for key, value, dim in (("frequency.n", cfg["frequency"]["n"], "frequency"),
+                            ("model.n_beams", cfg["model"]["n_beams"], "beam")):
+        # a value of another type is the keys' check's to report (cli.outputs)
+        if dim in ds and type(value) is int and value != ds[dim][1][0]:
+            raise StoreError(f"{path}: the configuration record says {key} = {value!r}, "
+                             f"but the file holds {ds[dim][1][0]} along {dim}")
 
 
 #: What ``bounds.results.read_bounds`` reads: datasets (name, dtype kinds, dimensions:

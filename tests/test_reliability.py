@@ -571,7 +571,9 @@ def _replace(name, fn):
 
 DAMAGED = [
     # (edit of a complete results file, words of the one-line error)
-    (lambda h: h.__delitem__("beam"), "a damaged or edited results file"),
+    # a dimension scale deleted: named, not HDF5's or Python's internal text
+    *[((lambda h, s=s: h.__delitem__(s)), "its scale dataset is missing")
+      for s in ("beam", "frequency", "sample", "damper", "peak")],
     (lambda h: h.__delitem__("metric"), "dataset metric is missing"),
     (lambda h: h.__delitem__("converged"), "dataset converged is missing"),
     (_replace("metric", lambda d: d[:, :5]), "dataset metric"),
@@ -582,6 +584,11 @@ DAMAGED = [
     (_stored("sampling", "kc", {"dist": "uniform", "low": "0"}),
      "stored configuration: sampling.kc.low"),
     (_stored("model", "n_beams", "two"), "stored configuration: model.n_beams"),
+    # a record that contradicts the data (it would describe another run)
+    (_stored("model", "n_beams", 5), "the configuration record says model.n_beams = 5"),
+    (_stored("frequency", "n", 9), "the configuration record says frequency.n = 9"),
+    (lambda h: h["frequency"].__setitem__(3, np.nan), "frequency is not finite, positive"),
+    (lambda h: h["frequency"].__setitem__(3, h["frequency"][2]), "and rising"),
     (_stored("frequency", "f_min", None), "stored configuration: frequency.f_min"),
     (_stored("metric", "quantity", "force"), "stored configuration: metric.quantity"),
     (lambda h: h.attrs.__setitem__("layout_version", 99), "layout_version 99"),

@@ -60,6 +60,23 @@ def _plain(v):
     return v
 
 
+def _dims(path, name, ds):
+    """The dimension names of dataset ``name`` (``"?"`` where none is attached)."""
+    if ds.is_scale:
+        return (name,)
+    out = []
+    for i, d in enumerate(ds.dims):
+        try:
+            scale = d[0].name if len(d) else "?"
+        except RuntimeError:
+            scale = None        # HDF5 cannot follow the reference: the scale was deleted
+        if not scale:
+            raise StoreError(f"{path}: a damaged or edited results file (dimension {i} of "
+                             f"{name}: its scale dataset is missing)")
+        out.append(scale.lstrip("/"))
+    return tuple(out)
+
+
 def describe(path):
     """Layout summary: root attributes, and per dataset its dims, shape and dtype."""
     with _open_read(path) as h5:
@@ -67,10 +84,7 @@ def describe(path):
             out = {"attrs": {k: _plain(v) for k, v in h5.attrs.items()}, "datasets": {}}
             for name, ds in h5.items():
                 if isinstance(ds, h5py.Dataset):
-                    # a dimension scale deleted or damaged: no name, or HDF5's own errors
-                    dims = (name,) if ds.is_scale else tuple(
-                        d[0].name.lstrip("/") if len(d) else "?" for d in ds.dims)
-                    out["datasets"][name] = (dims, ds.shape, ds.dtype)
+                    out["datasets"][name] = (_dims(path, name, ds), ds.shape, ds.dtype)
             if DONE in h5:
                 out["done"] = int(np.count_nonzero(h5[DONE][...]))
         except (AttributeError, KeyError, RuntimeError, TypeError, ValueError,
