@@ -758,3 +758,40 @@ def test_the_memory_check_counts_the_threads_the_solve_uses(two_beam, monkeypatc
     with pytest.raises(ValueError, match="harmonics: H = 5 needs"):
         hbm.solve(two_beam, f, 0.3, 6000.0, 0.5, harmonics=H, n_threads=2)
     assert hbm.solve(two_beam, f, 0.3, 6000.0, 0.5, harmonics=H, n_threads=1).status.shape
+
+
+def test_a_multi_harmonic_ring_takes_the_bordered_step_and_agrees_with_the_dense_lu():
+    """A mistuned eight-blade ring at H = 3: the sweep on the bordered step against the
+    same sweep on the dense LU (the dampers numbered from the second: no known layout).
+    The same points converge, to 1e-9, in about the same Newton iterations. (Here, not in
+    test_rings.py: beside the other multi-harmonic tests, one xdist worker compiles the
+    multi-harmonic kernel, not both.)"""
+    from mcfric.core import multi_harmonic as mh
+
+    model = ring(8, True)
+    rng = np.random.default_rng(3)
+    mu0 = rng.uniform(0, 1, (3, 8))
+    kc = rng.uniform(0, 15000.0, (3, 8))
+    f = np.linspace(10.0, 150.0, 40)
+    bordered = mcfric.solve(model, f, mu0, kc, 0.5, harmonics=3)
+    kernel = mh.sweep_multi_harmonic
+
+    def renumbered(rech, force, a, b, orders, omega, mu0, N0, kc, n_time, s1, tol,
+                   max_iter, y, y_peak, s, status, iterations, residual):
+        def roll(x, axis):
+            return np.ascontiguousarray(np.roll(x, -1, axis=axis))
+        s_rolled = np.empty_like(s)
+        kernel(rech, force, roll(a, 0), roll(b, 0), orders, omega, roll(mu0, 1),
+               roll(N0, 1), roll(kc, 1), n_time, roll(s1, 2), tol, max_iter, y, y_peak,
+               s_rolled, status, iterations, residual)
+        s[...] = np.roll(s_rolled, 1, axis=2)
+    try:
+        hbm._multi_harmonic.sweep_multi_harmonic = renumbered
+        dense = mcfric.solve(model, f, mu0, kc, 0.5, harmonics=3)
+    finally:
+        hbm._multi_harmonic.sweep_multi_harmonic = kernel
+    assert bordered.n_not_converged == 0 and dense.n_not_converged == 0
+    assert np.array_equal(bordered.status, dense.status)
+    scale = np.abs(dense.response).max(axis=-1, keepdims=True)
+    assert np.max(np.abs(bordered.response - dense.response) / scale) <= 1e-9
+    assert abs(bordered.iterations.sum() / dense.iterations.sum() - 1.0) <= 0.02
