@@ -16,8 +16,8 @@ import numpy as np
 from .hbm import INDICATOR_THRESHOLD
 from .measured.comparison import metric_parts
 from .metric import METRIC_UNITS, omega_power
+from .peaks import FOLD_FOUND, FOLD_OPEN, FOLD_UNCHECKED, NONE, cut_by_band, nominal_bounds
 from .peaks import GRID as PEAK_GRID
-from .peaks import cut_by_band, nominal_bounds
 from .store import dataset_names, iter_records, read, read_attrs, read_group, replacing
 from .validators import InputError
 
@@ -89,7 +89,9 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
         ``n_members``, ``n_drawn``, ``has_bounds``, ``n_flagged`` (flagged points over
         the whole ensemble, 0 if not marked), ``n_not_converged`` (points of the whole
         ensemble in the window that did not converge: gaps in the lines) and
-        ``n_peaks_unrefined`` (drawn member peaks left at their grid values) and
+        ``n_peaks_unrefined`` (drawn member peaks left at their grid values),
+        ``n_fold_lower`` (drawn lower estimates beside a fold: an open fold's branch
+        from above, an unchecked fold's peak) and
         ``bound_peaks`` (the bound's peaks marked: ``"searched"``, the refined peak of
         the searched upper bound, and ``"certified"``, the largest certified upper bound
         on the sub-grid around it), ``legend`` (its entries) and ``ylabel``: what was
@@ -197,27 +199,34 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
                     # its flagged stretches underlined instead
                     ax.plot(fw, np.where(member_flags, y, np.nan), color="tab:orange",
                             lw=4.0, alpha=0.6, zorder=2.1, label=label)
-    n_unrefined = 0
-    if "peak_metric" in dataset_names(path):
-        # the members' refined peaks (the grid underestimates lightly damped peaks)
-        px, py, ps = [], [], []
-        for _, arr in iter_records(path, ["peak_metric", "peak_frequency", "peak_status",
-                                          "sample"]):
+    n_unrefined = n_fold_lower = 0
+    if "peak_metric" in names:
+        # the members' refined peaks (the grid underestimates lightly damped peaks), and
+        # where a fold was checked, the peaks of the branches reached from above
+        folds = all(k in names for k in ("fold", "peak_metric_down", "peak_frequency_down"))
+        keys = ["peak_metric", "peak_frequency", "peak_status"] + \
+            (["fold", "peak_metric_down", "peak_frequency_down"] if folds else [])
+        cols = {k: [] for k in keys}
+        for _, arr in iter_records(path, keys):
             # every member's: the cloud may draw only some, the peaks are the extremes
-            px.append(arr["peak_frequency"].ravel())
-            py.append(arr["peak_metric"].ravel())
-            ps.append(arr["peak_status"].ravel())
+            for k in keys:
+                cols[k].append(arr[k].ravel())
         # no member done (a partial file): nothing to draw
-        px, py, ps = (np.concatenate(v) if v else np.empty(0) for v in (px, py, ps))
-        py = py * omega_power(px, quantity, stored)
+        cols = {k: np.concatenate(v) if v else np.empty(0) for k, v in cols.items()}
+        px, ps = cols["peak_frequency"], cols["peak_status"]
+        py = cols["peak_metric"] * omega_power(px, quantity, stored)
+        fold = cols["fold"] if folds else np.zeros(len(px), np.int8)
         ok = np.isfinite(py) & (px >= lo_f) & (px <= hi_f) & (py > 0)
         grid = ok & (ps == PEAK_GRID)
         end = ok & cut_by_band(ps, px, f)
+        # a fold not checked: a branch from above, if any, is unknown, so this peak may
+        # not be the largest near it
+        unchecked = ok & ~grid & (fold == FOLD_UNCHECKED) & (ps != NONE)
         n_unrefined = int(np.count_nonzero(grid))
-        if (ok & ~grid & ~end).any():
-            ax.plot(px[ok & ~grid & ~end], py[ok & ~grid & ~end], ".", color="0.15", ms=2.5,
-                    alpha=0.6, rasterized=True,
-                    label=f"refined member peaks (every member{conv})")
+        plain = ok & ~grid & ~end & ~unchecked
+        if plain.any():
+            ax.plot(px[plain], py[plain], ".", color="0.15", ms=2.5, alpha=0.6,
+                    rasterized=True, label=f"refined member peaks (every member{conv})")
         if end.any():
             # the band cuts a resonance: the largest value at its end is no peak
             ax.plot(px[end], py[end], "|", color="0.4", ms=5,
@@ -226,6 +235,23 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
             # a solver failed near them: the true peak may lie higher
             ax.plot(px[grid], py[grid], "o", mfc="none", color="tab:purple", ms=3.5,
                     mew=0.8, label="member peaks not refined (grid values, may lie higher)")
+        if folds:
+            dx = cols["peak_frequency_down"]
+            dy = cols["peak_metric_down"] * omega_power(dx, quantity, stored)
+            dok = np.isfinite(dy) & (dx >= lo_f) & (dx <= hi_f) & (dy > 0)
+            found = dok & (fold == FOLD_FOUND)
+            if found.any():
+                ax.plot(dx[found], dy[found], "x", color="tab:green", ms=4, mew=0.9,
+                        label="member peaks on a branch reached from above (a fold)")
+            # an open fold's branch was not followed to its peak: its largest point so
+            # far; an unchecked fold's upward peak: both lower estimates
+            lx = np.concatenate([dx[dok & (fold == FOLD_OPEN)], px[unchecked]])
+            ly = np.concatenate([dy[dok & (fold == FOLD_OPEN)], py[unchecked]])
+            n_fold_lower = len(lx)
+            if n_fold_lower:
+                ax.plot(lx, ly, "^", mfc="none", color="tab:red", ms=4, mew=0.9,
+                        label="member peaks beside a fold not followed or not checked "
+                              "(may lie higher)")
     B = read_bounds(path)
     band = None
     marked = []
@@ -356,7 +382,8 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
     _save(fig, out, 150)
     return {"n_members": n if drawn else 0, "n_drawn": drawn, "has_bounds": B is not None,
             "n_flagged": int(flagged_at.sum()), "n_not_converged": n_failed,
-            "n_peaks_unrefined": n_unrefined, "bound_peaks": marked,
+            "n_peaks_unrefined": n_unrefined, "n_fold_lower": n_fold_lower,
+            "bound_peaks": marked,
             "legend": list(labels), "ylabel": ax.get_ylabel()}
 
 

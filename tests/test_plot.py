@@ -447,6 +447,52 @@ def test_the_cloud_draws_at_most_max_lines_and_the_envelope_of_all(tmp_path):
     assert not (tmp_path / "c.png").exists()
 
 
+def test_folds_are_drawn_and_their_lower_estimates_marked(results, tmp_path, capsys,
+                                                          monkeypatch):
+    """The plot drew the upward peaks only: a fold's branch from above (its own peak),
+    an open fold's lower estimate and an unchecked fold's peak were drawn as refined
+    peaks or not at all. Three members of a copy of the file edited by hand."""
+    import shutil
+
+    from mcfric import plot
+    from mcfric.peaks import FOLD_FOUND, FOLD_OPEN, FOLD_UNCHECKED
+
+    path = tmp_path / "folds.h5"
+    shutil.copyfile(results, path)
+    with h5py.File(path, "r+") as h5:
+        assert np.all(h5["fold"][()] == 0)
+        fold, pm = h5["fold"][()], h5["peak_metric"][()]
+        pf = h5["peak_frequency"][()]
+        dm, df = h5["peak_metric_down"][()], h5["peak_frequency_down"][()]
+        for i, code in enumerate((FOLD_FOUND, FOLD_OPEN, FOLD_UNCHECKED)):
+            fold[i, 0] = code
+            dm[i, 0], df[i, 0] = 1.3 * pm[i, 0], pf[i, 0] - 0.05
+        h5["fold"][...], h5["peak_metric_down"][...] = fold, dm
+        h5["peak_frequency_down"][...] = df
+    figs = []
+    real = plot._figure
+    monkeypatch.setattr(plot, "_figure", lambda *a: figs.append(real(*a)) or figs[-1])
+    drawn = plot.results_figure(path, tmp_path / "f.png", indicator=False)
+    lines = {ln.get_label(): ln for ln in figs[0].axes[0].lines}
+
+    def points(label):
+        ln = lines[label]
+        return set(zip(np.round(ln.get_xdata(), 9), np.round(ln.get_ydata(), 15)))
+
+    fx = "member peaks on a branch reached from above (a fold)"
+    low = "member peaks beside a fold not followed or not checked (may lie higher)"
+    assert points(fx) == {(round(df[0, 0], 9), round(dm[0, 0], 15))}
+    assert points(low) == {(round(df[1, 0], 9), round(dm[1, 0], 15)),
+                           (round(pf[2, 0], 9), round(pm[2, 0], 15))}
+    refined = points("refined member peaks (every member)")
+    assert (round(pf[2, 0], 9), round(pm[2, 0], 15)) not in refined
+    assert (round(pf[1, 0], 9), round(pm[1, 0], 15)) in refined
+    assert drawn["n_fold_lower"] == 2
+    monkeypatch.undo()
+    rc, out, err = call(["plot", path, "-o", tmp_path / "g.png", "--no-indicator"], capsys)
+    assert rc == 0 and "2 lower estimates beside a fold, drawn as triangles" in out, (out, err)
+
+
 def test_a_point_between_two_failed_ones_is_a_marker():
     from mcfric import plot
     y = np.array([1.0, np.nan, 2.0, np.nan, 3.0, 4.0, np.nan, 5.0])

@@ -72,7 +72,9 @@ def cmd_plot(args):
           + (f"; {gaps:,} point{'s' if gaps > 1 else ''} not converged, left as gaps"
              if gaps else "")
           + (f"; {grid} member peak{'s' if grid > 1 else ''} not refined, drawn as circles"
-             if grid else "") + ")")
+             if grid else "")
+          + (f"; {low} lower estimate{'s' if low > 1 else ''} beside a fold, drawn as "
+             f"triangles" if (low := drawn["n_fold_lower"]) else "") + ")")
     if measured and drawn["has_bounds"]:
         _print_inside(path, measured, args.quantity, window)
     elif measured:
