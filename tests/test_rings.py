@@ -247,11 +247,11 @@ def test_a_sweep_replaces_an_engine_order_that_does_not_fit():
 
 @pytest.mark.parametrize("F0", [0.25, 1.1])
 def test_every_member_of_a_24_blade_disk_lies_within_its_bounds(F0):
-    """500 members of the disk-24 preset, the paper's distributions, 141 frequencies."""
+    """500 members of the disk-24 preset, the paper's distributions, 71 frequencies."""
     from mcfric.bounds import compute_bounds, force_limit
 
     model = mcfric.preset("disk-24", F0)
-    f = np.linspace(10.0, 150.0, 141)
+    f = np.linspace(10.0, 150.0, 71)
     rng = np.random.default_rng(24)
     r = mcfric.solve(model, f, rng.uniform(0, 1, (500, 24)),
                      rng.uniform(0, 15000.0, (500, 24)), N0)
@@ -265,7 +265,7 @@ def test_every_member_of_a_24_blade_disk_lies_within_its_bounds(F0):
     # and inside the certificate (the relaxation's, a tuned ring of 24 blades)
     C = B.certificate
     assert C.relaxed and np.all(C.contains(M))
-    assert np.count_nonzero(C.lower > 0) >= 70
+    assert np.count_nonzero(C.lower > 0) >= len(f) // 2      # more than 0 proved
 
 
 def test_bad_ring_input_is_one_line_and_writes_nothing(tmp_path, monkeypatch, capsys):
