@@ -16,7 +16,15 @@ import numpy as np
 from .hbm import INDICATOR_THRESHOLD
 from .measured.comparison import metric_parts
 from .metric import METRIC_UNITS, omega_power
-from .peaks import FOLD_FOUND, FOLD_OPEN, FOLD_UNCHECKED, NONE, cut_by_band, nominal_bounds
+from .peaks import (
+    FOLD_FOUND,
+    FOLD_OPEN,
+    FOLD_UNCHECKED,
+    NONE,
+    at_band_end,
+    cut_by_band,
+    nominal_bounds,
+)
 from .peaks import GRID as PEAK_GRID
 from .store import dataset_names, iter_records, read, read_attrs, read_group, replacing
 from .validators import InputError
@@ -216,42 +224,46 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
         px, ps = cols["peak_frequency"], cols["peak_status"]
         py = cols["peak_metric"] * omega_power(px, quantity, stored)
         fold = cols["fold"] if folds else np.zeros(len(px), np.int8)
+        dx = cols["peak_frequency_down"] if folds else np.full(len(px), np.nan)
+        dy = (cols["peak_metric_down"] if folds else np.full(len(px), np.nan)) * \
+            omega_power(dx, quantity, stored)
         ok = np.isfinite(py) & (px >= lo_f) & (px <= hi_f) & (py > 0)
+        dok = np.isfinite(dy) & (dx >= lo_f) & (dx <= hi_f) & (dy > 0)
         grid = ok & (ps == PEAK_GRID)
         end = ok & cut_by_band(ps, px, f)
+        # a fold's branch from above refined up to an end of the band: cut by it too
+        found = dok & (fold == FOLD_FOUND)
+        found_end = found & (at_band_end(f, dx) != 0)
+        found &= ~found_end
         # a fold not checked: a branch from above, if any, is unknown, so this peak may
-        # not be the largest near it
-        unchecked = ok & ~grid & (fold == FOLD_UNCHECKED) & (ps != NONE)
+        # not be the largest near it (at an end of the band it is no peak anyway)
+        unchecked = ok & ~grid & ~end & (fold == FOLD_UNCHECKED) & (ps != NONE)
+        # an open fold's branch was not followed to its peak: its largest point so far
+        opened = dok & (fold == FOLD_OPEN)
         n_unrefined = int(np.count_nonzero(grid))
         plain = ok & ~grid & ~end & ~unchecked
         if plain.any():
             ax.plot(px[plain], py[plain], ".", color="0.15", ms=2.5, alpha=0.6,
                     rasterized=True, label=f"refined member peaks (every member{conv})")
-        if end.any():
+        if end.any() or found_end.any():
             # the band cuts a resonance: the largest value at its end is no peak
-            ax.plot(px[end], py[end], "|", color="0.4", ms=5,
+            ax.plot(np.r_[px[end], dx[found_end]], np.r_[py[end], dy[found_end]], "|",
+                    color="0.4", ms=5,
                     label="member maxima at an end of the band (not resonance peaks)")
         if grid.any():
             # a solver failed near them: the true peak may lie higher
             ax.plot(px[grid], py[grid], "o", mfc="none", color="tab:purple", ms=3.5,
                     mew=0.8, label="member peaks not refined (grid values, may lie higher)")
-        if folds:
-            dx = cols["peak_frequency_down"]
-            dy = cols["peak_metric_down"] * omega_power(dx, quantity, stored)
-            dok = np.isfinite(dy) & (dx >= lo_f) & (dx <= hi_f) & (dy > 0)
-            found = dok & (fold == FOLD_FOUND)
-            if found.any():
-                ax.plot(dx[found], dy[found], "x", color="tab:green", ms=4, mew=0.9,
-                        label="member peaks on a branch reached from above (a fold)")
-            # an open fold's branch was not followed to its peak: its largest point so
-            # far; an unchecked fold's upward peak: both lower estimates
-            lx = np.concatenate([dx[dok & (fold == FOLD_OPEN)], px[unchecked]])
-            ly = np.concatenate([dy[dok & (fold == FOLD_OPEN)], py[unchecked]])
-            n_fold_lower = len(lx)
-            if n_fold_lower:
-                ax.plot(lx, ly, "^", mfc="none", color="tab:red", ms=4, mew=0.9,
-                        label="member peaks beside a fold not followed or not checked "
-                              "(may lie higher)")
+        if found.any():
+            # dark, as the refined dots: the measurements' crosses are coloured
+            ax.plot(dx[found], dy[found], "x", color="0.15", ms=4, mew=0.9,
+                    label=f"member peaks on a branch reached from above (a fold{conv})")
+        n_fold_lower = int(np.count_nonzero(opened) + np.count_nonzero(unchecked))
+        if n_fold_lower:
+            ax.plot(np.r_[dx[opened], px[unchecked]], np.r_[dy[opened], py[unchecked]], "^",
+                    mfc="none", color="tab:red", ms=4, mew=0.9,
+                    label="member peaks beside a fold not followed or not checked (may lie "
+                          f"higher{conv})")
     B = read_bounds(path)
     band = None
     marked = []

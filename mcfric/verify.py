@@ -139,13 +139,19 @@ class Verification:
 
 def _steps(model, omega, kc):
     """Time steps per period: the fastest mode, stiffened by the contacts, at
-    ``omega dt <= OMEGA_DT``; a multiple of 64, at least 1024."""
+    ``omega dt <= OMEGA_DT``; a multiple of 64, at least 1024 (a float above
+    ``MAX_STEPS``, possibly inf, where a period needs more)."""
     f, _, u = model.modal_arrays()
     w = 2 * np.pi * f
     # a stuck contact adds at most kc (uc_a^2 + uc_b^2) to a mode's stiffness per damper
     extra = 4.0 * float(np.max(kc, initial=0.0)) * float(np.max(u[:, :, 0] ** 2))
     w_max = math.sqrt(float(np.max(w)) ** 2 + extra)
-    n = math.ceil(2 * math.pi * w_max / (omega * OMEGA_DT))
+    den = float(omega) * OMEGA_DT         # a float, and 0 only below ~1e-322 Hz
+    n = 2 * math.pi * w_max / den if den > 0 else math.inf
+    if not n <= MAX_STEPS:
+        # too many (below ~1e-303 Hz the ratio overflows to inf): the caller refuses it
+        return n
+    n = math.ceil(n)
     return max(1024, -(-n // 64) * 64)
 
 
@@ -196,12 +202,13 @@ def time_steps(model, freq_hz, kc, steps=None):
     n = [int(steps) if steps is not None else _steps(model, 2 * np.pi * fk, kc) for fk in f]
     for fk, nk in zip(f, n):
         if nk > MAX_STEPS:
+            nk = f"{nk:.3g}" if math.isfinite(nk) else "too many"
             if steps is None and _steps(model, 2 * np.pi * fk, 0.0) <= MAX_STEPS:
                 # the stiff contacts set the step, not the frequency
                 raise ValueError(f"kc: {float(np.max(kc)):g} N/m makes a period at {fk:g} Hz "
-                                 f"need {nk:.3g} time steps (at most {MAX_STEPS}); a contact "
+                                 f"need {nk} time steps (at most {MAX_STEPS}); a contact "
                                  f"this stiff is stuck: integrate with a softer kc")
-            raise ValueError(f"freq_hz: at {fk:g} Hz a period needs {nk:.3g} time steps (at most "
+            raise ValueError(f"freq_hz: at {fk:g} Hz a period needs {nk} time steps (at most "
                              f"{MAX_STEPS}); integrate at higher frequencies")
     return f, n
 

@@ -400,3 +400,18 @@ def test_admits_names_the_constraints_and_refuses_what_it_cannot_check():
                           ((mu0, kc, np.full(nd, np.nan)), "N0: expected finite")):
         with pytest.raises(ValueError, match=message):
             B.admits(*args)
+
+
+def test_a_bounds_file_is_written_for_its_configurations_grid_only(tmp_path):
+    """Bounds computed on another grid than the configuration's were written under its
+    record, which then described another grid (info and plot refuse such a file)."""
+    from mcfric import config
+    from mcfric.bounds import write_bounds_file
+
+    cfg = config.load("two-beam", {"frequency.n": (6, "--n-freq")})
+    model = cfg.spec.model
+    other = np.linspace(20.0, 40.0, 5)
+    B = compute_bounds(model, other, 15000.0, F_lim=force_limit(1.0, 0.5), certified=False)
+    with pytest.raises(ValueError, match="bounds on 5 frequencies, not on the configuration"):
+        write_bounds_file(tmp_path / "b.h5", cfg, B)
+    assert list(tmp_path.iterdir()) == []

@@ -388,6 +388,8 @@ def test_multi_harmonic_on_a_mistuned_ring_agrees_with_time_integration():
     (["verify", "two-beam", "--f", "-3"], "freq"),
     # a period of 1e300 s: the step count in three digits, not three hundred
     (["verify", "two-beam", "--f", "1e-300"], "a period needs 1.55e+304 time steps (at most"),
+    (["verify", "two-beam", "--f", "1e-310"], "a period needs too many time steps (at most"),
+    (["verify", "two-beam", "--f", "5e-324"], "a period needs too many time steps (at most"),
     # argparse's order put SOURCE after --f in the usage line; --f took it as a number
     (["verify", "--f", "20", "two-beam"], "SOURCE goes before --f: mcfric verify two-beam"),
     (["verify", "two-beam", "--f", "20x"], "--f: expected a frequency in Hz, got '20x' ("),

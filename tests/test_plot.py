@@ -451,7 +451,9 @@ def test_folds_are_drawn_and_their_lower_estimates_marked(results, tmp_path, cap
                                                           monkeypatch):
     """The plot drew the upward peaks only: a fold's branch from above (its own peak),
     an open fold's lower estimate and an unchecked fold's peak were drawn as refined
-    peaks or not at all. Three members of a copy of the file edited by hand."""
+    peaks or not at all. Members of a copy of the file edited by hand: one per kind, and
+    two at the band's lower end (a fold's branch refined to it, an unchecked fold's peak
+    there), which are no resonance peaks."""
     import shutil
 
     from mcfric import plot
@@ -467,8 +469,13 @@ def test_folds_are_drawn_and_their_lower_estimates_marked(results, tmp_path, cap
         for i, code in enumerate((FOLD_FOUND, FOLD_OPEN, FOLD_UNCHECKED)):
             fold[i, 0] = code
             dm[i, 0], df[i, 0] = 1.3 * pm[i, 0], pf[i, 0] - 0.05
+        f0 = h5["frequency"][0]
+        fold[3, 0], dm[3, 0], df[3, 0] = FOLD_FOUND, 1.3 * pm[3, 0], f0
+        status = h5["peak_status"][()]
+        fold[4, 0], status[4, 0], pf[4, 0] = FOLD_UNCHECKED, 1, f0
         h5["fold"][...], h5["peak_metric_down"][...] = fold, dm
-        h5["peak_frequency_down"][...] = df
+        h5["peak_frequency_down"][...], h5["peak_frequency"][...] = df, pf
+        h5["peak_status"][...] = status
     figs = []
     real = plot._figure
     monkeypatch.setattr(plot, "_figure", lambda *a: figs.append(real(*a)) or figs[-1])
@@ -487,6 +494,8 @@ def test_folds_are_drawn_and_their_lower_estimates_marked(results, tmp_path, cap
     refined = points("refined member peaks (every member)")
     assert (round(pf[2, 0], 9), round(pm[2, 0], 15)) not in refined
     assert (round(pf[1, 0], 9), round(pm[1, 0], 15)) in refined
+    ends = points("member maxima at an end of the band (not resonance peaks)")
+    assert {(round(f0, 9), round(dm[3, 0], 15)), (round(f0, 9), round(pm[4, 0], 15))} <= ends
     assert drawn["n_fold_lower"] == 2
     monkeypatch.undo()
     rc, out, err = call(["plot", path, "-o", tmp_path / "g.png", "--no-indicator"], capsys)

@@ -169,6 +169,11 @@ def write_bounds_file(path, cfg, B, peak=None):
 
     spec = getattr(cfg, "spec", cfg)
     model = spec.model
+    if not np.array_equal(np.asarray(B.freq_hz), np.asarray(spec.freq_hz)):
+        # the file's record would describe another grid (info and plot refuse such a file)
+        raise ValueError(f"B: bounds on {len(B.freq_hz)} frequencies, not on the "
+                         f"configuration's grid ({len(spec.freq_hz)}): compute them on "
+                         f"cfg.spec.freq_hz")
     a, b = model.dampers
     coords = {
         "frequency": (B.freq_hz, {"units": "Hz", "long_name": "excitation frequency"}),

@@ -19,15 +19,12 @@ def one_line(e):
 def reading(path, fn, *args, **kwargs):
     """``fn(*args, **kwargs)``, which reads the results file ``path``: a dataset missing
     (a StoreError) or an attribute edited into another type or shape is one line, exit 2
-    (a traceback, or exit 1, before). An :class:`~mcfric.validators.InputError` (bad
-    arguments, not a bad file) passes through, for the caller to name its flag."""
+    (a traceback, or exit 1, before). ``fn`` reports bad arguments as a
+    :class:`UsageError` of its own (a ``ValueError`` here is blamed on the file)."""
     from ..store import StoreError
-    from ..validators import InputError
 
     try:
         return fn(*args, **kwargs)
-    except InputError:
-        raise
     except StoreError as e:
         raise UsageError(str(e)) from None
     except (AttributeError, KeyError, TypeError, ValueError) as e:

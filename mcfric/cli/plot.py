@@ -57,14 +57,17 @@ def cmd_plot(args):
         raise UsageError(f"--member: expected -1 (none) or a member in 0..{n - 1}, "
                          f"got {args.member}")
     measured = _read_measured(args, attrs)
-    try:
-        drawn = reading(path, plot.results_figure, path, out, quantity=args.quantity,
-                        f_window=window, member=None if args.member < 0 else args.member,
-                        measured=measured, indicator=not args.no_indicator)
-    except InputError as e:
-        # the Python arguments' names are the flags' here
-        flag = {"f_window": "--f-min/--f-max", "member": "--member"}.get(e.key, e.key)
-        raise UsageError(f"{flag}: {e.message}") from None
+    def figure(*a, **k):
+        try:
+            return plot.results_figure(*a, **k)
+        except InputError as e:
+            # bad arguments, not a bad file; the Python arguments' names are the flags'
+            flag = {"f_window": "--f-min/--f-max", "member": "--member"}.get(e.key, e.key)
+            raise UsageError(f"{flag}: {e.message}") from None
+
+    drawn = reading(path, figure, path, out, quantity=args.quantity, f_window=window,
+                    member=None if args.member < 0 else args.member, measured=measured,
+                    indicator=not args.no_indicator)
     gaps = drawn["n_not_converged"]
     grid = drawn["n_peaks_unrefined"]
     print(f"figure: {out} ({drawn['n_drawn']} of {drawn['n_members']} members drawn"
