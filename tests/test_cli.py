@@ -126,7 +126,8 @@ def test_run_info_and_figure(tmp_path, monkeypatch, capsys):
                   r"([\d.]+) s \(kernel [\d.]+ s\), ([\d,]+) points/s in the ensemble", out)
     wall, b, ens, rate = (float(g.replace(",", "")) for g in m.groups())
     assert abs(wall - b - ens) <= 0.011 and b > 0
-    assert rate == pytest.approx(1000 / ens, rel=0.05, abs=1)
+    # the printed time is rounded to 0.01 s (a warm ensemble takes ~0.07 s: 7 % of it)
+    assert 1000 / (ens + 0.005) - 1 <= rate <= 1000 / max(ens - 0.005, 1e-9) + 1
     assert (tmp_path / "r.png").stat().st_size > 10000
     with h5py.File(tmp_path / "r.h5") as h5:
         cfg = config.validate(tomllib.loads(h5.attrs["config"]))

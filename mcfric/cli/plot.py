@@ -57,6 +57,7 @@ def cmd_plot(args):
         raise UsageError(f"--member: expected -1 (none) or a member in 0..{n - 1}, "
                          f"got {args.member}")
     measured = _read_measured(args, attrs)
+
     def figure(*a, **k):
         try:
             return plot.results_figure(*a, **k)
