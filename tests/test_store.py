@@ -227,6 +227,33 @@ def test_add_group_that_fails_midway_leaves_the_file_as_it_was(tmp_path, monkeyp
         assert list(h5["bounds"]) == ["lower"]
 
 
+def test_add_group_counts_the_group_in_the_room_it_needs(tmp_path, monkeypatch):
+    """Room for the copy of the file but not for the group's datasets beside it (2 kB
+    short of them): refused before the copy, the file untouched (the check counted the
+    copy alone)."""
+    import shutil
+    from collections import namedtuple
+
+    path = tmp_path / "r.h5"
+    s = make(path, n=4)
+    s.write(0, records(0, 4))
+    s.commit([(0, 4)])
+    s.finish({"count": np.int64(0), "wall": np.float64(0.0)})
+    before = path.read_bytes()
+    usage = namedtuple("usage", "total used free")
+    group = {f"x{i}": (("frequency", "beam"), np.zeros((7, 3)), {}) for i in range(4)}
+    need = len(before) + store.files.MIN_FREE + 4 * (7 * 3 * 8 + 4096)
+    monkeypatch.setattr(shutil, "disk_usage", lambda p: usage(1 << 40, 0, need - 2048))
+    with pytest.raises(StoreError, match="no space for a copy of the file"):
+        store.add_group(path, "more", group)
+    assert path.read_bytes() == before and [p.name for p in tmp_path.iterdir()] == ["r.h5"]
+    monkeypatch.setattr(shutil, "disk_usage", lambda p: usage(1 << 40, 0, need))
+    store.add_group(path, "more", group)                   # with room for both, it is added
+    assert [p.name for p in tmp_path.iterdir()] == ["r.h5"]
+    with h5py.File(path, "r") as h5:
+        assert sorted(h5["more"]) == ["x0", "x1", "x2", "x3"]
+
+
 def test_reading_a_missing_or_foreign_file(tmp_path):
     with pytest.raises(StoreError, match="no such file"):
         store.read_attrs(tmp_path / "nope.h5")

@@ -49,8 +49,10 @@ def add_group(path, name, variables, attrs=None):
     if a.get("complete") != 1:
         raise StoreError(f"{path}: add_group needs a complete results file")
     with replacing(path, "results file") as tmp:
-        # the copy needs room of its own (a full disk midway is an error, not a crash)
-        require_room(tmp, Path(path).stat().st_size + MIN_FREE, path, "a copy of the file")
+        # the copy and the group need room of their own (a full disk midway is an
+        # error, not a crash)
+        require_room(tmp, Path(path).stat().st_size + MIN_FREE
+                     + groups_bytes({name: (variables, attrs)}), path, "a copy of the file")
         shutil.copyfile(path, tmp)
         with h5py.File(tmp, "r+") as h5:
             write_group(h5, name, variables, attrs)
