@@ -408,6 +408,21 @@ def test_an_unknown_option_points_to_its_commands_help(cmd, capsys):
     assert rc == 2 and f"unrecognized arguments: --bogus (see `mcfric {cmd} --help`)" in err
 
 
+@pytest.mark.parametrize("argv, message", [
+    (["hbm", "--F0", "-inf"], "--F0: expected a finite number"),
+    (["hbm", "--F0", "-1e-3"], "got -0.001"),
+    (["hbm", "--mu0", "-nan"], "--mu0: expected a finite number >= 0, got nan"),
+    (["verify", "--f", "-1e-3"], "--f: frequencies must be > 0 Hz")])
+def test_a_negative_value_in_exponent_form_reaches_its_options_check(argv, message, tmp_path,
+                                                                     monkeypatch, capsys):
+    # argparse alone took "-1e-3" and "-inf" for options ("expected one argument")
+    monkeypatch.chdir(tmp_path)
+    rc, out, err = call(argv, capsys)
+    assert rc == 2 and out == "" and err.count("\n") == 1
+    assert message in err and "expected one argument" not in err
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_no_arguments_runs_the_embedded_default(tmp_path, monkeypatch, capsys):
     seen = {}
 
