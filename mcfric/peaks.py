@@ -282,11 +282,17 @@ def has_open_fold(fold):
     return (fold == FOLD_OPEN).any(axis=1)
 
 
+def unchecked_fold(fold, status):
+    """Per peak slot, whether its fold check failed (``fold`` -1 where ``status`` is not
+    -1: the downward sweep did not converge, so a branch from above, which may lie above
+    every peak reported, is unknown), the shape of ``fold``."""
+    return (fold == FOLD_UNCHECKED) & (status != NONE)
+
+
 def has_unchecked_fold(fold, status):
-    """Per member, whether the fold check failed at one of its peaks (``fold`` -1 where
-    ``status`` is not -1: the downward sweep did not converge, so a branch from above,
-    which may lie above every peak reported, is unknown), shape (n_s,)."""
-    return ((fold == FOLD_UNCHECKED) & (status != NONE)).any(axis=1)
+    """Per member, whether the fold check failed at one of its peaks
+    (:func:`unchecked_fold`), shape (n_s,)."""
+    return unchecked_fold(fold, status).any(axis=1)
 
 
 def fold_unsettled(fold, status):

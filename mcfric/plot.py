@@ -9,6 +9,7 @@
 
 from __future__ import annotations
 
+import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -19,15 +20,18 @@ from .metric import METRIC_UNITS, omega_power
 from .peaks import (
     FOLD_FOUND,
     FOLD_OPEN,
-    FOLD_UNCHECKED,
-    NONE,
     at_band_end,
     cut_by_band,
     nominal_bounds,
+    unchecked_fold,
 )
 from .peaks import GRID as PEAK_GRID
 from .store import dataset_names, iter_records, read, read_attrs, read_group, replacing
 from .validators import InputError
+
+#: Characters per line of a legend entry below the results figure (two columns, 7 pt,
+#: 8 in wide).
+LEGEND_WRAP = 60
 
 #: Colours of measured files, in the order given.
 MEASURED_COLORS = ("tab:green", "tab:olive", "tab:cyan", "tab:brown", "tab:pink")
@@ -237,7 +241,7 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
         found &= ~found_end
         # a fold not checked: a branch from above, if any, is unknown, so this peak may
         # not be the largest near it (at an end of the band it is no peak anyway)
-        unchecked = ok & ~grid & ~end & (fold == FOLD_UNCHECKED) & (ps != NONE)
+        unchecked = ok & ~grid & ~end & unchecked_fold(fold, ps)
         # an open fold's branch was not followed to its peak: its largest point so far
         opened = dok & (fold == FOLD_OPEN)
         n_unrefined = int(np.count_nonzero(grid))
@@ -390,7 +394,9 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
         handles += ax2.get_lines()
         labels.append("share flagged (right axis; rerun with --harmonics)")
     # below the axes: with ten entries or more no corner of the axes is free of data
-    fig.legend(handles, labels, loc="outside lower center", ncol=2, fontsize=7)
+    # entries wrapped: two columns of long ones would run past the figure's edges
+    fig.legend(handles, [textwrap.fill(t, LEGEND_WRAP) for t in labels],
+               loc="outside lower center", ncol=2, fontsize=7)
     _save(fig, out, 150)
     return {"n_members": n if drawn else 0, "n_drawn": drawn, "has_bounds": B is not None,
             "n_flagged": int(flagged_at.sum()), "n_not_converged": n_failed,

@@ -202,13 +202,13 @@ def time_steps(model, freq_hz, kc, steps=None):
     n = [int(steps) if steps is not None else _steps(model, 2 * np.pi * fk, kc) for fk in f]
     for fk, nk in zip(f, n):
         if nk > MAX_STEPS:
-            nk = f"{nk:.3g}" if math.isfinite(nk) else "too many"
+            count = f"{nk:.3g}" if math.isfinite(nk) else "too many"
             if steps is None and _steps(model, 2 * np.pi * fk, 0.0) <= MAX_STEPS:
                 # the stiff contacts set the step, not the frequency
                 raise ValueError(f"kc: {float(np.max(kc)):g} N/m makes a period at {fk:g} Hz "
-                                 f"need {nk} time steps (at most {MAX_STEPS}); a contact "
+                                 f"need {count} time steps (at most {MAX_STEPS}); a contact "
                                  f"this stiff is stuck: integrate with a softer kc")
-            raise ValueError(f"freq_hz: at {fk:g} Hz a period needs {nk} time steps (at most "
+            raise ValueError(f"freq_hz: at {fk:g} Hz a period needs {count} time steps (at most "
                              f"{MAX_STEPS}); integrate at higher frequencies")
     return f, n
 

@@ -544,3 +544,20 @@ def test_a_file_where_nothing_converged_says_so(results, tmp_path):
     drawn = plot.results_figure(copy, tmp_path / "none.png", indicator=False)
     assert drawn["legend"][0] == "ensemble (20 members: no point in the window converged)"
     assert drawn["n_not_converged"] == 20 * 60
+
+
+def test_the_legend_lies_inside_the_figure(tmp_path, monkeypatch):
+    """The acceleration figure of a run with bounds: ten entries, two of them 93 and 100
+    characters long. Unwrapped, the two columns ran past both edges of the figure."""
+    from mcfric import config, ensemble, plot
+    saved = []
+    monkeypatch.setattr(plot, "_save", lambda fig, out, dpi: saved.append(fig))
+    cfg = config.load({"model": {"preset": "two-beam"}, "frequency": {"n": 60},
+                       "sampling": {"samples": 50}})
+    path = ensemble.run(cfg, tmp_path / "r.h5", progress=False).path
+    drawn = plot.results_figure(path, tmp_path / "r.png", quantity="acceleration")
+    assert len(drawn["legend"]) == 10 and max(map(len, drawn["legend"])) >= 90
+    fig = saved[-1]
+    fig.canvas.draw()
+    box, legend = fig.bbox, fig.legends[0].get_window_extent()
+    assert box.x0 <= legend.x0 and legend.x1 <= box.x1
