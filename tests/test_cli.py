@@ -412,7 +412,9 @@ def test_an_unknown_option_points_to_its_commands_help(cmd, capsys):
     (["hbm", "--F0", "-inf"], "--F0: expected a finite number"),
     (["hbm", "--F0", "-1e-3"], "got -0.001"),
     (["hbm", "--mu0", "-nan"], "--mu0: expected a finite number >= 0, got nan"),
-    (["verify", "--f", "-1e-3"], "--f: frequencies must be > 0 Hz")])
+    (["verify", "--f", "-1e-3"], "--f: frequencies must be > 0 Hz"),
+    (["verify", "--f", "-1e-3", "10"], "--f: frequencies must be > 0 Hz"),
+    (["verify", "--f", "10", "-1e-3"], "--f: frequencies must be > 0 Hz")])
 def test_a_negative_value_in_exponent_form_reaches_its_options_check(argv, message, tmp_path,
                                                                      monkeypatch, capsys):
     # argparse alone took "-1e-3" and "-inf" for options ("expected one argument")

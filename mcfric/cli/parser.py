@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import sys
 
 from .errors import UsageError
 
@@ -20,10 +19,28 @@ FIRST_ORDER_HELP = ("certify with the first-order relaxation alone (about a thir
                     "the time on eight beams; looser near some resonances)")
 
 
+class _NegativeNumber:
+    """argparse's test of whether a token starting with "-" is a value, not an option.
+
+    argparse's own test knows ``-1`` and ``-0.5`` only: ``--F0 -1e-3``, ``--F0 -inf`` or
+    ``--f -1e-3 10`` gave "expected one argument" instead of the option's own check of
+    the value. Any token that ``float`` reads is a value here.
+    """
+
+    @staticmethod
+    def match(token):
+        try:
+            float(token)
+        except ValueError:
+            return False
+        return token.startswith("-")
+
+
 class _Parser(argparse.ArgumentParser):
     def __init__(self, *args, **kwargs):
         kwargs.setdefault("allow_abbrev", False)   # --sample must not mean --samples
         super().__init__(*args, **kwargs)
+        self._negative_number_matcher = _NegativeNumber()
 
     def error(self, message):
         raise UsageError(f"{message} (see `{self.prog} --help`)")
@@ -31,7 +48,6 @@ class _Parser(argparse.ArgumentParser):
     def parse_args(self, args=None, namespace=None):
         # the top-level parser reports a subcommand's unknown options: its help lists
         # the commands, not their options, so the pointer names the command's own help
-        args = _negative_values_attached(sys.argv[1:] if args is None else args)
         ns, extra = self.parse_known_args(args, namespace)
         if extra:
             cmd = getattr(ns, "command", None)
@@ -39,33 +55,6 @@ class _Parser(argparse.ArgumentParser):
             raise UsageError(f"unrecognized arguments: {' '.join(extra)} (see `{prog} "
                              f"--help`)")
         return ns
-
-
-def _is_negative_number(token):
-    try:
-        float(token)
-    except ValueError:
-        return False
-    return token.startswith("-")
-
-
-def _negative_values_attached(args):
-    """``--F0 -1e-3`` read as ``--F0=-1e-3``.
-
-    argparse takes a token that starts with "-" for an option unless it looks like
-    ``-1`` or ``-0.5``: an exponent, ``-inf`` or ``-nan`` after an option gave "expected
-    one argument" instead of the option's own check of the value.
-    """
-    out = []
-    for i, token in enumerate(args):
-        if token == "--":        # after it every token is a value as given
-            return out + list(args[i:])
-        if (out and out[-1].startswith("--") and "=" not in out[-1]
-                and _is_negative_number(token)):
-            out[-1] = f"{out[-1]}={token}"
-        else:
-            out.append(token)
-    return out
 
 
 def _source_help():
