@@ -283,7 +283,7 @@ def test_bad_modal_table_file(tmp_path, table, key):
     assert str(e.value).startswith(key) and "\n" not in str(e.value)
 
 
-def test_a_source_that_is_no_configuration_file_is_one_line(tmp_path):
+def test_a_source_that_is_no_configuration_file_is_one_line(tmp_path, monkeypatch):
     """An empty name, a directory, a results (HDF5) file, a missing file: one line that
     says what it is, not a decoding error."""
     import h5py
@@ -296,6 +296,15 @@ def test_a_source_that_is_no_configuration_file_is_one_line(tmp_path):
         with pytest.raises(config.ConfigError, match=re.escape(words)) as e:
             config.load(source)
         assert len(str(e.value).splitlines()) == 1
+    # a results file larger than any configuration is still called one (it was "more
+    # than 16 MiB"), and the message says how to get its configuration
+    from mcfric.config import loading
+    monkeypatch.setattr(loading, "MAX_TOML_BYTES", 100)
+    assert h5.stat().st_size > 100
+    with pytest.raises(config.ConfigError, match=re.escape(
+            f"an HDF5 file (results?), not a TOML configuration (`mcfric config {h5} > "
+            f"run.toml` writes a results file's)")):
+        config.load(h5)
 
 
 def test_replace_takes_numpy_values_as_a_toml_file_gives_them():

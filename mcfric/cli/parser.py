@@ -108,7 +108,7 @@ def build_parser():
                    help="no progress bars (the run's and the certification's)")
     r.add_argument("--skip-space-check", action="store_true",
                    help="start even if the results file looks too large for the free disk "
-                        "space")
+                        "space, or the run's arrays for the free memory")
     r.add_argument("--no-figure", action="store_true", help="do not draw the figure")
 
     c = sub.add_parser("config", help="print a complete, commented configuration",

@@ -9,6 +9,7 @@ holds the numbers.
 from __future__ import annotations
 
 import copy
+import shlex
 import tomllib
 from pathlib import Path
 
@@ -63,11 +64,14 @@ def read_toml(path):
         with open(p, "rb") as fh:
             # a pipe (`<(...)`) is read; a device without end (/dev/zero) is not
             data = fh.read(MAX_TOML_BYTES + 1)
+        # before the size: a results file is often larger than any configuration
+        if data.startswith(b"\x89HDF"):
+            cmd = f"mcfric config {shlex.quote(str(path))} > run.toml"
+            raise InputError(str(path), f"an HDF5 file (results?), not a TOML configuration "
+                             f"(`{cmd}` writes a results file's)")
         if len(data) > MAX_TOML_BYTES:
             raise InputError(str(path), f"more than {MAX_TOML_BYTES // 2**20} MiB, not a "
                              f"TOML configuration")
-        if data.startswith(b"\x89HDF"):
-            raise InputError(str(path), "an HDF5 file (results?), not a TOML configuration")
         if p.suffix.lower() in (".h5", ".hdf5", ".partial") and not data.strip():
             # an empty file read as an empty TOML ran the default ensemble
             raise InputError(str(path), "an empty file, not a TOML configuration (nor a "
