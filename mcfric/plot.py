@@ -98,8 +98,9 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
     Returns
     -------
     dict
-        ``n_members``, ``n_drawn``, ``has_bounds``, ``n_flagged`` (flagged points over
-        the whole ensemble, 0 if not marked), ``n_not_converged`` (points of the whole
+        ``n_members`` (the ensemble's, 0 in a bounds file), ``n_drawn``, ``has_bounds``,
+        ``n_flagged`` (flagged points over the whole ensemble, 0 if not marked),
+        ``n_not_converged`` (points of the whole
         ensemble in the window that did not converge: gaps in the lines) and
         ``n_peaks_unrefined`` (drawn member peaks left at their grid values),
         ``n_fold_lower`` (drawn lower estimates beside a fold: an open fold's branch
@@ -398,7 +399,7 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
     fig.legend(handles, [textwrap.fill(t, LEGEND_WRAP) for t in labels],
                loc="outside lower center", ncol=2, fontsize=7)
     _save(fig, out, 150)
-    return {"n_members": n if drawn else 0, "n_drawn": drawn, "has_bounds": B is not None,
+    return {"n_members": n, "n_drawn": drawn, "has_bounds": B is not None,
             "n_flagged": int(flagged_at.sum()), "n_not_converged": n_failed,
             "n_peaks_unrefined": n_unrefined, "n_fold_lower": n_fold_lower,
             "bound_peaks": marked,

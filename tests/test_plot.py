@@ -365,6 +365,8 @@ def test_measured_options_that_cannot_apply_are_refused_or_said(results, tmp_pat
     capsys.readouterr()
     rc, _, err = call(["plot", bf, "-o", tmp_path / "b.png", "--member", "3"], capsys)
     assert rc == 2 and "holds no members" in err, err
+    rc, out, _ = call(["plot", bf, "-o", tmp_path / "b.png"], capsys)   # was "0 of 0 members"
+    assert rc == 0 and out == f"figure: {tmp_path / 'b.png'} (bounds only)\n", out
     part = tmp_path / "p.h5"
     part.with_name("p.h5.partial").write_bytes(b"")
     rc, _, err = call(["plot", part, "-o", tmp_path / "p.png"], capsys)

@@ -71,15 +71,17 @@ def cmd_plot(args):
                     indicator=not args.no_indicator)
     gaps = drawn["n_not_converged"]
     grid = drawn["n_peaks_unrefined"]
-    print(f"figure: {out} ({drawn['n_drawn']} of {drawn['n_members']} members drawn"
-          f"{', bounds' if drawn['has_bounds'] else ', no bounds in the file'}"
+    n, has_bounds = drawn["n_members"], drawn["has_bounds"]
+    what = ("bounds only" if not n else f"{drawn['n_drawn']} of {n} members drawn"
+            + (", bounds" if has_bounds else ", no bounds in the file"))
+    print(f"figure: {out} ({what}"
           + (f"; {gaps:,} point{'s' if gaps > 1 else ''} not converged, left as gaps"
              if gaps else "")
           + (f"; {grid} member peak{'s' if grid > 1 else ''} not refined, drawn as circles"
              if grid else "")
           + (f"; {low} lower estimate{'s' if low > 1 else ''} beside a fold, drawn as "
              f"triangles" if (low := drawn["n_fold_lower"]) else "") + ")")
-    if measured and drawn["has_bounds"]:
+    if measured and has_bounds:
         _print_inside(path, measured, args.quantity, window)
     elif measured:
         print("measured data drawn; not compared (the file has no bounds)")
