@@ -408,6 +408,19 @@ def test_an_unknown_option_points_to_its_commands_help(cmd, capsys):
     assert rc == 2 and f"unrecognized arguments: --bogus (see `mcfric {cmd} --help`)" in err
 
 
+@pytest.mark.parametrize("argv, option", [
+    (["run", "--nfreq", "10"], "--n-freq"), (["run", "--f0", "0.3"], "--F0"),
+    (["run", "--n_freq=10"], "--n-freq"), (["hbm", "--harmonic", "3"], "--harmonics"),
+    (["plot", "r.h5", "--memebr", "3"], "--member")])
+def test_a_mistyped_option_is_named_with_the_one_meant(argv, option, tmp_path, monkeypatch,
+                                                       capsys):
+    monkeypatch.chdir(tmp_path)
+    rc, out, err = call(argv, capsys)
+    assert rc == 2 and out == "" and err.count("\n") == 1
+    assert f"(did you mean {option}? see `mcfric {argv[0]} --help`)" in err, err
+    assert list(tmp_path.iterdir()) == []
+
+
 @pytest.mark.parametrize("argv, message", [
     (["hbm", "--F0", "-inf"], "--F0: expected a finite number"),
     (["hbm", "--F0", "-1e-3"], "got -0.001"),

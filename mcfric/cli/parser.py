@@ -52,9 +52,30 @@ class _Parser(argparse.ArgumentParser):
         if extra:
             cmd = getattr(ns, "command", None)
             prog = f"{self.prog} {cmd}" if cmd else self.prog
-            raise UsageError(f"unrecognized arguments: {' '.join(extra)} (see `{prog} "
+            hint = _option_typo(extra, self._command_parser(cmd))
+            raise UsageError(f"unrecognized arguments: {' '.join(extra)} ({hint}see `{prog} "
                              f"--help`)")
         return ns
+
+    def _command_parser(self, cmd):
+        """The subcommand's parser (this one where there is none)."""
+        for action in self._actions:
+            if isinstance(action, argparse._SubParsersAction) and cmd in action.choices:
+                return action.choices[cmd]
+        return self
+
+
+def _option_typo(extra, parser):
+    """``"did you mean --n-freq? "`` where the first unknown option is close to one of
+    ``parser``'s (``--nfreq``, ``--f0``), else ``""``."""
+    import difflib
+
+    word = next((t.split("=", 1)[0] for t in extra if t.startswith("--")), None)
+    if word is None:
+        return ""
+    options = {o.lower(): o for o in parser._option_string_actions if o.startswith("--")}
+    close = difflib.get_close_matches(word.lower(), options, n=1, cutoff=0.7)
+    return f"did you mean {options[close[0]]}? " if close else ""
 
 
 def _source_help():
