@@ -125,7 +125,10 @@ class Summary:
         return self.samples_done * self.n_freq
 
     def text(self):
-        """The summary printed at the end of a run, several lines."""
+        """The ensemble's summary printed at the end of a run, several lines. ``mcfric
+        run`` adds the bounds' (:meth:`mcfric.bounds.Bounds.summary` of
+        :func:`~mcfric.bounds.read_bounds`) and the members' check against them
+        (:func:`~mcfric.bounds.check_members`)."""
         pts = self.points
         pct = 100.0 * self.not_converged / max(pts, 1)
         ens_s = self.wall_s - self.bounds_s

@@ -415,3 +415,27 @@ def test_a_bounds_file_is_written_for_its_configurations_grid_only(tmp_path):
     with pytest.raises(ValueError, match="bounds on 5 frequencies, not on the configuration"):
         write_bounds_file(tmp_path / "b.h5", cfg, B)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_check_members_counts_a_point_pushed_past_the_bounds(tmp_path):
+    """``check_members`` from Python, as ``mcfric run`` prints it: every converged point
+    checked and none outside; one point set to twice the upper bound (with h5py, the
+    bounds read from the file by hand) is counted outside both bounds."""
+    import h5py
+
+    from mcfric import config, ensemble
+    from mcfric.bounds import check_members
+
+    cfg = config.load("two-beam").replace("sampling.samples", 6).replace("frequency.n", 12)
+    path = ensemble.run(cfg, tmp_path / "r.h5", progress=False).path
+    with h5py.File(path, "r") as h5:
+        converged = h5["converged"][...]
+        upper = h5["bounds/upper"][...]
+    check = check_members(path)
+    assert check.total == np.count_nonzero(converged) > 0
+    assert (check.outside, check.outside_certified, check.left_out) == (0, 0, 0)
+    i, k = np.argwhere(converged)[0]
+    with h5py.File(path, "r+") as h5:
+        h5["metric"][i, k] = 2 * upper[k]
+    check = check_members(path)
+    assert (check.outside, check.outside_certified) == (1, 1)

@@ -450,7 +450,8 @@ def test_no_arguments_runs_the_embedded_default(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
     monkeypatch.setattr(ensemble, "run", fake_run)
     monkeypatch.setattr(plot, "results_figure", lambda h5, png, **kw: seen.update(png=png))
-    monkeypatch.setattr(cli.run, "_check_members", lambda path: None)   # no file was written
+    from mcfric.bounds import members_check
+    monkeypatch.setattr(members_check, "check_members", lambda path: None)   # no file written
     rc, out, _ = call([], capsys)
     assert rc == 0
     cfg = seen["cfg"]
@@ -580,6 +581,7 @@ def test_points_where_the_bounds_search_failed_are_not_called_outside(tmp_path, 
         return B
 
     monkeypatch.setattr(mcfric.bounds, "read_bounds", failed_at_three)
+    monkeypatch.setattr(mcfric.bounds.members_check, "read_bounds", failed_at_three)
     out = tmp_path / "r.h5"
     assert cli.main(["run", "two-beam", "--samples", "5", "--n-freq", "10",
                      "--no-progress", "--no-figure", "-o", str(out)]) == 0

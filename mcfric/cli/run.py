@@ -11,41 +11,6 @@ from .inputs import load_config, shortfall_note
 from .outputs import not_replacing_hdf5, order_path, output_path, regular_or_none
 
 
-def _check_members(path):
-    """Count converged ensemble points outside the stored bounds (a validity check), on
-    the members the bounds' constraints admit (:meth:`Bounds.admits`): ``(outside, total,
-    outside_certified, left_out, unbounded, uncertified)``, ``outside_certified`` None if
-    not certified, ``left_out`` the members not admitted (not checked), ``unbounded``
-    and ``uncertified`` the points at frequencies without searched (or certified) bounds,
-    NaN where a search failed: not counted as outside them, not checked."""
-    import numpy as np
-
-    from ..bounds import read_bounds
-    from ..store import iter_records
-
-    B = read_bounds(path)
-    if B is None:
-        return None
-    C = B.certificate
-    searched = np.isfinite(B.upper) & np.isfinite(B.lower)
-    # a certified upper bound may be inf (nothing proved): a bound, unlike NaN
-    certified = C is not None and ~np.isnan(C.upper) & ~np.isnan(C.lower)
-    outside = total = outside_cert = left_out = unbounded = uncertified = 0
-    for _, arr in iter_records(path, ["metric", "converged", "mu0", "kc", "N0"]):
-        admitted = B.admits(arr["mu0"], arr["kc"], arr["N0"])
-        left_out += int(np.count_nonzero(~admitted))
-        ok = arr["converged"] & admitted[:, None]
-        outside += int(np.count_nonzero(~B.contains(arr["metric"]) & ok & searched))
-        if C is not None:
-            outside_cert += int(np.count_nonzero(~C.contains(arr["metric"]) & ok
-                                                 & certified))
-            uncertified += int(np.count_nonzero(ok & ~certified))
-        total += int(np.count_nonzero(ok & searched))
-        unbounded += int(np.count_nonzero(ok & ~searched))
-    return (outside, total, None if C is None else outside_cert, left_out, unbounded,
-            uncertified)
-
-
 def _kept_bounds_note(cfg, out):
     """A note where ``out`` (resumed, or complete already) keeps bounds made with other
     ``[bounds]`` settings than ``cfg``'s (they are not part of a run's identity), else
@@ -205,7 +170,9 @@ def _report_run(args, cfg, out, summary):
         if B is not None:
             print(B.summary())
     if summary.complete:
-        check = _check_members(out)
+        from ..bounds import members_check
+
+        check = members_check.check_members(out)
         if check is not None:
             outside, total, outside_cert, left_out, unbounded, uncertified = check
             from ..store import read_attrs
