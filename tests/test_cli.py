@@ -421,6 +421,17 @@ def test_a_mistyped_option_is_named_with_the_one_meant(argv, option, tmp_path, m
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.parametrize("argv, hint", [
+    (["run", "--N0", "0.5"], "--N0 is an option of `mcfric hbm` and `mcfric verify`"),
+    (["run", "--k-max", "3"], "--k-max is an option of `mcfric bounds`"),
+    (["plot", "r.h5", "--no-peaks"], "--no-peaks is an option of `mcfric run`")])
+def test_another_commands_option_is_named_with_its_command(argv, hint, capsys):
+    # by closeness alone, --N0 was "did you mean --F0?" (the drive, not the preload)
+    rc, out, err = call(argv, capsys)
+    assert rc == 2 and out == "" and err.count("\n") == 1
+    assert f"({hint}; see `mcfric {argv[0]} --help`)" in err, err
+
+
 @pytest.mark.parametrize("argv, message", [
     (["hbm", "--F0", "-inf"], "--F0: expected a finite number"),
     (["hbm", "--F0", "-1e-3"], "got -0.001"),
@@ -430,11 +441,12 @@ def test_a_mistyped_option_is_named_with_the_one_meant(argv, option, tmp_path, m
     (["verify", "--f", "10", "-1e-3"], "--f: frequencies must be > 0 Hz")])
 def test_a_negative_value_in_exponent_form_reaches_its_options_check(argv, message, tmp_path,
                                                                      monkeypatch, capsys):
-    # argparse alone took "-1e-3" and "-inf" for options ("expected one argument")
+    # argparse alone took "-1e-3" and "-inf" for options ("expected one argument", or
+    # "expected at least one argument" for --f)
     monkeypatch.chdir(tmp_path)
     rc, out, err = call(argv, capsys)
     assert rc == 2 and out == "" and err.count("\n") == 1
-    assert message in err and "expected one argument" not in err
+    assert message in err and "one argument" not in err
     assert list(tmp_path.iterdir()) == []
 
 

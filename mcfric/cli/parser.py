@@ -22,9 +22,10 @@ FIRST_ORDER_HELP = ("certify with the first-order relaxation alone (about a thir
 class _NegativeNumber:
     """argparse's test of whether a token starting with "-" is a value, not an option.
 
-    argparse's own test knows ``-1`` and ``-0.5`` only: ``--F0 -1e-3``, ``--F0 -inf`` or
-    ``--f -1e-3 10`` gave "expected one argument" instead of the option's own check of
-    the value. Any token that ``float`` reads is a value here.
+    argparse's own test knows ``-1`` and ``-0.5`` only: ``--F0 -1e-3`` or ``--F0 -inf``
+    gave "expected one argument", ``--f -1e-3 10`` "expected at least one argument",
+    instead of the option's own check of the value. Any token that ``float`` reads is a
+    value here.
     """
 
     @staticmethod
@@ -52,30 +53,39 @@ class _Parser(argparse.ArgumentParser):
         if extra:
             cmd = getattr(ns, "command", None)
             prog = f"{self.prog} {cmd}" if cmd else self.prog
-            hint = _option_typo(extra, self._command_parser(cmd))
+            hint = _option_typo(extra, cmd, self._command_parsers())
             raise UsageError(f"unrecognized arguments: {' '.join(extra)} ({hint}see `{prog} "
                              f"--help`)")
         return ns
 
-    def _command_parser(self, cmd):
-        """The subcommand's parser (this one where there is none)."""
+    def _command_parsers(self):
+        """The subcommands' parsers by name ({None: this one} where there are none)."""
         for action in self._actions:
-            if isinstance(action, argparse._SubParsersAction) and cmd in action.choices:
-                return action.choices[cmd]
-        return self
+            if isinstance(action, argparse._SubParsersAction):
+                return dict(action.choices)
+        return {None: self}
 
 
-def _option_typo(extra, parser):
-    """``"did you mean --n-freq? "`` where the first unknown option is close to one of
-    ``parser``'s (``--nfreq``, ``--f0``), else ``""``."""
+def _long_options(parser):
+    return [o for o in parser._option_string_actions if o.startswith("--")]
+
+
+def _option_typo(extra, cmd, parsers):
+    """A hint for the first unknown long option in ``extra``: the commands it belongs to
+    (``run --N0``: "--N0 is an option of `mcfric hbm`"), or the option of ``cmd``'s it is
+    close to (``--nfreq``, ``--f0``: "did you mean --n-freq?"), else ``""``."""
     import difflib
 
-    word = next((t.split("=", 1)[0] for t in extra if t.startswith("--")), None)
-    if word is None:
+    word = next((t.split("=", 1)[0] for t in extra if t.startswith("--") and t != "--"),
+                None)
+    if word is None or cmd not in parsers:
         return ""
-    options = {o.lower(): o for o in parser._option_string_actions if o.startswith("--")}
-    close = difflib.get_close_matches(word.lower(), options, n=1, cutoff=0.7)
-    return f"did you mean {options[close[0]]}? " if close else ""
+    # an option of another command: a close option of this one would be another quantity
+    owners = [f"`mcfric {c}`" for c, p in parsers.items() if word in _long_options(p)]
+    if owners:
+        return f"{word} is an option of {' and '.join(owners)}; "
+    close = difflib.get_close_matches(word, _long_options(parsers[cmd]), n=1, cutoff=0.75)
+    return f"did you mean {close[0]}? " if close else ""
 
 
 def _source_help():
