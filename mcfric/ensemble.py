@@ -35,7 +35,7 @@ from .indicator import file_report as indicator_report
 from .memory import check_fits, human
 from .metric import METRIC_UNITS
 from .peaks import file_report as peak_report
-from .peaks import report_text
+from .peaks import report_text, unrefined_lines
 from .provenance import software_attrs
 from .store import Store, StoreError, allocated_bytes, iter_records, partial_path, read_attrs
 from .store.lock import LockError, OutputLock
@@ -957,7 +957,8 @@ def _drive(spec, store, done, not_conv_before, progress, t_start, cluster=None,
     return Summary(final, spec.samples, n_f, n_done, stats["written"], not_conv,
                    wall, kernel_s, True, bounds_s=bounds_s,
                    peaks=report_text(report, METRIC_UNITS[spec.metric.quantity])
-                   if report else None, harmonics=indicator_report(final), **on_cluster)
+                   if report else unrefined_lines(spec.solver.harmonics) if n_done else None,
+                   harmonics=indicator_report(final), **on_cluster)
 
 
 def summary_of_file(path):

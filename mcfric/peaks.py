@@ -422,6 +422,16 @@ def bound_peak(path):
     return out
 
 
+def unrefined_lines(harmonics):
+    """The ``peaks:`` line of a run or file without refined peaks (``--no-peaks``, or
+    ``harmonics`` > 1): its members' largest values are the grid's."""
+    why = (f"refinement is single-harmonic, this run balances {harmonics} harmonics"
+           if harmonics > 1 else "--no-peaks: [peaks] enabled = false")
+    return [f"peaks:       not refined ({why}): a member's largest value is the grid's, "
+            f"which can lie far below its resonance peak where a mode is narrower than the "
+            f"grid's step"]
+
+
 def report_text(report, unit):
     """The lines ``mcfric info`` and the run summary print about the peaks."""
     st = report["statistics"]

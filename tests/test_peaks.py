@@ -734,3 +734,28 @@ def test_a_mistuned_runs_bound_peak_says_it_is_the_nominal_rigs(tmp_path):
                                                   if k != "sampling.mistuning"}),
                          tmp_path / "p.h5", progress=False)
     assert "mistuned" not in bound_peak_lines(bound_peak(plain.path), "m")[0]
+
+
+def test_a_run_without_refined_peaks_says_its_largest_values_are_the_grids(tmp_path,
+                                                                           capsys):
+    """--no-peaks on 200 frequencies: the grid's largest value of a member is far below
+    its peak (measured here against the refined run of the same members), and both the
+    run's summary and `mcfric info` say the values are the grid's (nothing was said)."""
+    import h5py
+
+    from mcfric import cli
+    args = ["run", "two-beam", "--samples", "20", "--n-freq", "200", "--no-bounds",
+            "--no-figure", "--no-progress"]
+    assert cli.main(args + ["-o", str(tmp_path / "p.h5")]) == 0
+    assert cli.main(args + ["--no-peaks", "-o", str(tmp_path / "g.h5")]) == 0
+    out = capsys.readouterr().out
+    with h5py.File(tmp_path / "p.h5") as p, h5py.File(tmp_path / "g.h5") as g:
+        refined = np.nanmax(p["peak_metric"][...], axis=1)
+        grid = g["metric"][...].max(axis=1)
+        assert "peak_metric" not in g
+    assert np.median(grid / refined) < 0.5
+    line = ("peaks:       not refined (--no-peaks: [peaks] enabled = false): a member's "
+            "largest value is the grid's")
+    assert line in out
+    assert cli.main(["info", str(tmp_path / "g.h5")]) == 0
+    assert line in capsys.readouterr().out

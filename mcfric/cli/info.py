@@ -47,7 +47,7 @@ def cmd_info(args):
     from ..indicator import file_report as indicator_report
     from ..metric import METRIC_UNITS
     from ..peaks import file_report as peak_report
-    from ..peaks import report_text
+    from ..peaks import report_text, unrefined_lines
     from ..store import StoreError, describe, iter_records, partial_path
     from ..store.lock import holder
 
@@ -126,9 +126,12 @@ def cmd_info(args):
     if report is not None:
         lines += report_text(report, METRIC_UNITS[q])
     else:
-        # a bounds file: the bound's peak alone, when it was refined
+        # members without refined peaks, or a bounds file: the bound's peak alone, when
+        # it was refined
         from ..peaks import bound_peak, bound_peak_lines
 
+        if n:
+            lines += unrefined_lines(int(cfg["solver"]["harmonics"]))
         lines += bound_peak_lines(reading(path, bound_peak, path), METRIC_UNITS[q])
     lines += reading(path, indicator_report, path)
     from ..bounds import read_bounds
