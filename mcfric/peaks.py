@@ -425,7 +425,8 @@ def bound_peak(path):
 def unrefined_lines(harmonics):
     """The ``peaks:`` line of a run or file without refined peaks (``--no-peaks``, or
     ``harmonics`` > 1): its members' largest values are the grid's."""
-    why = (f"refinement is single-harmonic, this run balances {harmonics} harmonics"
+    why = (f"refinement is single-harmonic; this run balances the odd harmonics "
+           f"1..{harmonics}"
            if harmonics > 1 else "--no-peaks: [peaks] enabled = false")
     return [f"peaks:       not refined ({why}): a member's largest value is the grid's, "
             f"which can lie far below its resonance peak where a mode is narrower than the "
