@@ -487,6 +487,11 @@ def _interval(st, key):
     return f" (below {hi:.4g}, {pct})" if np.isfinite(hi) else ""
 
 
+#: Relative excess of the members' largest peak over the bound's peak that the summary
+#: calls a bound's peak not found (both are refined to about 1e-4).
+PEAK_RTOL_EXCESS = 1e-3
+
+
 def bound_peak_lines(pk, unit, largest_member=None):
     """The ``bound peak:`` lines of a summary, ``pk`` as :func:`bound_peak` gives it
     (none where it is empty); ``largest_member`` (``unit``), when given, is compared with
@@ -502,7 +507,13 @@ def bound_peak_lines(pk, unit, largest_member=None):
              + (f"; the search failed at {pk['bound_peak_failed']} frequencies, where the "
                 f"bound's peak may lie" if pk.get("bound_peak_failed") else "")
              + ("" if largest_member is None else
-                f"; largest member / bound {largest_member / pk['bound_peak']:.4g}")]
+                f"; largest member / bound {largest_member / pk['bound_peak']:.4g}"
+                + (", above 1: the bound holds at every frequency, so its largest value is "
+                   "higher than this peak (between grid points, near the members' largest "
+                   "peak, or missed by the search), and this peak is a lower estimate; use "
+                   "more frequencies"
+                   if largest_member > pk["bound_peak"] * (1 + PEAK_RTOL_EXCESS)
+                   and not pk.get("bound_peak_nominal") else ""))]
     if "certified_peak" in pk:
         lines.append(certified_peak_line(pk["certified_peak"], unit))
     return lines

@@ -175,10 +175,11 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
         drawn = len(segs)
         if segs:
             gaps = (f"; {n_failed:,} points not converged: gaps" if n_failed else "")
-            # with H > 1 no peak is refined: a resonance narrower than the grid step
-            # reaches higher than its grid values
-            grid_only = ("; grid values (peaks not refined with H > 1)"
-                         if harmonics > 1 else "")
+            # with H > 1 or --no-peaks no peak is refined: a resonance narrower than the
+            # grid step reaches higher than its grid values
+            grid_only = ("; grid values (peaks not refined with H > 1)" if harmonics > 1 else
+                         "; grid values (peaks not refined: --no-peaks)"
+                         if "peak_metric" not in names else "")
             what = (f"{_count(n, 'member')}, all drawn" if drawn == n
                     else f"{_count(n, 'member')}, {drawn} drawn")
             if not np.isfinite(env_hi).any():
@@ -331,8 +332,11 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
             # the grid can miss the certified bound's peak: its largest near the peak
             ax.plot([fc], [g["peak_upper_certified"] * omega_power(fc, quantity, stored)],
                     "v", color="tab:blue", mfc="none", ms=8, mew=1.2,
+                    # the star is the paper's construction, box and force limit apart;
+                    # the certificate bounds the joint set, often lower
                     label="largest certified upper bound near the peak (sub-grid, "
-                          "peak's frequency)")
+                          "peak's frequency; of the joint admissible set, it can lie below "
+                          "the searched star)")
             marked.append("certified")
     metric_beams = _metric_beams(attrs)
     for i, mm in enumerate(measured):
@@ -388,7 +392,8 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
         share = 100.0 * flagged_at / np.maximum(counted_at, 1)
         ax2 = ax.twinx()
         ax2.plot(fw, share[win], color="tab:orange", lw=0.9, alpha=0.8)
-        ax2.set_ylim(0, 100)
+        # a little past 0 and 100 %: a share at either end would hide under the frame
+        ax2.set_ylim(-3, 103)
         ax2.set_ylabel("members flagged by harmonic_indicator [%]", color="tab:orange",
                        fontsize=8)
         ax2.tick_params(axis="y", colors="tab:orange", labelsize=8)

@@ -759,3 +759,34 @@ def test_a_run_without_refined_peaks_says_its_largest_values_are_the_grids(tmp_p
     assert line in out
     assert cli.main(["info", str(tmp_path / "g.h5")]) == 0
     assert line in capsys.readouterr().out
+    # and the figure's legend (it said nothing either)
+    from mcfric import plot
+
+    legend = plot.results_figure(tmp_path / "g.h5", tmp_path / "g.png",
+                                 indicator=False)["legend"]
+    assert legend[0].endswith("; grid values (peaks not refined: --no-peaks))"), legend[0]
+
+
+def test_a_member_above_the_bounds_peak_makes_that_peak_a_lower_estimate(tmp_path, capsys):
+    """Engine order 0 on the tuned 24-blade ring on 80 frequencies: the grid misses the
+    first mode (1.8 Hz steps, 0.055 Hz wide), so the bound's largest grid value and its
+    refined peak are at the second mode, 27x below the members' refined first-mode peak.
+    The bound holds at every frequency, so its own peak there is higher: the line said
+    only "largest member / bound 27.34"."""
+    from mcfric import cli
+    toml = tmp_path / "eo0.toml"
+    toml.write_text('[model]\npreset = "disk-24"\n[excitation]\nengine_order = 0\n')
+    assert cli.main(["run", str(toml), "--samples", "4", "--n-freq", "80", "--no-certify",
+                     "--no-figure", "--no-progress", "-o", str(tmp_path / "r.h5")]) == 0
+    line = next(x for x in capsys.readouterr().out.splitlines()
+                if x.startswith("bound peak:"))
+    ratio = float(line.split("largest member / bound ")[1].split(",")[0])
+    assert ratio > 10 and "this peak is a lower estimate; use more frequencies" in line, line
+    # within the refinements' tolerance, or against a mistuned ensemble's nominal bounds,
+    # nothing is added
+    from mcfric.peaks import bound_peak_lines
+    pk = {"bound_peak": 2.0, "bound_peak_hz": 16.0}
+    assert "lower estimate" not in bound_peak_lines(pk, "m", 1.999)[0]
+    assert "lower estimate" in bound_peak_lines(pk, "m", 2.01)[0]
+    assert "lower estimate" not in bound_peak_lines({**pk, "bound_peak_nominal": True}, "m",
+                                                     2.01)[0]
