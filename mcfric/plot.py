@@ -377,6 +377,13 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
         lo, up = band
         ax.fill_between(fw, np.where(lo > 0, lo, bottom), np.where(up > 0, up, top),
                         color="tab:blue", alpha=0.12, lw=0)
+        # a lower bound of 0 has no place on a log axis: the red line breaks there, and
+        # the band's floor is the axis', not a bound; marked on the axis instead
+        zero = lo == 0
+        if zero.any():
+            ax.plot(fw[zero], np.full(np.count_nonzero(zero), bottom), "^", color="tab:red",
+                    ms=4, clip_on=False, zorder=5,
+                    label="lower bound 0 (nothing above 0 proved), on the axis")
         ax.set_ylim(bottom, top)
     ax.set_xlabel("frequency [Hz]")
     unit = _mathtext(METRIC_UNITS[quantity])

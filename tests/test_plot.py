@@ -563,3 +563,23 @@ def test_the_legend_lies_inside_the_figure(tmp_path, monkeypatch):
     fig.canvas.draw()
     box, legend = fig.bbox, fig.legends[0].get_window_extent()
     assert box.x0 <= legend.x0 and legend.x1 <= box.x1
+
+
+def test_a_lower_bound_of_0_is_marked_on_the_axis(tmp_path):
+    """Two beams on 50 frequencies: the certificate proves nothing above 0 at one of
+    them near 41 Hz. The log axis cannot show 0: the red line broke there and the band
+    ran down to the axis's floor, which read as a bound. Marked on the axis, named."""
+    from mcfric import config, ensemble, plot
+    from mcfric.bounds import read_bounds
+
+    cfg = config.load({"model": {"preset": "two-beam"}, "frequency": {"n": 50},
+                       "sampling": {"samples": 5}})
+    path = ensemble.run(cfg, tmp_path / "r.h5", progress=False).path
+    zero = read_bounds(path).certificate.lower == 0
+    assert zero.any()
+    label = "lower bound 0 (nothing above 0 proved), on the axis"
+    assert label in plot.results_figure(path, tmp_path / "r.png")["legend"]
+    # outside the window of those frequencies nothing is marked
+    f0 = float(read_bounds(path).freq_hz[zero].max())
+    window = (f0 + 5, 150.0)
+    assert label not in plot.results_figure(path, tmp_path / "w.png", f_window=window)["legend"]
