@@ -20,6 +20,7 @@ from .metric import METRIC_UNITS, omega_power
 from .peaks import (
     FOLD_FOUND,
     FOLD_OPEN,
+    PEAK_RTOL_EXCESS,
     at_band_end,
     cut_by_band,
     nominal_bounds,
@@ -214,6 +215,7 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
                     ax.plot(fw, np.where(member_flags, y, np.nan), color="tab:orange",
                             lw=4.0, alpha=0.6, zorder=2.1, label=label)
     n_unrefined = n_fold_lower = 0
+    largest_peak = np.nan          # the members' largest refined peak, stored quantity
     if "peak_metric" in names:
         # the members' refined peaks (the grid underestimates lightly damped peaks), and
         # where a fold was checked, the peaks of the branches reached from above
@@ -228,6 +230,8 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
         # no member done (a partial file): nothing to draw
         cols = {k: np.concatenate(v) if v else np.empty(0) for k, v in cols.items()}
         px, ps = cols["peak_frequency"], cols["peak_status"]
+        if np.isfinite(cols["peak_metric"]).any():
+            largest_peak = np.nanmax(cols["peak_metric"])
         py = cols["peak_metric"] * omega_power(px, quantity, stored)
         fold = cols["fold"] if folds else np.zeros(len(px), np.int8)
         dx = cols["peak_frequency_down"] if folds else np.full(len(px), np.nan)
@@ -318,10 +322,15 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
         g = read_group(path, "bounds")[1]
         if "peak_upper" in g and lo_f <= g["peak_upper_frequency"] <= hi_f:
             fb = g["peak_upper_frequency"]
+            # a member above it: the bound, which holds everywhere, peaks higher elsewhere
+            below_member = (largest_peak > g["peak_upper"] * (1 + PEAK_RTOL_EXCESS)
+                            and not nominal_bounds(attrs))
             what = ("largest value of the upper bound, at an end of the band"
                     if g.get("peak_upper_at_end", 0) else
                     "peak of the upper bound, a lower estimate: grid too coarse"
                     if g.get("peak_upper_coarse_step", 0) > 0 else
+                    "peak of the upper bound, a lower estimate: members lie above it"
+                    if below_member else
                     "refined peak of the upper bound" if g.get("peak_upper_refined", 1)
                     else "largest (not refined) peak of the upper bound")
             ax.plot([fb], [g["peak_upper"] * omega_power(fb, quantity, stored)], "*",
@@ -399,6 +408,9 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
         share = 100.0 * flagged_at / np.maximum(counted_at, 1)
         ax2 = ax.twinx()
         ax2.plot(fw, share[win], color="tab:orange", lw=0.9, alpha=0.8)
+        # behind the response axes: the share crossed the bounds' peak markers
+        ax.set_zorder(ax2.get_zorder() + 1)
+        ax.patch.set_visible(False)
         # a little past 0 and 100 %: a share at either end would hide under the frame
         ax2.set_ylim(-3, 103)
         ax2.set_ylabel("members flagged by harmonic_indicator [%]", color="tab:orange",

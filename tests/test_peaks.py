@@ -782,6 +782,12 @@ def test_a_member_above_the_bounds_peak_makes_that_peak_a_lower_estimate(tmp_pat
                 if x.startswith("bound peak:"))
     ratio = float(line.split("largest member / bound ")[1].split(",")[0])
     assert ratio > 10 and "this peak is a lower estimate; use more frequencies" in line, line
+    # the figure's star says so too
+    from mcfric import plot
+
+    legend = plot.results_figure(tmp_path / "r.h5", tmp_path / "r.png")["legend"]
+    assert ("peak of the upper bound, a lower estimate: members lie above it (searched)"
+            in legend), legend
     # within the refinements' tolerance, or against a mistuned ensemble's nominal bounds,
     # nothing is added
     from mcfric.peaks import bound_peak_lines
