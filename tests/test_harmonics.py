@@ -509,6 +509,8 @@ def test_verify_takes_a_member_of_a_results_file(tmp_path, capsys):
     assert cli.main(["verify", str(res), "--member", "2", "--f", "30", "-o", str(out)]) == 0
     text = capsys.readouterr().out
     assert "periodic after" in text
+    # the line, and the figure's title made of it, name the member and its file
+    assert text.startswith("mcfric verify: two-beam, member 2 of r.h5, mu0 = "), text
     table = np.genfromtxt(out, delimiter=",", names=True)
     assert table.shape == (2,) and out.with_suffix(".png").exists()
     rc = cli.main(["verify", str(res), "--member", "9", "--f", "30", "-o", str(out)])

@@ -231,7 +231,9 @@ def cmd_verify(args):
         raise usage(e) from None
     label = (f"mu0 = {np.ravel(mu0)[0]:g}, kc = {np.ravel(kc)[0]:g} N/m, "
              f"N0 = {np.ravel(N0)[0]:g} N" if np.size(mu0) == 1 or np.ptp(mu0) == 0 else
-             "member parameters")
+             "parameters per damper")
+    if stem is not None:        # the figure's title named no member (nor the file)
+        label = f"member {args.member} of {Path(args.source).name}, {label}"
     print(f"mcfric verify: {model.name}, {label}, F0 = {model.excitation.F0:g} N; "
           f"time integration against harmonic balance (H = 1 and H = {harmonics})")
     if stem is not None:
