@@ -492,6 +492,14 @@ def _interval(st, key):
 PEAK_RTOL_EXCESS = 1e-3
 
 
+def member_above_bound_peak(largest_member, bound_peak, nominal=False):
+    """Whether the members' largest (refined) peak lies above the bound's refined peak:
+    the bound holds at every frequency, so its own largest value is higher and its peak
+    is a lower estimate. Not for ``nominal`` bounds (a mistuned ensemble's members are
+    not the rig they bound)."""
+    return largest_member > bound_peak * (1 + PEAK_RTOL_EXCESS) and not nominal
+
+
 def bound_peak_lines(pk, unit, largest_member=None):
     """The ``bound peak:`` lines of a summary, ``pk`` as :func:`bound_peak` gives it
     (none where it is empty); ``largest_member`` (``unit``), when given, is compared with
@@ -512,8 +520,9 @@ def bound_peak_lines(pk, unit, largest_member=None):
                    "higher than this peak (between grid points, near the members' largest "
                    "peak, or missed by the search), and this peak is a lower estimate; use "
                    "more frequencies"
-                   if largest_member > pk["bound_peak"] * (1 + PEAK_RTOL_EXCESS)
-                   and not pk.get("bound_peak_nominal") else ""))]
+                   if member_above_bound_peak(largest_member, pk["bound_peak"],
+                                              pk.get("bound_peak_nominal", False))
+                   else ""))]
     if "certified_peak" in pk:
         lines.append(certified_peak_line(pk["certified_peak"], unit))
     return lines

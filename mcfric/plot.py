@@ -20,9 +20,9 @@ from .metric import METRIC_UNITS, omega_power
 from .peaks import (
     FOLD_FOUND,
     FOLD_OPEN,
-    PEAK_RTOL_EXCESS,
     at_band_end,
     cut_by_band,
+    member_above_bound_peak,
     nominal_bounds,
     unchecked_fold,
 )
@@ -101,8 +101,8 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
     dict
         ``n_members`` (the ensemble's, 0 in a bounds file), ``n_drawn``, ``has_bounds``,
         ``n_flagged`` (flagged points over the whole ensemble, 0 if not marked),
-        ``n_not_converged`` (points of the whole
-        ensemble in the window that did not converge: gaps in the lines) and
+        ``n_not_converged`` (points of the whole ensemble in the window that did not
+        converge: gaps in the lines) and
         ``n_peaks_unrefined`` (drawn member peaks left at their grid values),
         ``n_fold_lower`` (drawn lower estimates beside a fold: an open fold's branch
         from above, an unchecked fold's peak) and
@@ -323,8 +323,8 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
         if "peak_upper" in g and lo_f <= g["peak_upper_frequency"] <= hi_f:
             fb = g["peak_upper_frequency"]
             # a member above it: the bound, which holds everywhere, peaks higher elsewhere
-            below_member = (largest_peak > g["peak_upper"] * (1 + PEAK_RTOL_EXCESS)
-                            and not nominal_bounds(attrs))
+            below_member = member_above_bound_peak(largest_peak, g["peak_upper"],
+                                                   nominal_bounds(attrs))
             what = ("largest value of the upper bound, at an end of the band"
                     if g.get("peak_upper_at_end", 0) else
                     "peak of the upper bound, a lower estimate: grid too coarse"
