@@ -13,6 +13,7 @@ import textwrap
 from pathlib import Path
 
 import numpy as np
+from matplotlib import patheffects
 
 from .hbm import INDICATOR_THRESHOLD
 from .measured.comparison import metric_parts
@@ -36,6 +37,14 @@ LEGEND_WRAP = 60
 
 #: Colours of measured files, in the order given.
 MEASURED_COLORS = ("tab:green", "tab:olive", "tab:cyan", "tab:brown", "tab:pink")
+
+#: Colour of the harmonic indicator's marks (a member's flagged points, the share flagged):
+#: orange ran too close in hue to the red lower bound.
+INDICATOR_COLOR = "darkgoldenrod"
+
+#: A dot of refined member peaks holding at least this many peaks (and this share of them)
+#: is labelled with its count: identical peaks (members whose dampers stick) draw one dot.
+STACK_MIN, STACK_SHARE = 20, 0.05
 
 
 def _figure(size=(8, 4.5)):
@@ -208,11 +217,11 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
                          f"(indicator)")
                 if len(fw) <= 300:
                     ax.plot(fw[member_flags], highlight[member_flags], "o", mfc="none",
-                            color="tab:orange", ms=3.5, mew=0.8, label=label)
+                            color=INDICATOR_COLOR, ms=3.5, mew=0.8, label=label)
                 else:
                     # on a fine grid the circles merge into a band that hides the member:
                     # its flagged stretches underlined instead
-                    ax.plot(fw, np.where(member_flags, y, np.nan), color="tab:orange",
+                    ax.plot(fw, np.where(member_flags, y, np.nan), color=INDICATOR_COLOR,
                             lw=4.0, alpha=0.6, zorder=2.1, label=label)
     n_unrefined = n_fold_lower = 0
     largest_peak = np.nan          # the members' largest refined peak, stored quantity
@@ -253,8 +262,14 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
         n_unrefined = int(np.count_nonzero(grid))
         plain = ok & ~grid & ~end & ~unchecked
         if plain.any():
+            stacks = _stacks(px[plain], py[plain], lo_f, hi_f)
             ax.plot(px[plain], py[plain], ".", color="0.15", ms=2.5, alpha=0.6,
-                    rasterized=True, label=f"refined member peaks (every member{conv})")
+                    rasterized=True, label=f"refined member peaks (every member{conv}"
+                    + ("; a number: peaks in one dot)" if stacks else ")"))
+            for x, y, k in stacks:
+                ax.annotate(f"{k:,}", (x, y), xytext=(4, -2), textcoords="offset points",
+                            fontsize=6, color="0.15", va="top", zorder=5,
+                            path_effects=[patheffects.withStroke(linewidth=2, foreground="w")])
         if end.any() or found_end.any():
             # the band cuts a resonance: the largest value at its end is no peak
             ax.plot(np.r_[px[end], dx[found_end]], np.r_[py[end], dy[found_end]], "|",
@@ -310,14 +325,16 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
             # lies between them and the certified bound) where the gap shows, > 1 %
             wu = C.upper_witness[win] * scale[win]
             wl = C.lower_witness[win] * scale[win]
-            for w, gap, color, name in ((wu, ~(up <= wu * 1.01), "tab:blue", "upper"),
-                                        (wl, ~(lo >= wl * 0.99), "tab:red", "lower")):
+            # darker and above the bound's line: a gap of a few % lies inside its width
+            for w, gap, color, name in ((wu, ~(up <= wu * 1.01), "navy", "upper"),
+                                        (wl, ~(lo >= wl * 0.99), "darkred", "lower")):
                 valid = (w > 0) & np.isfinite(w)
                 show = gap & valid
                 # one neighbour on each side: an isolated frequency shows as a segment
                 show = (show | np.r_[show[1:], False] | np.r_[False, show[:-1]]) & valid
                 if show.any():
-                    ax.plot(fw, np.where(show, w, np.nan), color=color, lw=1.0, ls="--",
+                    ax.plot(fw, np.where(show, w, np.nan), color=color, lw=0.9, ls="--",
+                            zorder=2.5,
                             label=f"{name} witness, where the gap is > 1 %")
         g = read_group(path, "bounds")[1]
         if "peak_upper" in g and lo_f <= g["peak_upper_frequency"] <= hi_f:
@@ -407,15 +424,15 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
         # where one harmonic may not be enough: share of members flagged per frequency
         share = 100.0 * flagged_at / np.maximum(counted_at, 1)
         ax2 = ax.twinx()
-        ax2.plot(fw, share[win], color="tab:orange", lw=0.9, alpha=0.8)
+        ax2.plot(fw, share[win], color=INDICATOR_COLOR, lw=0.9, alpha=0.8)
         # behind the response axes: the share crossed the bounds' peak markers
         ax.set_zorder(ax2.get_zorder() + 1)
         ax.patch.set_visible(False)
         # a little past 0 and 100 %: a share at either end would hide under the frame
         ax2.set_ylim(-3, 103)
-        ax2.set_ylabel("members flagged by harmonic_indicator [%]", color="tab:orange",
+        ax2.set_ylabel("members flagged by harmonic_indicator [%]", color=INDICATOR_COLOR,
                        fontsize=8)
-        ax2.tick_params(axis="y", colors="tab:orange", labelsize=8)
+        ax2.tick_params(axis="y", colors=INDICATOR_COLOR, labelsize=8)
         handles += ax2.get_lines()
         labels.append("share flagged (right axis; rerun with --harmonics)")
     # below the axes: with ten entries or more no corner of the axes is free of data
@@ -450,6 +467,34 @@ def _drawn(sample, n, max_lines):
     k = min(max_lines, n)
     s = np.asarray(sample, np.int64)
     return (s + 1) * k // n != s * k // n
+
+
+def _stacks(x, y, lo_f, hi_f):
+    """Dots of many peaks: ``(x, y, count)``, at most three, the fullest first.
+
+    A dot is a peak and every peak within ``(hi_f - lo_f) / 400`` [Hz] and 0.02 decades
+    of it (a pixel or two of the figure); one is labelled where it holds at least
+    ``STACK_MIN`` peaks and ``STACK_SHARE`` of them. Candidates are the largest peaks of
+    the fullest cells of that size; one within two cells of a labelled dot is skipped.
+    """
+    if len(x) == 0:
+        return []
+    wx = max(hi_f - lo_f, 1e-300) / 400
+    ly = np.log10(y)
+    cell = np.c_[np.floor((x - lo_f) / wx), np.floor(ly / 0.02)]
+    _, inverse, counts = np.unique(cell, axis=0, return_inverse=True, return_counts=True)
+    inverse = inverse.ravel()
+    need = max(STACK_MIN, STACK_SHARE * len(x))
+    out = []
+    for c in np.argsort(-counts, kind="stable")[:10]:
+        i = np.flatnonzero(inverse == c)
+        j = i[np.argmax(y[i])]
+        if any(abs(x[j] - a) < 2 * wx and abs(ly[j] - np.log10(b)) < 0.04 for a, b, _ in out):
+            continue
+        k = int(np.count_nonzero((np.abs(x - x[j]) <= wx) & (np.abs(ly - ly[j]) <= 0.02)))
+        if k >= need:
+            out.append((float(x[j]), float(y[j]), k))
+    return sorted(out, key=lambda t: -t[2])[:3]
 
 
 def _alone(y):
