@@ -367,30 +367,32 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
     metric_beams = _metric_beams(attrs)
     for i, mm in enumerate(measured):
         parts = metric_parts([mm.to_quantity(quantity)], metric_beams)
-        # M, or the largest measured beam of the metric (M at least that), or with no
-        # beam of the metric measured the largest measured beam (drawn, compared to nothing)
-        g = (parts.full or parts.part or [mm.to_quantity(quantity).metric()])[0]
-        mf = g.frequency_hz
-        y = g.response[:, 0].real
-        keep = (mf >= lo_f) & (mf <= hi_f)
         color = MEASURED_COLORS[i % len(MEASURED_COLORS)]
         lab = (f"measured {mm.kind}" + (f" {Path(mm.source).name}" if mm.source else "")
                + (f" ({mm.force_n:g} N)" if mm.force_n else "")
                + (f", {mm.percentile:g}th percentile" if mm.percentile is not None else ""))
         mine = [b for b in mm.beams if b in metric_beams]
-        if parts.part:
-            # some beam of the metric not measured: the largest measured beam, M at least
-            lab += (f": beam{'s' if len(mine) > 1 else ''} {', '.join(map(str, mine))} "
-                    f"only, M at least this")
-        elif not parts.full:
-            lab += (f": beam{'s' if len(mm.beams) > 1 else ''} "
-                    f"{', '.join(map(str, mm.beams))}, not in the metric")
-        ls = "-" if parts.full else "--"
-        if mm.kind == "stepped" or np.count_nonzero(keep) == 1:   # one point draws no line
-            ax.plot(mf[keep], y[keep], "x" if parts.full else "+", color=color, ms=4,
-                    mew=1.0, label=lab)
-        else:
-            ax.plot(mf[keep], y[keep], color=color, lw=1.0, ls=ls, label=lab)
+        # M (solid), and the largest measured beam of the metric where some beam of it is
+        # not measured (dashed: M at least that); with no beam of the metric measured the
+        # largest measured beam (dashed: drawn, compared to nothing)
+        drawn_parts = [(g, True, lab) for g in parts.full[:1]]
+        drawn_parts += [(g, False, lab + f": beam{'s' if len(mine) > 1 else ''} "
+                         f"{', '.join(map(str, mine))} only, M at least this")
+                        for g in parts.part[:1]]
+        if not drawn_parts:
+            drawn_parts = [(mm.to_quantity(quantity).metric(), False,
+                            lab + f": beam{'s' if len(mm.beams) > 1 else ''} "
+                            f"{', '.join(map(str, mm.beams))}, not in the metric")]
+        for g, is_m, text in drawn_parts:
+            mf = g.frequency_hz
+            y = g.response[:, 0].real
+            keep = (mf >= lo_f) & (mf <= hi_f)
+            if mm.kind == "stepped" or np.count_nonzero(keep) == 1:  # one point draws no line
+                ax.plot(mf[keep], y[keep], "x" if is_m else "+", color=color, ms=4,
+                        mew=1.0, label=text)
+            else:
+                ax.plot(mf[keep], y[keep], color=color, lw=1.0, ls="-" if is_m else "--",
+                        label=text)
     ax.set_yscale("log")
     # a margin: markers at the ends of the band stay visible
     pad = 0.005 * (hi_f - lo_f)

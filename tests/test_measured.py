@@ -224,6 +224,13 @@ def test_directions_and_ambiguity(tmp_path):
     one_line(e, str(path), "two records for beam 1", "direction=")
     (m,) = read_measured(path, nodes=[102], direction=3)
     np.testing.assert_array_equal(m.response[:, 0], -(1.0 + 1j))   # -Z flipped to +Z
+    # +Z and -Z at one node: the direction given cannot choose, the file must be split
+    both = write58(tmp_path / "both.uff", recs[:1] + [
+        record(102, f, np.full(3, 2.0 + 0j), func_type=0, spec=8, denom=0, direction=3)])
+    with pytest.raises(ValueError) as e:
+        read_measured(both, nodes=[102], direction=3)
+    one_line(e, str(both), "two records for beam 1", "both in direction +-3", "split the file")
+    assert "pass direction=" not in str(e.value)
 
 
 @pytest.mark.parametrize("func_type, spec, words", [

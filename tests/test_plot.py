@@ -155,6 +155,38 @@ def test_measured_member_is_inside(results, tmp_path, capsys):
     # per beam against the upper bound (2 beams), the measured metric against both bounds
     assert _fractions(out) == [(100.0, 2 * n_f, 2 * n_f), (100.0, n_f, n_f)], out
     assert near(rgb(png), TAB_GREEN) > 300, "measured sweep (green) not drawn"
+    # the CSV has no force_n column: taken to be at the file's F0, and said so
+    assert f"note: {data} gives no force level: compared as if measured at F0 = 0.22 N" in out
+
+
+def test_beams_measured_at_different_frequencies_are_compared_per_point(results, tmp_path,
+                                                                         capsys):
+    """A member's beams measured at alternate frequencies, both at the last four (records
+    merged onto the union of the frequencies): M is measured at those four only, the
+    largest measured beam elsewhere. Both are compared and drawn (before, M was NaN at
+    every point where a beam was missing: nothing compared, nothing drawn)."""
+    with h5py.File(results, "r") as h5:
+        f = h5["frequency"][()]
+        y = np.abs(h5["response"][3])
+    n_f = len(f)
+    data = tmp_path / "merged.csv"
+    with open(data, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["frequency_hz", "beam1", "beam2", "kind"])
+        for k, (fi, row) in enumerate(zip(f, y)):
+            both = k >= n_f - 4
+            w.writerow([repr(float(fi)), repr(float(row[0])) if both or k % 2 == 0 else "",
+                        repr(float(row[1])) if both or k % 2 == 1 else "", "sweep"])
+    png = tmp_path / "m.png"
+    rc, out, err = call(["plot", results, "-o", png, "--measured", data], capsys)
+    assert rc == 0, err
+    # beams: every value against the upper bound; M at 4 points; the largest beam at the
+    # other n_f - 4 against the upper bound only
+    assert _fractions(out) == [(100.0, n_f + 4, n_f + 4), (100.0, 4, 4),
+                               (100.0, n_f - 4, n_f - 4)], out
+    assert "the measured metric M (max over the beams) against both bounds" in out
+    assert "the largest measured beam against the upper bound only" in out
+    assert near(rgb(png), TAB_GREEN) > 100, "measured data (green) not drawn"
 
 
 def test_measured_outside_is_counted(results, tmp_path, capsys):

@@ -165,6 +165,12 @@ def _read_measured(args, attrs):
                 raise UsageError(f"--measured: {data} was measured at {m.force_n:g} N, the "
                                  f"file is for F0 = {F0:g} N: pass --normalise to rescale "
                                  f"it (docs: measured data)")
+            elif m.force_n is None and F0:
+                # nothing to check it against: said, not assumed silently
+                note = (f"note: {data} gives no force level: compared as if measured at "
+                        f"F0 = {F0:g} N (--measured-force N says at which)")
+                if note not in reports:
+                    reports.append(note)
             out.append(m)
     for text in reports:
         print(text)

@@ -267,7 +267,11 @@ def metric_parts(measured, beams):
     -------
     MetricParts
         ``m.metric()`` of a measurement missing a beam of the metric is no measured M: it
-        may lie below the lower bound of M legitimately, so it goes to ``part``.
+        may lie below the lower bound of M legitimately, so it goes to ``part``. The rule
+        holds per point: where a measurement of every beam of the metric lacks some of
+        them at some frequencies (records merged from beams measured at different
+        frequencies), its points with every beam go to ``full`` and the others, the
+        largest of the beams there, to ``part``.
     """
     beams = tuple(int(b) for b in beams)
     single, full, part, skipped = [], [], [], set()
@@ -281,6 +285,19 @@ def metric_parts(measured, beams):
             continue
         sub = replace(m, response=m.response[:, j], beams=tuple(m.beams[i] for i in j))
         single.append(sub)
-        (full if set(beams) <= set(sub.beams) else part).append(sub.metric())
+        # per point: records merged from beams measured at different frequencies have
+        # each beam at some points only, where M is not measured but bounded below
+        a = sub.amplitude
+        present = ~np.isnan(a)
+        largest = np.max(np.where(present, a, -np.inf), axis=1)
+        complete = present.all(axis=1) & (set(beams) <= set(sub.beams))
+        some = present.any(axis=1) & ~complete
+        if not some.any():
+            (full if set(beams) <= set(sub.beams) else part).append(sub.metric())
+            continue
+        for group, rows in ((full, complete), (part, some)):
+            if rows.any():
+                group.append(replace(sub, frequency_hz=sub.frequency_hz[rows],
+                                     response=largest[rows, None], beams=(METRIC,)))
     return MetricParts(single, full, part, tuple(sorted(skipped)))
 

@@ -168,9 +168,12 @@ def _read_uff58(path, nodes, direction, quantity, force_n, kind, scale):
                              f"--measured-quantity) or split the file")
         beam = node_of[node]
         if beam in g["beams"]:
+            # with a direction given, +Z and -Z records are both in it: the file must go
+            hint = ("pass direction= (mcfric plot: --measured-direction) or split the file"
+                    if direction is None else
+                    f"both in direction +-{abs(direction)} (+ and -): split the file")
             raise ValueError(f"{path}: two records for beam {beam} (node {node}) in the same "
-                             f"run: pass direction= (mcfric plot: --measured-direction) "
-                             f"or split the file")
+                             f"run: {hint}")
         g["beams"][beam] = (x, y)
     if not groups:
         raise ValueError(f"{path}: no dataset 58 record at the mapped nodes "
