@@ -46,6 +46,9 @@ INDICATOR_COLOR = "darkgoldenrod"
 #: is labelled with its count: identical peaks (members whose dampers stick) draw one dot.
 STACK_MIN, STACK_SHARE = 20, 0.05
 
+#: A dot's size in axes fractions, x and y (about 1.5 pixels of the 8 x 6 in figure).
+STACK_CELL = np.array([0.0015, 0.003])
+
 
 def _figure(size=(8, 4.5)):
     from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -224,6 +227,7 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
                     ax.plot(fw, np.where(member_flags, y, np.nan), color=INDICATOR_COLOR,
                             lw=4.0, alpha=0.6, zorder=2.1, label=label)
     n_unrefined = n_fold_lower = 0
+    peak_dots = None
     largest_peak = np.nan          # the members' largest refined peak, stored quantity
     if "peak_metric" in names:
         # the members' refined peaks (the grid underestimates lightly damped peaks), and
@@ -262,14 +266,10 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
         n_unrefined = int(np.count_nonzero(grid))
         plain = ok & ~grid & ~end & ~unchecked
         if plain.any():
-            stacks = _stacks(px[plain], py[plain], lo_f, hi_f)
-            ax.plot(px[plain], py[plain], ".", color="0.15", ms=2.5, alpha=0.6,
-                    rasterized=True, label=f"refined member peaks (every member{conv}"
-                    + ("; a number: peaks in one dot)" if stacks else ")"))
-            for x, y, k in stacks:
-                ax.annotate(f"{k:,}", (x, y), xytext=(4, -2), textcoords="offset points",
-                            fontsize=6, color="0.15", va="top", zorder=5,
-                            path_effects=[patheffects.withStroke(linewidth=2, foreground="w")])
+            line, = ax.plot(px[plain], py[plain], ".", color="0.15", ms=2.5, alpha=0.6,
+                            rasterized=True, label=f"refined member peaks (every member{conv})")
+            # counted once the axes' limits are known (a dot is a few pixels)
+            peak_dots = px[plain], py[plain], line
         if end.any() or found_end.any():
             # the band cuts a resonance: the largest value at its end is no peak
             ax.plot(np.r_[px[end], dx[found_end]], np.r_[py[end], dy[found_end]], "|",
@@ -413,6 +413,15 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
                     ms=4, clip_on=False, zorder=5,
                     label="lower bound 0 (nothing above 0 proved), on the axis")
         ax.set_ylim(bottom, top)
+    if peak_dots is not None:
+        x, y, line = peak_dots
+        stacks = _stacks((ax.transScale + ax.transLimits).transform(np.c_[x, y]))
+        if stacks:
+            line.set_label(line.get_label()[:-1] + "; a number: peaks in one dot)")
+        for i, k in stacks:
+            ax.annotate(f"{k:,}", (x[i], y[i]), xytext=(4, -2), textcoords="offset points",
+                        fontsize=6, color="0.15", va="top", zorder=5,
+                        path_effects=[patheffects.withStroke(linewidth=2, foreground="w")])
     ax.set_xlabel("frequency [Hz]")
     unit = _mathtext(METRIC_UNITS[quantity])
     ax.set_ylabel(f"{quantity} amplitude M [{unit}]" if harmonics == 1 else
@@ -471,32 +480,34 @@ def _drawn(sample, n, max_lines):
     return (s + 1) * k // n != s * k // n
 
 
-def _stacks(x, y, lo_f, hi_f):
-    """Dots of many peaks: ``(x, y, count)``, at most three, the fullest first.
+def _stacks(xy):
+    """Dots of many peaks: ``(index, count)``, at most three, the fullest first.
 
-    A dot is a peak and every peak within ``(hi_f - lo_f) / 400`` [Hz] and 0.02 decades
-    of it (a pixel or two of the figure); one is labelled where it holds at least
-    ``STACK_MIN`` peaks and ``STACK_SHARE`` of them. Candidates are the largest peaks of
-    the fullest cells of that size; one within two cells of a labelled dot is skipped.
+    ``xy`` (n, 2) are the peaks in axes fractions. A dot is a peak and every peak within
+    ``STACK_CELL`` of it on both axes (about a pixel and a half of the figure: a dot is
+    five across); one is labelled where it holds at least ``STACK_MIN`` peaks and
+    ``STACK_SHARE`` of them. Candidates are the largest peaks of the fullest cells of
+    that size; one within four cells of a labelled dot is skipped (its label would
+    cover the other's).
     """
-    if len(x) == 0:
+    inside = np.flatnonzero(np.all((xy >= 0) & (xy <= 1), axis=1))
+    need = max(STACK_MIN, STACK_SHARE * len(xy))
+    if len(inside) < need:
         return []
-    wx = max(hi_f - lo_f, 1e-300) / 400
-    ly = np.log10(y)
-    cell = np.c_[np.floor((x - lo_f) / wx), np.floor(ly / 0.02)]
-    _, inverse, counts = np.unique(cell, axis=0, return_inverse=True, return_counts=True)
+    u = xy[inside] / STACK_CELL
+    _, inverse, counts = np.unique(np.floor(u), axis=0, return_inverse=True,
+                                   return_counts=True)
     inverse = inverse.ravel()
-    need = max(STACK_MIN, STACK_SHARE * len(x))
     out = []
     for c in np.argsort(-counts, kind="stable")[:10]:
         i = np.flatnonzero(inverse == c)
-        j = i[np.argmax(y[i])]
-        if any(abs(x[j] - a) < 2 * wx and abs(ly[j] - np.log10(b)) < 0.04 for a, b, _ in out):
+        j = i[np.argmax(u[i, 1])]
+        if any(np.all(np.abs(u[j] - u[m]) < 4) for m, _ in out):
             continue
-        k = int(np.count_nonzero((np.abs(x - x[j]) <= wx) & (np.abs(ly - ly[j]) <= 0.02)))
+        k = int(np.count_nonzero(np.all(np.abs(u - u[j]) <= 1, axis=1)))
         if k >= need:
-            out.append((float(x[j]), float(y[j]), k))
-    return sorted(out, key=lambda t: -t[2])[:3]
+            out.append((j, k))
+    return [(int(inside[j]), k) for j, k in sorted(out, key=lambda t: -t[1])[:3]]
 
 
 def _alone(y):

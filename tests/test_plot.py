@@ -619,8 +619,9 @@ def test_a_lower_bound_of_0_is_marked_on_the_axis(tmp_path):
 
 def test_identical_member_peaks_are_counted_on_their_dot(tmp_path, monkeypatch):
     """Two beams, 100 members: the members whose dampers stick share one refined peak,
-    drawn as one dot. Its label is the count of peaks within a pixel or two of it, counted
-    here plainly from the file; scattered peaks carry no label."""
+    drawn as one dot. Its label is the count of peaks within ``STACK_CELL`` of it in axes
+    fractions (a pixel or two), counted here plainly from the file; a scattered cloud
+    carries no label, and a zoom that spreads a cluster apart drops it."""
     from mcfric import config, ensemble, plot
     from mcfric.store import iter_records
 
@@ -629,23 +630,36 @@ def test_identical_member_peaks_are_counted_on_their_dot(tmp_path, monkeypatch):
     cfg = config.load({"model": {"preset": "two-beam"}, "frequency": {"n": 60},
                        "sampling": {"samples": 100}})
     path = ensemble.run(cfg, tmp_path / "r.h5", progress=False).path
-    drawn = plot.results_figure(path, tmp_path / "r.png")
-    texts = saved[-1].axes[0].texts
-    assert len(texts) >= 1
-    assert any("a number: peaks in one dot" in t for t in drawn["legend"])
     pm, pf = [], []
     for _, arr in iter_records(path, ["peak_metric", "peak_frequency"]):
         pm.append(arr["peak_metric"].ravel())
         pf.append(arr["peak_frequency"].ravel())
     pm, pf = np.concatenate(pm), np.concatenate(pf)
-    for t in texts:
-        x, y = t.xy
-        near_dot = (np.abs(pf - x) <= 140 / 400) & (np.abs(np.log10(pm / y)) <= 0.02)
-        assert int(t.get_text().replace(",", "")) == np.count_nonzero(near_dot)
-        assert np.count_nonzero(near_dot) >= max(plot.STACK_MIN, 0.05 * len(pm))
-    # a scattered cloud: no dot of twenty
+
+    def labels(**window):
+        drawn = plot.results_figure(path, tmp_path / "r.png", **window)
+        ax = saved[-1].axes[0]
+        (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
+        out = []
+        for t in ax.texts:
+            x, y = t.xy
+            near_dot = ((np.abs(pf - x) <= 0.0015 * (x1 - x0))
+                        & (np.abs(np.log10(pm / y)) <= 0.003 * np.log10(y1 / y0)))
+            assert int(t.get_text().replace(",", "")) == np.count_nonzero(near_dot)
+            assert np.count_nonzero(near_dot) >= max(plot.STACK_MIN, 0.05 * len(pm))
+            out.append((x, y))
+        said = any("a number: peaks in one dot" in t for t in drawn["legend"])
+        assert said == bool(out)
+        return out
+
+    whole = labels()
+    assert len(whole) >= 1
+    # the stuck members' peak: the dot counted at the first mode
+    assert any(abs(x - 16.2) < 0.2 for x, _ in whole)
+    labels(f_window=(15.0, 18.0))
+    # a scattered cloud: no dot of twenty; thirty at one point: one
     rng = np.random.default_rng(1)
-    x, y = rng.uniform(10, 150, 500), 10 ** rng.uniform(-6, -3, 500)
-    assert plot._stacks(x, y, 10.0, 150.0) == []
-    x[:30], y[:30] = 16.2, 1.5e-3
-    assert plot._stacks(x, y, 10.0, 150.0) == [(16.2, 1.5e-3, 30)]
+    xy = rng.uniform(0, 1, (500, 2))
+    assert plot._stacks(xy) == []
+    xy[:30] = 0.4
+    assert plot._stacks(xy) == [(0, 30)]
