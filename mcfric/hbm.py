@@ -26,8 +26,8 @@ from .metric import check_beams, response_metric
 from .model import CONTACT_LAWS, Model
 from .peaks import Peaks, PeakSettings, refine
 from .threads import threads
+from .validators import InputError, integer, is_bool, real_array, residual_tol
 from .validators import frequencies as check_frequencies
-from .validators import integer, is_bool, real_array, residual_tol
 from .validators import per_damper as check_parameters
 
 #: Default accepted relative residual ``|s kc A - mu0 N0| <= tol mu0 N0``; Newton aims
@@ -269,10 +269,10 @@ def solve(model, freq_hz, mu0, kc, N0=0.5, *, modal_freq_hz=None, tol=TOL,
         raise ValueError("peaks: refinement is single-harmonic only (harmonics = 1)")
     if indicator and (harmonics > 1 or aft):
         # it estimates what a single-harmonic solve leaves out; here nothing is left out
-        raise ValueError("indicator: for single-harmonic solves (harmonics = 1, aft = "
+        raise InputError("indicator", "for single-harmonic solves (harmonics = 1, aft = "
                          "False); a multi-harmonic solve balances those harmonics itself")
     if store_harmonics and harmonics == 1 and not aft:
-        raise ValueError("store_harmonics: for multi-harmonic solves (harmonics >= 3); "
+        raise InputError("store_harmonics", "for multi-harmonic solves (harmonics >= 3); "
                          "with harmonics = 1 the response is the only harmonic")
     with threads(n_threads):
         if harmonics > 1 or aft:

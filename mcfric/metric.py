@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .validators import choice, is_int
+from .validators import InputError, choice, is_int
 
 #: The quantities a metric can be in; the index is the power k of omega.
 QUANTITIES = ("displacement", "velocity", "acceleration")
@@ -40,21 +40,21 @@ def omega_power(freq_hz, to_quantity, from_quantity="displacement"):
 
 def check_beams(beams, n_beams, name="beams"):
     """``beams`` (0-based beam indices, one or more, each in ``0..n_beams - 1``; any
-    ``>= 0`` where ``n_beams`` is None) as a tuple of int; a ``ValueError`` naming
-    ``name`` otherwise (a float, a bool or a string is not an index: numpy would
-    truncate or parse it)."""
+    ``>= 0`` where ``n_beams`` is None) as a tuple of int; an ``InputError`` (a
+    ``ValueError``) naming ``name`` otherwise (a float, a bool or a string is not an
+    index: numpy would truncate or parse it)."""
     top = np.iinfo(np.int64).max if n_beams is None else n_beams
     if is_int(beams):
         beams = (beams,)
     try:
         beams = list(beams)
     except TypeError:
-        raise ValueError(f"{name}: expected 0-based beam indices, got {beams!r}") from None
+        raise InputError(name, f"expected 0-based beam indices, got {beams!r}") from None
     bad = [b for b in beams if not is_int(b) or not 0 <= b < top]
     if bad or not beams:
         within = "" if n_beams is None else f" in 0..{n_beams - 1}"
-        raise ValueError(f"{name}: expected 0-based beam indices{within} (the Python API "
-                         f"counts from 0), got {bad[0] if bad else beams!r}")
+        raise InputError(name, f"expected 0-based beam indices{within} (the Python API "
+                               f"counts from 0), got {bad[0] if bad else beams!r}")
     return tuple(int(b) for b in beams)
 
 

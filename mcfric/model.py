@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .core.receptance import beam_receptances
-from .validators import F0_RANGE, choice, finite_array, integer, number, real
+from .validators import F0_RANGE, InputError, choice, finite_array, integer, number, real
 
 TOPOLOGIES = ("linear", "circular")
 #: Contact laws: Coulomb friction in series with a stiffness (the paper's), and a
@@ -184,13 +184,13 @@ class Model:
     def __post_init__(self):
         if isinstance(self.beams, (ModalTable, str, bytes)) or not hasattr(self.beams,
                                                                             "__iter__"):
-            raise ValueError(f"beams: expected a sequence of ModalTable objects (one per "
+            raise InputError("beams", f"expected a sequence of ModalTable objects (one per "
                              f"beam), got {type(self.beams).__name__}")
         beams = tuple(self.beams)
         if len(beams) < 2:
             raise ValueError(f"n_beams: expected at least 2 beams, got {len(beams)}")
         if not all(isinstance(t, ModalTable) for t in beams):
-            raise ValueError("beams: expected ModalTable objects")
+            raise InputError("beams", "expected ModalTable objects")
         if self.topology not in TOPOLOGIES:
             raise ValueError(f"topology: expected one of {TOPOLOGIES}, got {self.topology!r}")
         if self.topology == "circular" and len(beams) < 3:

@@ -16,6 +16,7 @@ excites the ring's E-nodal-diameter wave.
 """
 
 from .model import TABLE_1, Excitation, Model
+from .validators import InputError
 
 PRESETS = ("two-beam", "eight-beam", "disk-24", "disk-72")
 
@@ -106,5 +107,5 @@ def preset(name, F0=None):
     makers = {"two-beam": two_beam, "eight-beam": eight_beam, "disk-24": disk_24,
               "disk-72": disk_72}
     if not isinstance(name, str) or name not in makers:
-        raise ValueError(f"preset: expected one of {PRESETS}, got {name!r}")
+        raise InputError("preset", f"expected one of {PRESETS}, got {name!r}")
     return makers[name]() if F0 is None else makers[name](F0)

@@ -137,7 +137,10 @@ BOUNDS_ATTRS = ("k_max_re", "k_max_im", "F_lim", "quantity", "beams")
 def _check_bounds(path, g, attrs, n_f):
     """Every dataset and attribute of ``bounds/`` that the readers use, with one value
     (or row) per frequency."""
-    certified = "upper_certified" in g
+    # any part of a certificate means all of it: with upper_certified deleted the file
+    # read as "not certified (--no-certify)"
+    certified = (any(k in g for k, _, _ in CERTIFICATE_DATASETS)
+                 or any(k.startswith("certify_") for k in attrs))
     names = BOUNDS_DATASETS + (CERTIFICATE_DATASETS if certified else ())
     for k, kinds, ndim in names:
         v = g.get(k)

@@ -21,7 +21,7 @@ from .core.receptance import contact_space
 from .core.time_integration import integrate
 from .hbm import MAX_N_TIME, check_harmonics, solve
 from .model import Model
-from .validators import fraction, integer, residual_tol
+from .validators import InputError, fraction, integer, residual_tol
 from .validators import frequencies as check_frequencies
 from .validators import per_damper as check_parameters
 
@@ -205,11 +205,11 @@ def time_steps(model, freq_hz, kc, steps=None):
             count = f"{nk:.3g}" if math.isfinite(nk) else "too many"
             if steps is None and _steps(model, 2 * np.pi * fk, 0.0) <= MAX_STEPS:
                 # the stiff contacts set the step, not the frequency
-                raise ValueError(f"kc: {float(np.max(kc)):g} N/m makes a period at {fk:g} Hz "
+                raise InputError("kc", f"{float(np.max(kc)):g} N/m makes a period at {fk:g} Hz "
                                  f"need {count} time steps (at most {MAX_STEPS}); a contact "
                                  f"this stiff is stuck: integrate with a softer kc")
-            raise ValueError(f"freq_hz: at {fk:g} Hz a period needs {count} time steps (at most "
-                             f"{MAX_STEPS}); integrate at higher frequencies")
+            raise InputError("freq_hz", f"at {fk:g} Hz a period needs {count} time steps (at "
+                             f"most {MAX_STEPS}); integrate at higher frequencies")
     return f, n
 
 

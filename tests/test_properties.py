@@ -114,7 +114,7 @@ def test_every_point_is_flagged_or_satisfies_its_equations(case):
 def dist(draw, lo, hi, bounded):
     """A distribution's TOML lines; ``bounded``: one with an upper limit and some value
     above 0 (what the bounds' "auto" limits need)."""
-    kinds = ["fixed", "uniform", "truncnormal"] + ([] if bounded else ["lognormal"])
+    kinds = ["fixed", "uniform", "truncnormal"] + ([] if bounded else ["lognormal", "normal"])
     kind = draw(st.sampled_from(kinds))
     a = draw(st.floats(lo, hi))
     b = draw(st.floats(lo, hi))
@@ -123,6 +123,10 @@ def dist(draw, lo, hi, bounded):
         return f'dist = "fixed"\nvalue = {max(a, 1e-3 * hi) if bounded else a!r}'
     if kind == "uniform":
         return f'dist = "uniform"\nlow = {a!r}\nhigh = {b + 1e-3 * (hi - lo)!r}'
+    if kind == "normal":
+        mean = max(a, 1e-3 * hi)
+        return (f'dist = "normal"\nmean = {mean!r}\n'
+                f'std = {draw(st.floats(1e-3, 1.0)) * mean / 3!r}')
     if kind == "lognormal":
         return (f'dist = "lognormal"\nmedian = {max(a, 1e-3 * hi)!r}\n'
                 f'sigma = {draw(st.floats(0.0, 1.0))!r}')

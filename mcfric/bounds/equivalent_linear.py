@@ -41,7 +41,7 @@ from ..core.receptance import contact_space
 from ..metric import QUANTITIES, check_beams, check_quantity
 from ..model import Model
 from ..threads import threads
-from ..validators import KC_MAX, integer, is_bool, real
+from ..validators import KC_MAX, InputError, integer, is_bool, real
 from ..validators import frequencies as check_frequencies
 from .certified import Certificate, certify, resolve_moments, within
 from .search import box_extreme, starts
@@ -201,7 +201,7 @@ class Bounds:
             except (TypeError, ValueError):
                 raise ValueError(f"{name}: expected numbers, got {x!r}") from None
             if a.ndim == 0 or a.shape[-1] != nd:
-                raise ValueError(f"{name}: expected shape (..., {nd}) (a value per damper "
+                raise InputError(name, f"expected shape (..., {nd}) (a value per damper "
                                  f"last), got {a.shape}")
             if not np.all(np.isfinite(a) & (a >= 0)):
                 raise ValueError(f"{name}: expected finite values >= 0")
@@ -229,8 +229,8 @@ class Bounds:
                 or m.dtype == bool:
             raise ValueError(f"metric: expected real numbers, got dtype {m.dtype}")
         if m.ndim == 0 or m.shape[-1] != len(self.freq_hz):
-            raise ValueError(f"metric: expected shape (..., {len(self.freq_hz)}) (the bounds' "
-                             f"frequencies last), got {m.shape}")
+            raise InputError("metric", f"expected shape (..., {len(self.freq_hz)}) (the "
+                             f"bounds' frequencies last), got {m.shape}")
         rtol = real("rtol", rtol, lo=0)
         if not rtol < 0.5:
             raise ValueError(f"rtol: expected a number in [0, 0.5), got {rtol!r}")
@@ -393,7 +393,7 @@ def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity
         if np.any(t.zeta == 0):
             # the box holds free dampers (K = 0): the bounds would be infinite at that
             # mode's resonance, and the search divides by the damping
-            raise ValueError(f"model: beam {i + 1} has a mode without damping (zeta = 0); "
+            raise InputError("model", f"beam {i + 1} has a mode without damping (zeta = 0); "
                              f"the bounds need every mode damped (zeta > 0): an undamped "
                              f"mode has an unbounded resonance")
     if model.contact_law != "coulomb":

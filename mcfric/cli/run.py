@@ -112,9 +112,21 @@ def _run_one(args, cfg, out, resume_as=None):
             # only where this run computes its bounds: a file resumed or complete keeps
             # the bounds it was made with ([bounds] is no part of a run's identity)
             shortfall_note(cfg)
+        before = _identity(out)
         summary = ensemble.run(cfg, out, resume=args.resume, force=args.force,
                                progress=not args.no_progress,
                                space_check=not args.skip_space_check)
+    except KeyboardInterrupt:
+        # after the rename the run still reads its peaks and indicator for the summary:
+        # a file this run renamed into place is whole (a FILE is always complete)
+        if _identity(out) in (None, before):
+            if not partial_path(out).exists():
+                raise
+            # between the sweep's last chunk and the rename: what was written is kept
+            print(f"interrupted: the run's samples are kept in {partial_path(out)}; "
+                  f"continue with {resume}", file=sys.stderr)
+            return EXIT_INTERRUPTED
+        return _interrupted_after(out, resume if resume_as else None)
     except ensemble.RunError as e:
         raise UsageError(str(e)) from None
     except ensemble.Interrupted as e:
@@ -139,13 +151,26 @@ def _run_one(args, cfg, out, resume_as=None):
     except KeyboardInterrupt:
         if not summary.complete:
             raise
-        # the file is whole: only the summary's checks or the figure were cut short
-        rest = f"; the sweep's other engine orders: {resume}" if resume_as else ""
-        print(f"interrupted: {out} is complete; the checks or the figure after it were "
-              f"cut short (`mcfric info {out}`, `mcfric plot {out}`){rest}",
-              file=sys.stderr)
-        return EXIT_INTERRUPTED
+        return _interrupted_after(out, resume if resume_as else None)
     return EXIT_OK
+
+
+def _identity(path):
+    """``(device, inode)`` of ``path``, None where there is none: a rename changes it."""
+    try:
+        st = path.stat()
+    except OSError:
+        return None
+    return st.st_dev, st.st_ino
+
+
+def _interrupted_after(out, resume_sweep):
+    """Exit status of an interrupt after ``out`` was complete: said, with what to do."""
+    # the file is whole: only the summary's checks or the figure were cut short
+    rest = f"; the sweep's other engine orders: {resume_sweep}" if resume_sweep else ""
+    print(f"interrupted: {out} is complete; the checks or the figure after it were "
+          f"cut short (`mcfric info {out}`, `mcfric plot {out}`){rest}", file=sys.stderr)
+    return EXIT_INTERRUPTED
 
 
 def _report_run(args, cfg, out, summary):

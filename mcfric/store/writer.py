@@ -104,13 +104,20 @@ def reserve(path):
     StoreError
         The file system has no room for the file (ENOSPC, EDQUOT).
     """
-    size = os.stat(path).st_size
+    st = os.stat(path)
+    size = st.st_size
+    # measured before: a failing fallocate can hold every free block until it gives up
+    # (ext4), so a file that cannot fit is refused without trying, and the free space
+    # said is the disk's, not what the attempt left
+    free = shutil.disk_usage(Path(path).resolve().parent).free
+    if size - st.st_blocks * 512 > free:
+        raise StoreError(f"{path}: no space for the results file ({human(size)} needed, "
+                         f"{human(free)} free)")
     fd = os.open(path, os.O_RDWR)
     try:
         _fallocate(fd, size)
     except OSError as e:
         if e.errno in (errno.ENOSPC, errno.EDQUOT):
-            free = shutil.disk_usage(Path(path).resolve().parent).free
             raise StoreError(f"{path}: no space for the results file ({human(size)} "
                              f"needed, {human(free)} free)") from None
         if e.errno not in (errno.EOPNOTSUPP, errno.EINVAL, errno.ENOSYS):
