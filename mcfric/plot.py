@@ -16,7 +16,8 @@ import numpy as np
 from matplotlib import patheffects
 
 from .hbm import INDICATOR_THRESHOLD
-from .measured.comparison import metric_parts
+from .measured.comparison import metric_rows
+from .measured.measurement import METRIC
 from .metric import METRIC_UNITS, omega_power
 from .peaks import (
     FOLD_FOUND,
@@ -366,28 +367,40 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
             marked.append("certified")
     metric_beams = _metric_beams(attrs)
     for i, mm in enumerate(measured):
-        parts = metric_parts([mm.to_quantity(quantity)], metric_beams)
+        q = mm.to_quantity(quantity)
         color = MEASURED_COLORS[i % len(MEASURED_COLORS)]
         lab = (f"measured {mm.kind}" + (f" {Path(mm.source).name}" if mm.source else "")
                + (f" ({mm.force_n:g} N)" if mm.force_n else "")
                + (f", {mm.percentile:g}th percentile" if mm.percentile is not None else ""))
         mine = [b for b in mm.beams if b in metric_beams]
-        # M (solid), and the largest measured beam of the metric where some beam of it is
-        # not measured (dashed: M at least that); with no beam of the metric measured the
-        # largest measured beam (dashed: drawn, compared to nothing)
-        drawn_parts = [(g, True, lab) for g in parts.full[:1]]
-        drawn_parts += [(g, False, lab + f": beam{'s' if len(mine) > 1 else ''} "
-                         f"{', '.join(map(str, mine))} only, M at least this")
-                        for g in parts.part[:1]]
-        if not drawn_parts:
-            drawn_parts = [(mm.to_quantity(quantity).metric(), False,
-                            lab + f": beam{'s' if len(mm.beams) > 1 else ''} "
-                            f"{', '.join(map(str, mm.beams))}, not in the metric")]
-        for g, is_m, text in drawn_parts:
-            mf = g.frequency_hz
-            y = g.response[:, 0].real
+        if q.beams == (METRIC,):            # a record of M itself (an export)
+            values = q.amplitude[:, 0]
+            complete, some = ~np.isnan(values), np.zeros(len(values), bool)
+        else:
+            complete, some, values = metric_rows(q, metric_beams)
+        # M (solid) where every beam of the metric is measured; the largest measured beam
+        # of the metric where some are not (dashed: M at least that); with no beam of the
+        # metric measured the largest measured beam (dashed: drawn, compared to nothing)
+        entries = [(complete, True, lab)] if complete.any() else []
+        if some.any():
+            entries.append((some, False, lab + (
+                ": points where not every beam is measured, M at least this"
+                if set(metric_beams) <= set(mine) else
+                f": beam{'s' if len(mine) > 1 else ''} {', '.join(map(str, mine))} only, "
+                f"M at least this")))
+        if not entries:
+            values = q.metric().response[:, 0].real
+            entries = [(~np.isnan(values), False,
+                        lab + f": beam{'s' if len(mm.beams) > 1 else ''} "
+                        f"{', '.join(map(str, mm.beams))}, not in the metric")]
+        mf = q.frequency_hz
+        for rows, is_m, text in entries:
+            # on the measurement's own points, NaN elsewhere: a line breaks where this
+            # part has no point instead of joining its points across the others
+            y = np.where(rows, values, np.nan)
             keep = (mf >= lo_f) & (mf <= hi_f)
-            if mm.kind == "stepped" or np.count_nonzero(keep) == 1:  # one point draws no line
+            if mm.kind == "stepped" or np.count_nonzero(keep & rows) == 1:   # no line
+                keep &= rows
                 ax.plot(mf[keep], y[keep], "x" if is_m else "+", color=color, ms=4,
                         mew=1.0, label=text)
             else:

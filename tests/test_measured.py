@@ -229,7 +229,7 @@ def test_directions_and_ambiguity(tmp_path):
         record(102, f, np.full(3, 2.0 + 0j), func_type=0, spec=8, denom=0, direction=3)])
     with pytest.raises(ValueError) as e:
         read_measured(both, nodes=[102], direction=3)
-    one_line(e, str(both), "two records for beam 1", "both in direction +-3", "split the file")
+    one_line(e, str(both), "two records for beam 1", "both in direction +-3: split the file")
     assert "pass direction=" not in str(e.value)
 
 

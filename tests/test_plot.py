@@ -160,33 +160,48 @@ def test_measured_member_is_inside(results, tmp_path, capsys):
 
 
 def test_beams_measured_at_different_frequencies_are_compared_per_point(results, tmp_path,
-                                                                         capsys):
-    """A member's beams measured at alternate frequencies, both at the last four (records
-    merged onto the union of the frequencies): M is measured at those four only, the
-    largest measured beam elsewhere. Both are compared and drawn (before, M was NaN at
-    every point where a beam was missing: nothing compared, nothing drawn)."""
+                                                                         capsys, monkeypatch):
+    """A member's beams measured at alternate frequencies, both at every fifth (records
+    merged onto the union of the frequencies): M is measured at those points only, the
+    largest measured beam elsewhere. Both are compared and drawn, each line broken where
+    its points stop and named for what it is (before, M was NaN at every point where a
+    beam was missing: nothing compared, nothing drawn)."""
+    from mcfric import plot
+    from mcfric.measured import read_measured
+
     with h5py.File(results, "r") as h5:
         f = h5["frequency"][()]
         y = np.abs(h5["response"][3])
     n_f = len(f)
+    both = np.arange(n_f) % 5 == 0
+    n_both = int(np.count_nonzero(both))
     data = tmp_path / "merged.csv"
     with open(data, "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(["frequency_hz", "beam1", "beam2", "kind"])
         for k, (fi, row) in enumerate(zip(f, y)):
-            both = k >= n_f - 4
-            w.writerow([repr(float(fi)), repr(float(row[0])) if both or k % 2 == 0 else "",
-                        repr(float(row[1])) if both or k % 2 == 1 else "", "sweep"])
+            w.writerow([repr(float(fi)), repr(float(row[0])) if both[k] or k % 2 == 0 else "",
+                        repr(float(row[1])) if both[k] or k % 2 == 1 else "", "sweep"])
     png = tmp_path / "m.png"
     rc, out, err = call(["plot", results, "-o", png, "--measured", data], capsys)
     assert rc == 0, err
-    # beams: every value against the upper bound; M at 4 points; the largest beam at the
-    # other n_f - 4 against the upper bound only
-    assert _fractions(out) == [(100.0, n_f + 4, n_f + 4), (100.0, 4, 4),
-                               (100.0, n_f - 4, n_f - 4)], out
+    # beams: every value against the upper bound; M at the shared points; the largest
+    # beam at the others against the upper bound only
+    assert _fractions(out) == [(100.0, n_f + n_both, n_f + n_both), (100.0, n_both, n_both),
+                               (100.0, n_f - n_both, n_f - n_both)], out
     assert "the measured metric M (max over the beams) against both bounds" in out
-    assert "the largest measured beam against the upper bound only" in out
+    assert "where not every beam of the metric (1, 2) is measured" in out
     assert near(rgb(png), TAB_GREEN) > 100, "measured data (green) not drawn"
+    saved = []
+    monkeypatch.setattr(plot, "_save", lambda fig, out, dpi: saved.append(fig))
+    plot.results_figure(results, tmp_path / "n.png", measured=read_measured(data))
+    lines = {ln.get_label(): ln for ln in saved[-1].axes[0].get_lines()}
+    m_line = lines["measured sweep merged.csv"]
+    part = lines["measured sweep merged.csv: points where not every beam is measured, M at "
+                 "least this"]
+    ym, yp = np.asarray(m_line.get_ydata(), float), np.asarray(part.get_ydata(), float)
+    assert np.array_equal(np.isfinite(ym), both) and np.array_equal(np.isfinite(yp), ~both)
+    np.testing.assert_allclose(ym[both], y[both].max(axis=1), rtol=1e-12)
 
 
 def test_measured_outside_is_counted(results, tmp_path, capsys):
@@ -249,7 +264,7 @@ def test_a_measured_subset_of_the_beams_is_held_to_the_upper_bound_only(results,
     rc, out, err = call(["plot", results, "-o", tmp_path / "m.png", "--measured", data],
                         capsys)
     assert rc == 0, err
-    assert "are not all measured: M could be larger" in out, out
+    assert "where not every beam of the metric (1, 2) is measured: M could be larger" in out, out
     assert "against both bounds" not in out
     assert _fractions(out) == [(100.0, n_f, n_f), (100.0, n_f, n_f)], out
     # the figure says the same: drawn as M it dipped below the lower bound unexplained
@@ -663,3 +678,9 @@ def test_identical_member_peaks_are_counted_on_their_dot(tmp_path, monkeypatch):
     assert plot._stacks(xy) == []
     xy[:30] = 0.4
     assert plot._stacks(xy) == [(0, 30)]
+    # thirty within a pixel: one dot; the same thirty zoomed tenfold (spread over ten
+    # pixels, as on a window a tenth as wide): no label
+    xy[:30, 0] = 0.4 + np.linspace(0, 0.001, 30)
+    assert [k for _, k in plot._stacks(xy)] == [30]
+    xy[:30, 0] = 0.4 + np.linspace(0, 0.01, 30)
+    assert plot._stacks(xy) == []

@@ -863,8 +863,8 @@ API_CASES = [
 
 @pytest.mark.parametrize("call, message", API_CASES)
 def test_the_python_api_refuses_what_it_cannot_use(call, message):
-    """Each an ``InputError`` (a ``ValueError`` naming what was wrong), as the
-    guarantees page says: code that catches ``InputError`` catches them all."""
+    """Each an ``InputError`` (a ``ValueError`` naming what was wrong, with its name in
+    ``.key``), as the guarantees page says of these cases."""
     import mcfric
     from mcfric.validators import InputError
 
@@ -1014,8 +1014,9 @@ def test_a_file_that_cannot_fit_fails_before_any_work(small_fs, capsys, monkeypa
 
 def test_a_reservation_refused_by_the_file_system_is_one_line(tmp_path, capsys,
                                                                monkeypatch):
-    """A file that fits the free space but whose fallocate fails (a quota: EDQUOT):
-    one line with the free space measured before, exit 1, nothing left."""
+    """A file that fits the free space but whose fallocate fails (a quota: EDQUOT): one
+    line that names the quota (the disk's free space, larger than the file, said
+    nothing), exit 1, nothing left."""
     def quota(fd, size):
         raise OSError(errno.EDQUOT, "Disk quota exceeded")
 
@@ -1024,7 +1025,7 @@ def test_a_reservation_refused_by_the_file_system_is_one_line(tmp_path, capsys,
     assert cli.main(["run", *SMALL, "-o", str(out)]) == 1
     err = capsys.readouterr().err.strip()
     assert "no space for the results file" in err and len(err.splitlines()) == 1, err
-    assert ", 0 bytes free)" not in err
+    assert "needed: disk quota exceeded)" in err and " free)" not in err, err
     assert not list(tmp_path.iterdir())
 
 
@@ -1162,6 +1163,32 @@ def test_an_interrupt_after_the_rename_while_peaks_are_read_says_complete(
     monkeypatch.undo()
     assert cli.main(["run", *SMALL[:-1], "--no-bounds", "-o", str(new), "--resume"]) == 0
     assert store.read_attrs(new)["complete"] == 1 and not (tmp_path / "s.h5.partial").exists()
+
+
+def test_an_interrupt_before_the_sweep_claims_no_file(tmp_path, capsys, monkeypatch):
+    """Ctrl-C before this run wrote anything: the plain message, whatever lies there. An
+    older run's partial that --force is to replace (still there while the bounds are
+    computed) is not called this run's samples, and an interrupt at the first line
+    (before the files were looked at) is no traceback."""
+    import mcfric.bounds
+    from mcfric import ensemble
+    from mcfric.cli import run as cli_run
+
+    def interrupted(*a, **k):
+        raise KeyboardInterrupt
+
+    out = tmp_path / "t.h5"
+    monkeypatch.setattr(ensemble.Store, "finish", interrupted)
+    assert cli.main(["run", *SMALL[:-1], "--seed", "5", "--no-bounds", "-o", str(out)]) == 130
+    assert (tmp_path / "t.h5.partial").exists()
+    monkeypatch.undo()
+    monkeypatch.setattr(mcfric.bounds, "from_spec", interrupted)
+    capsys.readouterr()
+    assert cli.main(["run", *SMALL[:-1], "-o", str(out), "--force"]) == 130
+    assert capsys.readouterr().err.strip() == "mcfric: interrupted"
+    monkeypatch.setattr(cli_run, "shortfall_note", interrupted)
+    assert cli.main(["run", *SMALL[:-1], "-o", str(tmp_path / "u.h5")]) == 130
+    assert capsys.readouterr().err.strip() == "mcfric: interrupted"
 
 
 def test_an_output_directory_that_cannot_be_written_is_refused_before_the_work(

@@ -237,9 +237,9 @@ def _print_inside(path, measured, quantity, window=None):
         print("the measured metric M (max over the beams) against both bounds:")
         print(_inside_or_none(ms.fraction_inside(parts.full, g, lo, up, quantity=q)))
     if parts.part:
-        print(f"the largest measured beam against the upper bound only (the metric's beams "
-              f"{', '.join(map(str, beams))} are not all measured: M could be larger; "
-              f"'M' below is that largest beam):")
+        print(f"the largest measured beam against the upper bound only, where not every "
+              f"beam of the metric ({', '.join(map(str, beams))}) is measured: M could be "
+              f"larger; 'M' below is that largest beam:")
         print(_inside_or_none(ms.fraction_inside(parts.part, g, lo, up, quantity=q,
                                                  check_lower=False)))
 

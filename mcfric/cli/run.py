@@ -102,6 +102,8 @@ def _run_one(args, cfg, out, resume_as=None):
 
     spec = cfg.spec
     resume = f"`mcfric run ... -o {resume_as or out} --resume`"
+    # which files were there: an interrupt outside the sweep is judged by what changed
+    before, partial_before = _identity(out), _identity(partial_path(out))
     # every refusal (bad config, existing files) happens before anything is written
     try:
         model = spec.model
@@ -112,7 +114,6 @@ def _run_one(args, cfg, out, resume_as=None):
             # only where this run computes its bounds: a file resumed or complete keeps
             # the bounds it was made with ([bounds] is no part of a run's identity)
             shortfall_note(cfg)
-        before = _identity(out)
         summary = ensemble.run(cfg, out, resume=args.resume, force=args.force,
                                progress=not args.no_progress,
                                space_check=not args.skip_space_check)
@@ -120,9 +121,12 @@ def _run_one(args, cfg, out, resume_as=None):
         # after the rename the run still reads its peaks and indicator for the summary:
         # a file this run renamed into place is whole (a FILE is always complete)
         if _identity(out) in (None, before):
-            if not partial_path(out).exists():
+            partial = _identity(partial_path(out))
+            # a partial this run created, or the one it resumes (not an older run's
+            # that --force was to replace, still there while the bounds are computed)
+            if partial is None or (partial == partial_before and not args.resume):
                 raise
-            # between the sweep's last chunk and the rename: what was written is kept
+            # e.g. between the sweep's last chunk and the rename: what was written is kept
             print(f"interrupted: the run's samples are kept in {partial_path(out)}; "
                   f"continue with {resume}", file=sys.stderr)
             return EXIT_INTERRUPTED

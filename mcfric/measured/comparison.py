@@ -285,13 +285,7 @@ def metric_parts(measured, beams):
             continue
         sub = replace(m, response=m.response[:, j], beams=tuple(m.beams[i] for i in j))
         single.append(sub)
-        # per point: records merged from beams measured at different frequencies have
-        # each beam at some points only, where M is not measured but bounded below
-        a = sub.amplitude
-        present = ~np.isnan(a)
-        largest = np.max(np.where(present, a, -np.inf), axis=1)
-        complete = present.all(axis=1) & (set(beams) <= set(sub.beams))
-        some = present.any(axis=1) & ~complete
+        complete, some, largest = metric_rows(sub, beams)
         if not some.any():
             (full if set(beams) <= set(sub.beams) else part).append(sub.metric())
             continue
@@ -300,4 +294,30 @@ def metric_parts(measured, beams):
                 group.append(replace(sub, frequency_hz=sub.frequency_hz[rows],
                                      response=largest[rows, None], beams=(METRIC,)))
     return MetricParts(single, full, part, tuple(sorted(skipped)))
+
+
+def metric_rows(m, beams):
+    """Per point of ``m``: where M is measured, and where only some of its beams are.
+
+    Parameters
+    ----------
+    m : Measurement
+    beams : sequence of int
+        The metric's beams, 1-based.
+
+    Returns
+    -------
+    complete, some : ndarray of bool, shape (n_f,)
+        Every beam of the metric measured there (M measured); some of them measured,
+        not all (M at least their largest). Records merged from beams measured at
+        different frequencies have each beam at some points only.
+    largest : ndarray, shape (n_f,)
+        The largest measured amplitude of the metric's beams, -inf where none is.
+    """
+    mine = [i for i, b in enumerate(m.beams) if b in beams]
+    a = m.amplitude[:, mine]
+    present = ~np.isnan(a)
+    largest = np.max(np.where(present, a, -np.inf), axis=1, initial=-np.inf)
+    complete = present.all(axis=1) & (set(beams) <= {m.beams[i] for i in mine})
+    return complete, present.any(axis=1) & ~complete, largest
 

@@ -171,7 +171,7 @@ def _read_uff58(path, nodes, direction, quantity, force_n, kind, scale):
             # with a direction given, +Z and -Z records are both in it: the file must go
             hint = ("pass direction= (mcfric plot: --measured-direction) or split the file"
                     if direction is None else
-                    f"both in direction +-{abs(direction)} (+ and -): split the file")
+                    f"both in direction +-{abs(direction)}: split the file")
             raise ValueError(f"{path}: two records for beam {beam} (node {node}) in the same "
                              f"run: {hint}")
         g["beams"][beam] = (x, y)

@@ -97,7 +97,9 @@ def reserve(path):
     The chunks are allocated in the HDF5 sense at creation, but the file is sparse: without
     this, a full disk would show only when a chunk is written, hours into a run. With it,
     a file that cannot fit fails here, before any work, and later writes cannot run out
-    of space. File systems without ``fallocate`` are left as they are.
+    of space. A file larger than the free space is refused first, on every file system
+    (``--skip-space-check`` skips the estimate, not this); file systems without
+    ``fallocate`` are then left as they are.
 
     Raises
     ------
@@ -117,7 +119,11 @@ def reserve(path):
     try:
         _fallocate(fd, size)
     except OSError as e:
-        if e.errno in (errno.ENOSPC, errno.EDQUOT):
+        if e.errno == errno.EDQUOT:
+            # the disk may have room: the user's quota has not
+            raise StoreError(f"{path}: no space for the results file ({human(size)} "
+                             f"needed: disk quota exceeded)") from None
+        if e.errno == errno.ENOSPC:
             raise StoreError(f"{path}: no space for the results file ({human(size)} "
                              f"needed, {human(free)} free)") from None
         if e.errno not in (errno.EOPNOTSUPP, errno.EINVAL, errno.ENOSYS):
