@@ -1114,16 +1114,19 @@ def test_a_figure_that_cannot_be_written_is_named_and_leaves_no_partial(tmp_path
     assert len(np.genfromtxt(out, delimiter=",", names=True)) == 20
 
 
+def _interrupted(*a, **k):
+    raise KeyboardInterrupt
+
+
+@pytest.mark.parametrize("where", ["mcfric.plot.results_figure",
+                                   "mcfric.ensemble.peak_report"])
 def test_an_interrupt_after_the_results_are_complete_says_so(tmp_path, capsys,
-                                                             monkeypatch):
-    """Ctrl-C while a run draws its figure: the results file is complete, and the
-    message says so and how to draw the figure (not a lost run)."""
-    from mcfric import plot
-
-    def interrupted(*a, **k):
-        raise KeyboardInterrupt
-
-    monkeypatch.setattr(plot, "results_figure", interrupted)
+                                                             monkeypatch, where):
+    """Ctrl-C while a run draws its figure, or after the rename while it reads its peaks
+    for the summary (0.9 s of the 1.2 s after it on a 2000 x 500 run; that one said
+    "interrupted" only): the results file is complete, and the message says so and how
+    to draw the figure (not a lost run)."""
+    monkeypatch.setattr(where, _interrupted)
     out = tmp_path / "r.h5"
     rc = cli.main(["run", *SMALL[:-1], "--no-bounds", "-o", str(out)])
     err = capsys.readouterr().err
@@ -1132,29 +1135,20 @@ def test_an_interrupt_after_the_results_are_complete_says_so(tmp_path, capsys,
     assert store.read_attrs(out)["complete"] == 1
 
 
-def test_an_interrupt_after_the_rename_while_peaks_are_read_says_complete(
-        tmp_path, capsys, monkeypatch):
-    """Ctrl-C after the rename, while the run reads its peaks for the summary (0.9 s of
-    the 1.2 s after it on a 2000 x 500 run): the file is complete and the message says
-    so (it said "interrupted" only). Before the rename the run is still resumable: a
-    file of another run at the same name is not called complete."""
+def test_an_interrupt_around_the_rename_is_judged_by_the_files(tmp_path, capsys,
+                                                               monkeypatch):
+    """After a --force run's rename the file is complete again; before the rename (the
+    sweep done, the file not yet renamed) it is not called complete, the partial is
+    named, and --resume finishes it."""
     from mcfric import ensemble
 
-    def interrupted(*a, **k):
-        raise KeyboardInterrupt
-
-    monkeypatch.setattr(ensemble, "peak_report", interrupted)
     out = tmp_path / "r.h5"
-    rc = cli.main(["run", *SMALL[:-1], "--no-bounds", "-o", str(out)])
-    err = capsys.readouterr().err
-    assert rc == 130
-    assert f"interrupted: {out} is complete" in err and f"mcfric plot {out}" in err, err
-    assert store.read_attrs(out)["complete"] == 1
-    # --force over it, interrupted at the same place: renamed, so complete again; the
-    # interrupt before the rename (in the sweep) is a resumable run, not this message
+    assert cli.main(["run", *SMALL[:-1], "--no-bounds", "-o", str(out)]) == 0
+    monkeypatch.setattr(ensemble, "peak_report", _interrupted)
+    capsys.readouterr()
     rc = cli.main(["run", *SMALL[:-1], "--no-bounds", "-o", str(out), "--force"])
     assert rc == 130 and "is complete" in capsys.readouterr().err
-    monkeypatch.setattr(ensemble.Store, "finish", interrupted)
+    monkeypatch.setattr(ensemble.Store, "finish", _interrupted)
     new = tmp_path / "s.h5"
     rc = cli.main(["run", *SMALL[:-1], "--no-bounds", "-o", str(new)])
     err = capsys.readouterr().err
@@ -1174,9 +1168,7 @@ def test_an_interrupt_before_the_sweep_claims_no_file(tmp_path, capsys, monkeypa
     from mcfric import ensemble
     from mcfric.cli import run as cli_run
 
-    def interrupted(*a, **k):
-        raise KeyboardInterrupt
-
+    interrupted = _interrupted
     out = tmp_path / "t.h5"
     monkeypatch.setattr(ensemble.Store, "finish", interrupted)
     assert cli.main(["run", *SMALL[:-1], "--seed", "5", "--no-bounds", "-o", str(out)]) == 130
