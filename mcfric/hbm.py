@@ -201,7 +201,7 @@ def solve(model, freq_hz, mu0, kc, N0=0.5, *, modal_freq_hz=None, tol=TOL,
         increasing frequency grid. None: no refinement. Single-harmonic only.
     harmonics : int
         Balance the odd harmonics ``1, 3, ..., harmonics`` of the contact motion (docs:
-        theory, "Multi-harmonic balance"); 1 (default) is the describing-function model.
+        harmonics, "Multi-harmonic balance"); 1 (default) is the describing-function model.
         Each point of a multi-harmonic solve starts from the single-harmonic solution,
         which is computed first.
     n_time : int, optional

@@ -91,3 +91,22 @@ def test_results_do_not_depend_on_which_kernels_came_from_the_cache(tmp_path):
     second = run(tmp_path / "b.h5")
     for k in first:
         assert np.array_equal(first[k], second[k], equal_nan=True), k
+
+
+def test_core_is_forbidden_every_other_module_of_mcfric():
+    """The stamp covers mcfric/core only, so core must import nothing else of mcfric. The
+    import contract lists the forbidden modules by name: one missing from the list
+    (memory and quantiles were) could be imported by a kernel unnoticed, and editing it
+    would leave stale kernels in the cache. Every module is also in a layer."""
+    import tomllib
+
+    root = Path(mcfric.core.__file__).parents[1]
+    modules = {f"mcfric.{p.stem}" for p in root.glob("*.py") if not p.stem.startswith("_")}
+    modules |= {f"mcfric.{p.parent.name}" for p in root.glob("*/__init__.py")}
+    modules.discard("mcfric.core")
+    cfg = tomllib.loads((root.parent / "pyproject.toml").read_text())["tool"]["importlinter"]
+    core = next(c for c in cfg["contracts"] if c["source_modules"] == ["mcfric.core"])
+    assert modules - set(core["forbidden_modules"]) == set()
+    layers = next(c for c in cfg["contracts"] if c["type"] == "layers")["layers"]
+    layered = {m.strip() for layer in layers for m in layer.split("|")}
+    assert modules | {"mcfric.core"} <= layered, modules - layered
