@@ -21,7 +21,7 @@ from .core.receptance import contact_space
 from .core.time_integration import integrate
 from .hbm import MAX_N_TIME, check_harmonics, solve
 from .model import Model
-from .validators import InputError, fraction, integer, residual_tol
+from .validators import InputError, fraction, integer, is_bool, residual_tol
 from .validators import frequencies as check_frequencies
 from .validators import per_damper as check_parameters
 
@@ -30,6 +30,8 @@ from .validators import per_damper as check_parameters
 TOL = 1e-8
 SETTLE = 5
 MAX_PERIODS = 20000
+#: Largest ``max_periods`` and smallest ``tol`` accepted.
+MAX_PERIODS_CAP, TOL_MIN = 10 * MAX_PERIODS, 1e-14
 #: Largest ``omega dt`` of the fastest mode (RK4 is accurate to ~(omega dt)^4 / 120).
 OMEGA_DT = 0.05
 #: Most time steps per period (given or from the fastest mode): a period of 1e7 steps
@@ -289,9 +291,15 @@ def verify(model, freq_hz, mu0, kc, N0=0.5, *, harmonics=9, start="single", tol=
                          f"solution, which it always compares; got {harmonics}")
     if start not in STARTS:
         raise ValueError(f"start: expected one of {STARTS}, got {start!r}")
-    fraction("tol", tol)
-    for name, v, lo in (("settle", settle, 1), ("max_periods", max_periods, 1)):
-        integer(lo)(v, name)
+    # a floor and a cap: a tolerance below rounding never settles, and the integration
+    # runs in one kernel call that Ctrl-C cannot stop (1e9 periods ran for hours)
+    if fraction("tol", tol) < TOL_MIN:
+        raise InputError("tol", f"expected a number in [{TOL_MIN:g}, 1) (below it rounding "
+                                f"never settles), got {tol!r}")
+    integer(1)(settle, "settle")
+    if not is_bool(progress):
+        raise InputError("progress", f"expected True or False, got {progress!r}")
+    integer(1, MAX_PERIODS_CAP)(max_periods, "max_periods")
     # named here: solve() would blame "tol", which is the integration's
     if hb_tol is not None:
         residual_tol("hb_tol", hb_tol)

@@ -439,3 +439,15 @@ def test_check_members_counts_a_point_pushed_past_the_bounds(tmp_path):
         h5["metric"][i, k] = 2 * upper[k]
     check = check_members(path)
     assert (check.outside, check.outside_certified) == (1, 1)
+    # a NaN stored at a converged point is no point outside the bounds: counted apart
+    with h5py.File(path, "r+") as h5:
+        h5["metric"][i, k] = np.nan
+    check = check_members(path)
+    assert (check.outside, check.outside_certified, check.non_finite) == (0, 0, 1)
+    assert check.total == np.count_nonzero(converged) - 1
+    # a damaged file: one line naming the dataset, not a KeyError
+    with h5py.File(path, "r+") as h5:
+        del h5["bounds/upper"]
+    with pytest.raises(Exception, match="bounds/upper is missing") as e:
+        check_members(path)
+    assert len(str(e.value).splitlines()) == 1 and not isinstance(e.value, KeyError)

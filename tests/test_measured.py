@@ -146,6 +146,12 @@ def test_export_leaves_out_non_finite_points(tmp_path):
     with pytest.raises(ValueError) as e:
         export_uff58(path, FREQ, y, force_n=1.0)
     one_line(e, str(path), "exists", "overwrite=True")
+    # a word is a true value: overwrite="no" replaced the file
+    before = path.read_bytes()
+    with pytest.raises(ValueError) as e:
+        export_uff58(path, FREQ, y, force_n=1.0, overwrite="no")
+    one_line(e, str(path), "overwrite: expected True or False")
+    assert path.read_bytes() == before
 
 
 # ---------------------------------------------------------------- foreign UFF 58 files
@@ -447,6 +453,13 @@ def test_fraction_inside_bad_input():
 def test_measurement_validation():
     with pytest.raises(ValueError, match="amplitudes must be >= 0"):
         Measurement([10.0], [[-1.0]], beams=(1,))
+    # inf in one part of a complex value with NaN in the other passed as "not measured"
+    # and counted as a point above the bounds
+    for bad in (complex(np.inf, np.nan), complex(np.nan, -np.inf), complex(np.inf, 0.0)):
+        with pytest.raises(ValueError, match="values must be finite"):
+            Measurement([10.0], [[bad]], beams=(1,))
+    for missing in (complex(np.nan, np.nan), complex(np.nan, 0.0)):
+        assert np.isnan(Measurement([10.0], [[missing]], beams=(1,)).amplitude)
     with pytest.raises(ValueError, match="one per column"):
         Measurement([10.0], [[1.0, 2.0]], beams=(1,))
     with pytest.raises(ValueError, match="kind"):

@@ -493,6 +493,8 @@ def test_the_cloud_draws_at_most_max_lines_and_the_envelope_of_all(tmp_path):
         plot.results_figure(path, tmp_path / "c.png", member=1000)
     with pytest.raises(ValueError, match="max_lines: expected an integer >= 1"):
         plot.results_figure(path, tmp_path / "c.png", max_lines=0)
+    with pytest.raises(ValueError, match="indicator: expected True or False, got 'no'"):
+        plot.results_figure(path, tmp_path / "c.png", indicator="no")
     assert not (tmp_path / "c.png").exists()
 
 

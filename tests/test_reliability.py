@@ -858,6 +858,22 @@ API_CASES = [
     (lambda m: __import__("mcfric").bounds.compute_bounds(m, [20.0, 30.0], 15e3,
                                                           certified=False).contains([1.0]),
      r"^metric: expected shape \(\.\.\., 2\)"),
+    # inf ("no force limit") and 0 from a product that overflows or underflows
+    (lambda m: __import__("mcfric").bounds.force_limit(1e300, 1e300), "^mu_max: .*overflows"),
+    (lambda m: __import__("mcfric").bounds.force_limit(1e-300, 1e-300), "^mu_max: .*overflows"),
+    # a tolerance below rounding and 1e9 periods ran for hours in one kernel call
+    (lambda m: __import__("mcfric.verify").verify.verify(m, 20.0, 0.3, 5e3, tol=1e-300),
+     r"^tol: expected a number in \[1e-14, 1\)"),
+    (lambda m: __import__("mcfric.verify").verify.verify(m, 20.0, 0.3, 5e3,
+                                                         max_periods=10**9),
+     r"^max_periods: expected"),
+    # a word is a true value: "no" meant the opposite
+    (lambda m: __import__("mcfric.verify").verify.verify(m, 20.0, 0.3, 5e3, progress="no"),
+     "^progress: expected True or False"),
+    (lambda m: __import__("mcfric.measured").measured.fraction_inside(
+        __import__("mcfric.measured").measured.Measurement([20.0], [[1.0]], beams=(1,)),
+        [10.0, 30.0], [0.0, 0.0], [2.0, 2.0], check_lower="no"),
+     "^check_lower: expected True or False"),
 ]
 
 

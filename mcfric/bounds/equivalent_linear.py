@@ -255,7 +255,11 @@ def force_limit(mu_max, N0_max):
     """
     mu = real("mu_max", mu_max, lo=0, lo_open=True)
     n0 = real("N0_max", N0_max, lo=0, lo_open=True)
-    return 4.0 / np.pi * mu * n0
+    F = 4.0 / np.pi * mu * n0
+    if not 0 < F < np.inf:      # inf would mean "no force limit", 0 is refused later
+        raise InputError("mu_max", f"4/pi x {mu:g} x {n0:g} = {F:g} N overflows or "
+                                   f"underflows: give limits whose product is a force")
+    return F
 
 
 def upper_bound(G, q0, ylin, H, kr, ki, F_lim, starts_max, max_sweeps):

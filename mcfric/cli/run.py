@@ -203,7 +203,7 @@ def _report_run(args, cfg, out, summary):
 
         check = members_check.check_members(out)
         if check is not None:
-            outside, total, outside_cert, left_out, unbounded, uncertified = check
+            outside, total, outside_cert, left_out, unbounded, uncertified, bad = check
             from ..store import read_attrs
 
             H = int(read_attrs(out).get("harmonics", 1))
@@ -220,7 +220,9 @@ def _report_run(args, cfg, out, summary):
             print(f"searched bounds check: {outside} of {total:,} converged member points "
                   f"outside [lower, upper]" + note
                   + (f"; {unbounded:,} at the frequencies where the search failed, which "
-                     f"have no searched bounds, not checked" if unbounded else ""))
+                     f"have no searched bounds, not checked" if unbounded else "")
+                  + (f"; {bad:,} whose stored value is not finite (a damaged file), not "
+                     f"checked" if bad else ""))
             if outside_cert is not None:
                 print(f"certified bounds check: {outside_cert} outside [lower_certified, "
                       f"upper_certified]" + _outside_note(outside_cert, H,

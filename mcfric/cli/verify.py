@@ -188,10 +188,11 @@ def cmd_verify(args):
     import numpy as np
 
     from .. import plot
-    from ..verify import time_steps, verify
+    from ..verify import MAX_PERIODS_CAP, time_steps, verify
 
-    if args.max_periods < 1:
-        raise UsageError(f"--max-periods: expected an integer >= 1, got {args.max_periods}")
+    if not 1 <= args.max_periods <= MAX_PERIODS_CAP:
+        raise UsageError(f"--max-periods: expected an integer in 1..{MAX_PERIODS_CAP}, got "
+                         f"{args.max_periods}")
     from ..hbm import MAX_HARMONICS
 
     if args.harmonics is not None and (not 3 <= args.harmonics <= MAX_HARMONICS

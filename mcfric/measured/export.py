@@ -87,6 +87,8 @@ def export_uff58(path, freq_hz, data, *, force_n, beams=None, nodes=None, percen
     f = np.asarray(freq_hz, dtype=float)
     if f.ndim != 1 or f.size < 2 or not np.all(np.isfinite(f) & (f > 0)):
         raise ValueError(f"{path}: freq_hz: expected at least 2 finite frequencies > 0 Hz")
+    if not is_bool(overwrite):      # "no" is a true value: it replaced the file
+        raise ValueError(f"{path}: overwrite: expected True or False, got {overwrite!r}")
     if is_bool(force_n) or not is_num(force_n):
         raise ValueError(f"{path}: force_n: expected a force > 0 N, got {force_n!r}")
     F = float(force_n)

@@ -68,7 +68,9 @@ class Measurement:
         if r.ndim != 2 or r.shape[0] != f.size:
             raise ValueError(f"{who}response: expected shape ({f.size}, n_beams), got "
                              f"{r.shape}")
-        finite = np.isfinite(r) | np.isnan(r)
+        # NaN is "not measured"; inf in either part of a value is refused (a complex
+        # inf + NaN j read as NaN and then counted as a point above the bounds)
+        finite = ~(np.isinf(r.real) | np.isinf(r.imag))
         if not np.all(finite):
             raise ValueError(f"{who}response: values must be finite (NaN = not measured)")
         if not np.iscomplexobj(r) and np.any(r < 0):
