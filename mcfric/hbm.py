@@ -26,7 +26,7 @@ from .metric import check_beams, response_metric
 from .model import CONTACT_LAWS, Model
 from .peaks import Peaks, PeakSettings, refine
 from .threads import threads
-from .validators import InputError, integer, is_bool, real_array, residual_tol
+from .validators import InputError, flag, integer, real_array, residual_tol
 from .validators import frequencies as check_frequencies
 from .validators import per_damper as check_parameters
 
@@ -234,10 +234,9 @@ def solve(model, freq_hz, mu0, kc, N0=0.5, *, modal_freq_hz=None, tol=TOL,
     p = check_parameters(nd, mu0=mu0, kc=kc, N0=N0)
     n_s = p["mu0"].shape[0]
     residual_tol("tol", tol)
-    for name, flag in (("indicator", indicator), ("aft", aft),
-                       ("store_harmonics", store_harmonics)):
-        if not is_bool(flag):     # "no" would be true
-            raise ValueError(f"{name}: expected True or False, got {flag!r}")
+    for name, value in (("indicator", indicator), ("aft", aft),
+                        ("store_harmonics", store_harmonics)):
+        flag(name, value)
     max_iter = integer(1, 10000)(max_iter, "max_iter")
     omega = 2 * np.pi * f
     if modal_freq_hz is not None:

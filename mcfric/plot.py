@@ -30,7 +30,7 @@ from .peaks import (
 )
 from .peaks import GRID as PEAK_GRID
 from .store import dataset_names, iter_records, read, read_attrs, read_group, replacing
-from .validators import InputError, is_bool
+from .validators import InputError, flag
 
 #: Characters per line of a legend entry below the results figure (two columns, 7 pt,
 #: 8 in wide).
@@ -128,8 +128,7 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
 
     from .bounds import read_bounds
 
-    if not is_bool(indicator):
-        raise InputError("indicator", f"expected True or False, got {indicator!r}")
+    flag("indicator", indicator)
     attrs = read_attrs(path)
     f = read(path, "frequency")
     stored = _stored_quantity(attrs)

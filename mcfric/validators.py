@@ -215,6 +215,14 @@ def scheduler_address():
     return check
 
 
+def flag(name, value):
+    """A Python argument that must be True or False (numpy's booleans too): a word such as
+    ``"no"`` is a true value, so it is refused, not read; returns a Python bool."""
+    if not is_bool(value):
+        raise InputError(name, f"expected True or False, got {value!r}")
+    return bool(value)
+
+
 def boolean():
     """``true`` or ``false`` (numpy's booleans too); returns a Python bool."""
     def check(v, key):

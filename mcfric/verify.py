@@ -21,7 +21,7 @@ from .core.receptance import contact_space
 from .core.time_integration import integrate
 from .hbm import MAX_N_TIME, check_harmonics, solve
 from .model import Model
-from .validators import InputError, fraction, integer, is_bool, residual_tol
+from .validators import InputError, flag, fraction, integer, residual_tol
 from .validators import frequencies as check_frequencies
 from .validators import per_damper as check_parameters
 
@@ -292,13 +292,12 @@ def verify(model, freq_hz, mu0, kc, N0=0.5, *, harmonics=9, start="single", tol=
     if start not in STARTS:
         raise ValueError(f"start: expected one of {STARTS}, got {start!r}")
     # a floor and a cap: a tolerance below rounding never settles, and the integration
-    # runs in one kernel call that Ctrl-C cannot stop (1e9 periods ran for hours)
+    # runs in one kernel call that Ctrl-C cannot stop (1e9 periods outran a 60 s limit)
     if fraction("tol", tol) < TOL_MIN:
         raise InputError("tol", f"expected a number in [{TOL_MIN:g}, 1) (below it rounding "
                                 f"never settles), got {tol!r}")
     integer(1)(settle, "settle")
-    if not is_bool(progress):
-        raise InputError("progress", f"expected True or False, got {progress!r}")
+    flag("progress", progress)
     integer(1, MAX_PERIODS_CAP)(max_periods, "max_periods")
     # named here: solve() would blame "tol", which is the integration's
     if hb_tol is not None:

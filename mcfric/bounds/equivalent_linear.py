@@ -41,7 +41,7 @@ from ..core.receptance import contact_space
 from ..metric import QUANTITIES, check_beams, check_quantity
 from ..model import Model
 from ..threads import threads
-from ..validators import KC_MAX, InputError, integer, is_bool, real
+from ..validators import KC_MAX, InputError, flag, integer, is_bool, real
 from ..validators import frequencies as check_frequencies
 from .certified import Certificate, certify, resolve_moments, within
 from .search import box_extreme, starts
@@ -389,8 +389,7 @@ def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity
     for name, v, lo in (("budget", budget, 1), ("split", split, 0)):
         if v is not None:       # None: the certificate's default
             integer(lo)(v, name)
-    if not is_bool(certified):     # "no" would be true
-        raise ValueError(f"certified: expected True or False, got {certified!r}")
+    flag("certified", certified)
     if progress is not None and not is_bool(progress):
         raise ValueError(f"progress: expected True, False or None, got {progress!r}")
     for i, t in enumerate(model.beams):

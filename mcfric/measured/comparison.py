@@ -7,7 +7,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..validators import InputError, is_bool, real, real_array
+from ..validators import flag, real, real_array
 from .measurement import METRIC, Measurement
 
 
@@ -172,8 +172,7 @@ def fraction_inside(measurement, freq_hz, lower, upper, beams=None, *,
     lo = real_array("lower", lower)
     up = real_array("upper", upper)
     real("rtol", rtol, lo=0)
-    if not is_bool(check_lower):
-        raise InputError("check_lower", f"expected True or False, got {check_lower!r}")
+    flag("check_lower", check_lower)
     if not rtol < 0.5:          # a tolerance, not a second band
         raise ValueError(f"rtol: expected a number in [0, 0.5), got {rtol!r}")
     if g.ndim != 1 or g.size < 2 or not np.all(np.isfinite(g)) or not np.all(np.diff(g) > 0):
