@@ -24,7 +24,7 @@ import sys
 import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -93,6 +93,9 @@ class Summary:
         Lines that :meth:`text` prints: the peak statistics (members' resonance peaks,
         folds; None without peak refinement) and the harmonic content (the multi-harmonic
         report, or the single-harmonic indicator's).
+    notes : list of str
+        Lines :meth:`text` prints last: e.g. a ``FILE.partial`` found beside a complete
+        ``FILE``, which the run leaves as it is.
     cluster : str
         The Dask scheduler of this call (``"local:N"`` or an address); "" for none.
     startup_s : float
@@ -118,6 +121,7 @@ class Summary:
     startup_s: float = 0.0
     bounds_computed: bool = False
     bounds_s: float = 0.0
+    notes: list = field(default_factory=list)
 
     @property
     def points(self):
@@ -148,7 +152,7 @@ class Summary:
         lines += list(self.peaks or [])
         lines += list(self.harmonics or [])
         lines.append(f"results: {self.path}")
-        return "\n".join(lines)
+        return "\n".join(lines + list(self.notes))
 
 
 def fingerprint():
@@ -410,8 +414,11 @@ def prepare(spec, path, *, resume=False, force=False):
             raise RunError(f"{final} exists and holds bounds alone (mcfric bounds), no "
                            f"members; use --force to replace it, or choose another -o")
         diff = None if attrs is None else _same_run(spec, attrs, final)
-        if attrs is not None and diff is None and attrs.get("complete") == 1:
+        if (attrs is not None and diff is None and attrs.get("complete") == 1
+                and not (resume and part.exists()
+                         and attrs.get("solver_fingerprint") != fingerprint())):
             # the same run by other code or libraries: its bits need not be this code's
+            # (with --resume and a partial file: the recomputation --force started)
             _check_fingerprint(attrs, f"{final} holds this run, made by other solver code, "
                                       f"numpy/scipy/numba/llvmlite versions or kind of CPU",
                                "use --force to recompute it, or choose another -o")
@@ -450,6 +457,27 @@ def prepare(spec, path, *, resume=False, force=False):
         except StoreError as e:
             raise RunError(f"cannot resume: {e}; use --force to start again") from None
     return "new", None
+
+
+def _partial_beside(spec, final):
+    """Lines on a ``FILE.partial`` beside the complete ``final`` (an interrupted run, e.g.
+    one started with --force and cut short): said, and left as it is."""
+    part = partial_path(final)
+    if not part.exists():
+        return []
+    try:
+        attrs = read_attrs(part)
+        done = int(np.count_nonzero(iter_done(part)))
+        diff = _same_run(spec, attrs, part)
+    except (StoreError, RunError) as e:
+        return [f"note: {part} beside it cannot be read ({e}); it is left as it is"]
+    if diff is None:
+        return [f"note: {part} beside it is an interrupted copy of this run ({done} of "
+                f"{attrs.get('samples')} samples); it is left as it is and may be deleted"]
+    return [f"note: {part} beside it is an interrupted run of another configuration "
+            f"({diff}; {done} of {attrs.get('samples')} samples), left as it is: `mcfric "
+            f"config {part} > run.toml`, then `mcfric run run.toml -o {final} --resume` "
+            f"continues it (it replaces {final} when complete), or delete it"]
 
 
 def _check_fingerprint(attrs, what, remedy):
@@ -660,7 +688,8 @@ def _run_locked(spec, final, resume, force, progress, groups, t_start, space_che
     if what == "complete":
         return Summary(final, spec.samples, n_f, spec.samples, 0,
                        int(found.get("n_not_converged", -1)), time.perf_counter() - t_start,
-                       0.0, True, already_complete=True)
+                       0.0, True, already_complete=True,
+                       notes=_partial_beside(spec, final))
     # the refusals before anything is written; a resumed store is closed on any of them
     try:
         check_solvable(spec)

@@ -5,6 +5,7 @@ import csv
 import os
 import re
 import shlex
+import shutil
 import subprocess
 import sys
 import tomllib
@@ -306,6 +307,54 @@ def test_info_of_a_partial_file(tmp_path, monkeypatch, capsys):
     assert not (tmp_path / "p.h5").exists() and not (tmp_path / "p.png").exists()
     rc, out, _ = call(["info", "p.h5"], capsys)
     assert rc == 0 and "INCOMPLETE: 20 of 50 samples done" in out
+
+
+def test_a_partial_beside_a_complete_file_is_named_and_resumable(tmp_path, monkeypatch,
+                                                                  capsys):
+    """A --force run cut short leaves ``FILE.partial`` beside the complete ``FILE``: a run
+    of FILE's configuration says so and leaves both as they are; --resume continues the
+    run that was to replace FILE, also where FILE holds the same run by other code."""
+    monkeypatch.chdir(tmp_path)
+    grid = ["--samples", "30", "--n-freq", "8", "--chunk", "10", "--no-progress",
+            "--no-figure", "--no-certify", "-o", "f.h5"]
+    assert call(["run", "two-beam", "--seed", "1", *grid], capsys)[0] == 0
+
+    def stop():
+        raise KeyboardInterrupt
+
+    with monkeypatch.context() as m:
+        _before_third_solve(m, stop)
+        rc, _, err = call(["run", "two-beam", "--seed", "2", "--force", *grid], capsys)
+    assert rc == 130 and "20 of 30 samples saved" in err
+    first = (tmp_path / "f.h5").read_bytes()
+    rc, out, _ = call(["run", "two-beam", "--seed", "1", *grid], capsys)
+    assert rc == 0 and "already holds this run" in out
+    note = next(x for x in out.splitlines() if x.startswith("note: f.h5.partial"))
+    assert note.startswith("note: f.h5.partial beside it is an interrupted run of another "
+                           "configuration (sampling.seed = 2 there, 1 here; 20 of 30 "
+                           "samples)") and "--resume` continues it" in note, note
+    assert (tmp_path / "f.h5").read_bytes() == first
+    # an interrupted copy of the same run is called that
+    rc, out, _ = call(["run", "two-beam", "--seed", "2", *grid, "--resume"], capsys)
+    assert rc == 0 and "already holds" not in out and not (tmp_path / "f.h5.partial").exists()
+    with h5py.File("f.h5") as h:
+        assert h.attrs["complete"] == 1
+    shutil.copy("f.h5", "g.h5")
+    with monkeypatch.context() as m:
+        _before_third_solve(m, stop)
+        assert call(["run", "two-beam", "--seed", "2", "--force", *grid], capsys)[0] == 130
+    rc, out, _ = call(["run", "two-beam", "--seed", "2", *grid], capsys)
+    assert rc == 0 and "already holds this run" in out
+    assert "f.h5.partial beside it is an interrupted copy of this run (20 of 30" in out
+    # FILE of the same run made by other code: --resume continues the recomputation
+    with h5py.File("f.h5", "r+") as h:
+        h.attrs["solver_fingerprint"] = "0" * 16
+    rc, out, err = call(["run", "two-beam", "--seed", "2", *grid, "--resume"], capsys)
+    assert rc == 0 and "samples: 30 of 30" in out, err
+    assert not (tmp_path / "f.h5.partial").exists()
+    with h5py.File("f.h5") as h, h5py.File("g.h5") as g:
+        assert h.attrs["solver_fingerprint"] == g.attrs["solver_fingerprint"]
+        assert np.array_equal(h["metric"][...], g["metric"][...])
 
 
 def test_a_stop_signal_dropped_while_compiling_still_stops_the_run(tmp_path, monkeypatch,
