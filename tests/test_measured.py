@@ -300,15 +300,22 @@ def test_truncated_and_wrong_uff_files(tmp_path):
     ({"nodes": NODES, "force_n": True}, "force_n: expected a force > 0 N"),
     ({"nodes": NODES, "ref_node": "abc"}, "ref_node"),
     ({"nodes": NODES, "name": "e.csv"}, "expected a UFF file name"),
+    # two frequencies one UFF 58 text prints alike, and ones out of order
+    ({"nodes": NODES, "freq": np.r_[FREQ[0], FREQ[0] * (1 + 2e-7), FREQ[2:]]},
+     "print as 9.30000e+00 and 9.30000e+00 in UFF 58's 6 significant digits"),
+    ({"nodes": NODES, "freq": FREQ[::-1]}, "expected increasing frequencies"),
+    ({"nodes": NODES, "description": "rig\nrun 12"}, "description: expected printable ASCII"),
+    ({"nodes": NODES, "description": "rig kind=stepped"}, "holds a tag that read_measured"),
 ])
 def test_export_refuses_what_would_not_read_back(tmp_path, kwargs, message):
     """Files that were written but did not read back (a node number cut to its field, two
     beams on one node, UFF text under a .csv name) are refused, nothing written."""
     kwargs = dict(kwargs)
     path = tmp_path / kwargs.pop("name", "x.uff")
+    freq = kwargs.pop("freq", FREQ)
     kwargs.setdefault("force_n", 1.0)
     with pytest.raises(ValueError) as e:
-        export_uff58(path, FREQ, np.ones((FREQ.size, 2)), **kwargs)
+        export_uff58(path, freq, np.ones((FREQ.size, 2)), **kwargs)
     one_line(e, message)
     assert not any(tmp_path.iterdir())
 

@@ -11,7 +11,8 @@ import numpy as np
 from ..metric import METRIC_UNITS as UNITS
 from ..metric import QUANTITIES
 from ..parsing import as_int
-from ..uff import FRF, GENERAL, SPEC_TYPE, UFF_SUFFIXES, id_date, si_units_dataset, write_atomic
+from ..uff import (FRF, GENERAL, SPEC_TYPE, TAG, UFF_SUFFIXES, id_date, si_units_dataset,
+                   write_atomic)
 from ..validators import is_bool, is_num
 from .measurement import KINDS, METRIC
 
@@ -47,7 +48,8 @@ def export_uff58(path, freq_hz, data, *, force_n, beams=None, nodes=None, percen
     path : str or Path
         Output file, written atomically.
     freq_hz : array_like, shape (n_f,)
-        Frequencies, Hz (> 0).
+        Frequencies, Hz (> 0), increasing, and distinct in 6 significant digits (how
+        UFF 58 text prints them).
     data : array_like
         ``(n_f, n_beams)`` complex responses or real amplitudes of one member; with
         ``percentiles``, ``(n_p, n_f, n_beams)`` or ``(n_p, n_f)`` (percentiles of the
@@ -71,7 +73,7 @@ def export_uff58(path, freq_hz, data, *, force_n, beams=None, nodes=None, percen
         Reference (drive) node written to FRF records (default 0: the excitation is a
         pattern over the beams, not one node).
     description : str
-        Start of ID line 1.
+        Start of ID line 1: printable ASCII, without the tags above.
     overwrite : bool
         Replace an existing file.
 
@@ -87,6 +89,25 @@ def export_uff58(path, freq_hz, data, *, force_n, beams=None, nodes=None, percen
     f = np.asarray(freq_hz, dtype=float)
     if f.ndim != 1 or f.size < 2 or not np.all(np.isfinite(f) & (f > 0)):
         raise ValueError(f"{path}: freq_hz: expected at least 2 finite frequencies > 0 Hz")
+    # UFF 58 text prints an uneven abscissa as E13.5: frequencies that print alike (or out
+    # of order) would read back as one point, or as another curve
+    printed = np.array([float(f"{x:.5e}") for x in f])
+    clash = np.flatnonzero(np.diff(printed) <= 0)
+    if clash.size:
+        i = int(clash[0])
+        raise ValueError(f"{path}: freq_hz: {f[i]!r} and {f[i + 1]!r} Hz (points {i} and "
+                         f"{i + 1}) print as {printed[i]:.5e} and {printed[i + 1]:.5e} in UFF "
+                         f"58's 6 significant digits: expected increasing frequencies that "
+                         f"differ there")
+    if not isinstance(description, str) or not (description.isascii()
+                                                and description.isprintable()):
+        # a line break or a non-ASCII character breaks UFF's fixed 80-column lines
+        raise ValueError(f"{path}: description: expected printable ASCII text, got "
+                         f"{description!r}")
+    if TAG.search(description):
+        # read back as the export's own kind=, force_n= or percentile= tags
+        raise ValueError(f"{path}: description: {description!r} holds a tag that "
+                         f"read_measured reads (kind=, force_n=, percentile=)")
     if not is_bool(overwrite):      # "no" is a true value: it replaced the file
         raise ValueError(f"{path}: overwrite: expected True or False, got {overwrite!r}")
     if is_bool(force_n) or not is_num(force_n):
