@@ -130,6 +130,14 @@ def test_a_path_that_is_no_path_is_a_store_error(path):
             read(path)
 
 
+def test_a_directory_is_named_as_one(tmp_path):
+    # HDF5's text was an errno and a time stamp
+    for read in (store.open_results, store.read_attrs, store.describe,
+                 lambda p: store.read_group(p, "bounds")):
+        with pytest.raises(StoreError, match=f"^{tmp_path}: a directory, not a results file$"):
+            read(tmp_path)
+
+
 def test_a_file_like_object_is_read_as_h5py_reads_it(tmp_path):
     import io
 

@@ -15,8 +15,10 @@ def _open_read(path):
     if not (isinstance(path, (str, bytes, os.PathLike)) or hasattr(path, "read")):
         # h5py's TypeError names no input (a file-like object h5py takes stays allowed)
         raise StoreError(f"path: expected a results file's path, got {type(path).__name__}")
-    if not hasattr(path, "read") and os.path.exists(path) and not os.path.isdir(path) \
-            and not os.path.isfile(path):
+    if not hasattr(path, "read") and os.path.isdir(path):
+        # HDF5's text for it is an errno and a time stamp
+        raise StoreError(f"{os.fsdecode(path)}: a directory, not a results file")
+    if not hasattr(path, "read") and os.path.exists(path) and not os.path.isfile(path):
         # HDF5 needs a file it can seek in: opening a pipe without a writer never returns
         raise StoreError(f"{os.fsdecode(path)}: not a regular file (a pipe or a device), "
                          f"not a results file")
