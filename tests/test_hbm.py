@@ -244,6 +244,12 @@ def test_bad_input_names_the_argument(eight_beam, change, name):
     (lambda: mcfric.ModalTable([16.2, 100.0], [0.01], [[1, 2, 3], [1, 2, 3]]), "zeta"),
     (lambda: mcfric.ModalTable([-16.2], [0.01], [[1, 2, 3]]), "freq_hz"),
     (lambda: mcfric.ModalTable([16.2], [-0.01], [[1, 2, 3]]), "zeta"),
+    # squares overflowed or underflowed: a response of 0 reported as converged
+    (lambda: mcfric.ModalTable([16.2, 1e300], [0.01, 0.01], [[1, 2, 3], [1, 2, 3]]),
+     "freq_hz: 1e.300 Hz is beyond"),
+    (lambda: mcfric.ModalTable([16.2], [0.01], [[1e-300, 2, 3]]), "shapes: 1e-300"),
+    (lambda: mcfric.ModalTable([16.2], [0.01], [[1e200, 2, 3]]), "shapes: 1e.200"),
+    (lambda: TABLE_1.column(1.5), "position 1.5 is not in"),      # column 1 before
     (lambda: Model.identical(TABLE_1, 1), "n_beams"),
     (lambda: Model.identical(TABLE_1, 2, topology="circular"), "topology"),
     (lambda: Model.identical(TABLE_1, 3, topology="ring"), "topology"),
