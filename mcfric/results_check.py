@@ -100,7 +100,7 @@ def check_file(path):
     _check_against_record(path, cfg, ds)
     g = read_group(path, "bounds")
     if g is not None:
-        _check_bounds(path, *g, ds["frequency"][1][0])
+        check_bounds(path, *g, ds["frequency"][1][0])
     return a, cfg
 
 
@@ -134,9 +134,10 @@ CERTIFICATE_DATASETS = (("upper_certified", "f", 1), ("lower_certified", "f", 1)
 BOUNDS_ATTRS = ("k_max_re", "k_max_im", "F_lim", "quantity", "beams")
 
 
-def _check_bounds(path, g, attrs, n_f):
-    """Every dataset and attribute of ``bounds/`` that the readers use, with one value
-    (or row) per frequency."""
+def check_bounds(path, g, attrs, n_f):
+    """Raise :class:`StoreError` unless every dataset and attribute of ``bounds/`` that
+    the readers use is there, with one value (or row) per frequency (``n_f``); ``g``,
+    ``attrs``: the group and its attributes (:func:`mcfric.store.read_group`)."""
     # any part of a certificate means all of it: with upper_certified deleted the file
     # read as "not certified (--no-certify)"
     certified = (any(k in g for k, _, _ in CERTIFICATE_DATASETS)

@@ -552,6 +552,23 @@ def _damaged(tmp_path, how):
     return res
 
 
+@pytest.mark.parametrize("how, words", [
+    (lambda h: h.__delitem__("bounds/K_upper"), "bounds/K_upper is missing"),
+    (lambda h: h.__delitem__("bounds/upper_certified"), "bounds/upper_certified is missing"),
+    (lambda h: h["bounds"].attrs.__delitem__("F_lim"), "lacks the attribute F_lim"),
+    (lambda h: h["bounds"].attrs.__setitem__("k_max_re", "abc"), "bounds/ is not readable"),
+])
+def test_read_bounds_names_a_damaged_group(tmp_path, how, words):
+    """read_bounds alone (as the Python API calls it): a KeyError or ValueError before."""
+    from mcfric.bounds import read_bounds
+
+    res = _damaged(tmp_path, how)
+    with pytest.raises(store.StoreError) as e:
+        read_bounds(res)
+    assert str(e.value).startswith(f"{res}: ") and words in str(e.value), e.value
+    assert "\n" not in str(e.value)
+
+
 def _stored(section, key, value):
     """An edit of the stored configuration's ``[section] key``."""
     def how(h):

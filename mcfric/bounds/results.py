@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..metric import METRIC_UNITS
+from ..results_check import check_bounds
 from .certified import Certificate
 from .equivalent_linear import Bounds
 
@@ -131,12 +132,23 @@ def read_bounds(path):
         (``certificate``), in the metric's unit; None if the file has no ``bounds/``
         group.
     """
-    from ..store import read, read_group
+    from ..store import StoreError, read, read_group
 
     found = read_group(path, "bounds")
     if found is None:
         return None
     g, a = found
+    f = read(path, "frequency")
+    # a damaged group: one line naming what is missing, not a KeyError
+    check_bounds(path, g, a, len(f))
+    try:
+        return _bounds(f, g, a)
+    except (TypeError, ValueError) as e:
+        raise StoreError(f"{path}: bounds/ is not readable ({e})") from None
+
+
+def _bounds(f, g, a):
+    """:class:`Bounds` from the frequencies ``f`` and the checked group ``g``, ``a``."""
     cert = None
     if "upper_certified" in g:
         conv = np.asarray(g["certified_converged"])
@@ -152,7 +164,7 @@ def read_bounds(path):
                            # files before it was stored: 0.5 % then for every model
                            float(a.get("certify_rtol", 5e-3)),
                            np.asarray(a.get("certify_first_order", [0, 0]), np.int64))
-    return Bounds(read(path, "frequency"), g["upper"], g["lower"], g["upper_box"],
+    return Bounds(f, g["upper"], g["lower"], g["upper_box"],
                   g["upper_force"], g["limited_by"], g["K_upper"], g["K_lower"],
                   float(a["k_max_re"]), float(a["k_max_im"]), float(a["F_lim"]),
                   str(a["quantity"]), tuple(int(b) - 1 for b in np.atleast_1d(a["beams"])),

@@ -11,8 +11,8 @@ import numpy as np
 from ..metric import METRIC_UNITS as UNITS
 from ..metric import QUANTITIES
 from ..parsing import as_int
-from ..uff import (FRF, GENERAL, SPEC_TYPE, TAG, UFF_SUFFIXES, id_date, si_units_dataset,
-                   write_atomic)
+from ..uff import FRF, GENERAL, SPEC_TYPE, UFF_SUFFIXES, id_date, si_units_dataset, write_atomic
+from ..uff import TAG as ID_TAGS
 from ..validators import is_bool, is_num
 from .measurement import KINDS, METRIC
 
@@ -104,7 +104,7 @@ def export_uff58(path, freq_hz, data, *, force_n, beams=None, nodes=None, percen
         # a line break or a non-ASCII character breaks UFF's fixed 80-column lines
         raise ValueError(f"{path}: description: expected printable ASCII text, got "
                          f"{description!r}")
-    if TAG.search(description):
+    if ID_TAGS.search(description):
         # read back as the export's own kind=, force_n= or percentile= tags
         raise ValueError(f"{path}: description: {description!r} holds a tag that "
                          f"read_measured reads (kind=, force_n=, percentile=)")
