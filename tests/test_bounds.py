@@ -338,6 +338,7 @@ def test_bounds_scale_with_the_metric_quantity():
     (dict(k_max=K_MAX, certified="no"), "certified"),    # a truthy string ran it
     (dict(k_max=K_MAX, budget=True), "budget"),           # ran with a budget of 1
     (dict(k_max=K_MAX, split=False), "split"),            # ran with split 0
+    (dict(k_max=K_MAX, certified=False, moments="yes"), "moments"),   # ignored silently
     (dict(k_max=K_MAX, model=dataclasses.replace(mcfric.two_beam(), contact_law="cubic")),
      "Coulomb"),
     (dict(k_max=K_MAX, freq_hz=[1e160]), "at most"),     # receptances overflowed to 0

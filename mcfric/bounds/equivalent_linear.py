@@ -390,6 +390,9 @@ def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity
         if v is not None:       # None: the certificate's default
             integer(lo)(v, name)
     flag("certified", certified)
+    if not (is_bool(moments) or (isinstance(moments, str) and moments == "auto")):
+        # checked without certification too: "yes" was ignored there silently
+        raise ValueError(f'moments: expected "auto", True or False, got {moments!r}')
     if progress is not None and not is_bool(progress):
         raise ValueError(f"progress: expected True, False or None, got {progress!r}")
     for i, t in enumerate(model.beams):
