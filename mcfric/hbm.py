@@ -85,7 +85,9 @@ class HBMResult:
     harmonic_indicator : ndarray, shape (n_s, n_f) or None
         Single-harmonic solves with ``indicator=True``: an estimate (not a bound) of the
         3rd and 5th harmonics at the output relative to the fundamental (-);
-        above :data:`INDICATOR_THRESHOLD`, rerun the point with ``harmonics >= 3``.
+        above :data:`INDICATOR_THRESHOLD`, rerun the point with ``harmonics >= 3``;
+        NaN where not converged, inf where the outputs have no fundamental but the
+        dampers' harmonics reach them.
     response_harmonics : ndarray of complex, shape (n_s, n_f, n_h, n_beams) or None
         With ``store_harmonics``: the odd harmonics 1, 3, ..., of the output
         displacement, m (``response`` is the first of them).

@@ -421,6 +421,25 @@ def test_a_run_whose_harmonics_the_solve_would_refuse_is_refused_up_front(tmp_pa
         assert list(tmp_path.iterdir()) == []
 
 
+def test_indicator_without_a_fundamental_is_infinite_not_zero():
+    """Slipping dampers whose harmonics reach outputs that have no fundamental: inf
+    (it said 0, no harmonics); without harmonics there, 0; not converged, NaN."""
+    from mcfric.core.harmonic_indicator import harmonic_indicator
+
+    a, b = np.array([0]), np.array([1])
+    one = np.ones((1, 1))
+    s = np.array([[[0.5], [0.5], [np.nan], [0.5]]])            # 4 frequencies
+    h3 = np.ones((1, 4, 2))
+    h3[0, 1] = 0.0                                              # no path to the output
+    h5 = h3.copy()
+    y = np.zeros((1, 4, 2), complex)
+    y[0, 3, 1] = 1e-3
+    out = np.zeros((1, 4))
+    harmonic_indicator(h3, h5, a, b, one, one, one, s, y, out)
+    assert out[0, 0] == np.inf and out[0, 1] == 0.0 and np.isnan(out[0, 2])
+    assert 0 < out[0, 3] < np.inf
+
+
 def test_indicator_bounds_the_higher_harmonics_of_each_point(eight_beam):
     """The indicator (slip ratios only, triangle inequality) is >= the output's 3rd + 5th
     harmonics relative to the fundamental, computed with phases through the AFT."""

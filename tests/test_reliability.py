@@ -569,6 +569,22 @@ def test_read_bounds_names_a_damaged_group(tmp_path, how, words):
     assert "\n" not in str(e.value)
 
 
+def test_an_infinite_indicator_is_counted_and_named(tmp_path, capsys):
+    """inf (higher harmonics, no fundamental at the outputs) is flagged, not left out of
+    the count as a non-finite value."""
+    def inf(h):
+        v = h["harmonic_indicator"][...]
+        v[:] = 0.0
+        v[4, 7] = np.inf
+        h["harmonic_indicator"][...] = v
+    res = _damaged(tmp_path, inf)
+    capsys.readouterr()
+    assert cli.main(["info", str(res)]) == 0
+    out = capsys.readouterr().out
+    assert "harmonics:   single-harmonic; 1 of 240 converged points" in out, out
+    assert "member 4 at " in out and "(inf)" in out
+
+
 def _stored(section, key, value):
     """An edit of the stored configuration's ``[section] key``."""
     def how(h):

@@ -42,7 +42,8 @@ def harmonic_indicator(h3, h5, a, b, mu0, N0, kc, s, y, out):
     y : ndarray of complex, shape (n_s, n_f, n_beams)
         Output displacement (fundamental), m.
     out : ndarray, shape (n_s, n_f)
-        Out: the indicator (-), NaN where the point did not converge.
+        Out: the indicator (-), NaN where the point did not converge, inf where the
+        outputs have higher harmonics but no fundamental.
     """
     n_s, n_f, nd = s.shape
     n_beams = y.shape[2]
@@ -83,5 +84,9 @@ def harmonic_indicator(h3, h5, a, b, mu0, N0, kc, s, y, out):
             big = math.sqrt(big)
             if bad:
                 out[i, k] = math.nan
+            elif big > 0.0:
+                out[i, k] = high / big
             else:
-                out[i, k] = high / big if big > 0.0 else 0.0
+                # no fundamental at any output: harmonics there are infinitely many
+                # times it (0 said there were none)
+                out[i, k] = math.inf if high > 0.0 else 0.0
