@@ -315,3 +315,11 @@ def test_replace_takes_numpy_values_as_a_toml_file_gives_them():
         c = cfg.replace("metric.beams", beams)
         assert c["metric"]["beams"] == [1, 3] and "beams = [1, 3]" in c.toml()
     assert cfg.replace("excitation.F0", np.float64(0.5))["excitation"]["F0"] == 0.5
+
+
+@pytest.mark.parametrize("source", [3, ["eight-beam"], 1.5])
+def test_a_source_of_another_type_is_named(source):
+    # Path() raised a TypeError that named no argument
+    with pytest.raises(ValueError, match=f"^source: expected a preset name, a TOML file's "
+                                         f"path, a dict or None, got {type(source).__name__}$"):
+        config.load(source)

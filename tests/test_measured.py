@@ -509,3 +509,10 @@ def test_binary_58b_records(tmp_path):
     with pytest.raises(ValueError) as e:
         read_measured(bad, nodes=NODES)
     one_line(e, str(bad), "truncated")
+
+
+@pytest.mark.parametrize("path", [3, None, ["x.uff"]])
+def test_a_path_of_another_type_is_named(path):
+    # Path() raised a TypeError that named no argument
+    with pytest.raises(ValueError, match="^path: expected a UFF or CSV file's path, got"):
+        read_measured(path, nodes=NODES)

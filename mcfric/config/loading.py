@@ -9,6 +9,7 @@ holds the numbers.
 from __future__ import annotations
 
 import copy
+import os
 import shlex
 import tomllib
 from pathlib import Path
@@ -111,9 +112,13 @@ def load(source=None, overrides=None):
         user = copy.deepcopy(source)
     elif isinstance(source, str) and source in PRESETS:
         user = {"model": {"preset": source}}
-    else:
+    elif isinstance(source, (str, os.PathLike)):
         user = read_toml(source)
         _expand_modal_files(user, Path(source).parent)
+    else:
+        # Path() raised a TypeError that named no argument
+        raise InputError("source", f"expected a preset name, a TOML file's path, a dict or "
+                         f"None, got {type(source).__name__}")
     model = user.get("model", {})
     base_name = model.get("preset", DEFAULT_PRESET) if isinstance(model, dict) else DEFAULT_PRESET
     if not isinstance(base_name, str) or base_name not in PRESETS:

@@ -9,6 +9,7 @@ what a file does not say and must agree with what it does.
 from __future__ import annotations
 
 import math
+import os
 import re
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -74,6 +75,8 @@ def read_measured(path, *, nodes=None, direction=None, quantity=None, force_n=No
     ImportError
         A UFF file without pyuff installed.
     """
+    if not isinstance(path, (str, os.PathLike)):
+        raise ValueError(f"path: expected a UFF or CSV file's path, got {type(path).__name__}")
     path = Path(path)
     if format is None:
         suffix = path.suffix.lower()
