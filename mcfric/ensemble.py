@@ -421,7 +421,9 @@ def prepare(spec, path, *, resume=False, force=False):
             # (with --resume and a partial file: the recomputation --force started)
             _check_fingerprint(attrs, f"{final} holds this run, made by other solver code, "
                                       f"numpy/scipy/numba/llvmlite versions or kind of CPU",
-                               "use --force to recompute it, or choose another -o")
+                               "use --force to recompute it" + (
+                                   f", --resume to continue {part}" if part.exists() else "")
+                               + ", or choose another -o")
             return "complete", attrs
         if not (resume and part.exists()):
             raise RunError(f"{final} exists and holds a different run (first difference: "
@@ -474,10 +476,15 @@ def _partial_beside(spec, final):
     if diff is None:
         return [f"note: {part} beside it is an interrupted copy of this run ({done} of "
                 f"{attrs.get('samples')} samples); it is left as it is and may be deleted"]
-    return [f"note: {part} beside it is an interrupted run of another configuration "
-            f"({diff}; {done} of {attrs.get('samples')} samples), left as it is: `mcfric "
-            f"config {part} > run.toml`, then `mcfric run run.toml -o {final} --resume` "
-            f"continues it (it replaces {final} when complete), or delete it"]
+    what = (f"{part} beside it is an interrupted run of another configuration ({diff}; "
+            f"{done} of {attrs.get('samples')} samples), left as it is")
+    if attrs.get("solver_fingerprint") != fingerprint():
+        # --resume would refuse it: its bits are another code's
+        return [f"note: {what}; made by other solver code or libraries, it cannot be "
+                f"continued here: delete it"]
+    return [f"note: {what}: `mcfric config {part} > run.toml`, then `mcfric run run.toml "
+            f"-o {final} --resume` continues it (it replaces {final} when complete), or "
+            f"delete it"]
 
 
 def _check_fingerprint(attrs, what, remedy):

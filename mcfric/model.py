@@ -23,8 +23,8 @@ TOPOLOGIES = ("linear", "circular")
 #: stiffening spring that exists to test the detection of multiple steady states.
 CONTACT_LAWS = ("coulomb", "cubic")
 PATTERNS = ("single", "mode", "travelling")
-#: Largest natural frequency (Hz) and mode-shape magnitude (and smallest non-zero one's
-#: inverse) a modal table may hold: their squares and products stay normal numbers.
+#: Largest natural frequency (Hz) and mode-shape magnitude a modal table may hold, and the
+#: inverse of the smallest largest magnitude: the receptance's squares stay normal numbers.
 SQUARABLE = 1e100
 
 
@@ -63,16 +63,18 @@ class ModalTable:
         if not np.any(u != 0):
             raise ValueError("shapes: all zero: the beam could not move (a modal table with "
                              "no deflection anywhere)")
-        # the receptance squares both: past these, a mode's term overflowed or underflowed
-        # to a response of 0 that was reported as converged
+        # the receptance squares both: a table past these scales overflowed or underflowed
+        # to responses of 0 reported as converged (single tiny entries, e.g. a clamped
+        # node's noise, underflow towards their true value and are kept)
         if f.max() > SQUARABLE:
             raise ValueError(f"freq_hz: {f.max():g} Hz is beyond {SQUARABLE:g} Hz, which "
                              f"double precision squares safely")
-        a = np.abs(u[u != 0])
-        if a.max() > SQUARABLE or a.min() < 1 / SQUARABLE:
-            bad = a.max() if a.max() > SQUARABLE else a.min()
-            raise ValueError(f"shapes: {bad:g} kg^-1/2 is outside {1 / SQUARABLE:g}.."
-                             f"{SQUARABLE:g}, which double precision squares safely")
+        a = np.abs(u)
+        if a.max() > SQUARABLE or a.max() < 1 / SQUARABLE:
+            m, c = np.unravel_index(int(np.argmax(a)), a.shape)
+            raise ValueError(f"shapes: the largest entry, {a.max():g} kg^-1/2 (mode {m + 1}, "
+                             f"column {c + 1}), is outside {1 / SQUARABLE:g}..{SQUARABLE:g}, "
+                             f"which double precision squares safely")
         if isinstance(self.positions, str) or not hasattr(self.positions, "__len__"):
             raise ValueError(f"positions: expected a sequence of integer labels, got "
                              f"{self.positions!r}")
@@ -94,8 +96,9 @@ class ModalTable:
 
     def column(self, position):
         """Mode shapes (n_modes,) at a position label."""
+        label = integer()(position, "position")        # 1.5 is no label (it gave 1)
         try:
-            return self.shapes[:, self.positions.index(integer()(position, "position"))]
+            return self.shapes[:, self.positions.index(label)]
         except ValueError:
             raise ValueError(f"position {position} is not in the modal table "
                              f"(positions: {list(self.positions)})") from None

@@ -334,6 +334,14 @@ def test_a_partial_beside_a_complete_file_is_named_and_resumable(tmp_path, monke
                            "configuration (sampling.seed = 2 there, 1 here; 20 of 30 "
                            "samples)") and "--resume` continues it" in note, note
     assert (tmp_path / "f.h5").read_bytes() == first
+    # a partial of other code: --resume would refuse it, the note does not offer it
+    with h5py.File("f.h5.partial", "r+") as h:
+        mine, h.attrs["solver_fingerprint"] = h.attrs["solver_fingerprint"], "0" * 16
+    rc, out, _ = call(["run", "two-beam", "--seed", "1", *grid], capsys)
+    assert "made by other solver code or libraries, it cannot be continued here" in out
+    assert "--resume` continues" not in out
+    with h5py.File("f.h5.partial", "r+") as h:
+        h.attrs["solver_fingerprint"] = mine
     # an interrupted copy of the same run is called that
     rc, out, _ = call(["run", "two-beam", "--seed", "2", *grid, "--resume"], capsys)
     assert rc == 0 and "already holds" not in out and not (tmp_path / "f.h5.partial").exists()
@@ -349,6 +357,8 @@ def test_a_partial_beside_a_complete_file_is_named_and_resumable(tmp_path, monke
     # FILE of the same run made by other code: --resume continues the recomputation
     with h5py.File("f.h5", "r+") as h:
         h.attrs["solver_fingerprint"] = "0" * 16
+    rc, _, err = call(["run", "two-beam", "--seed", "2", *grid], capsys)
+    assert rc == 2 and "--resume to continue f.h5.partial" in err, err
     rc, out, err = call(["run", "two-beam", "--seed", "2", *grid, "--resume"], capsys)
     assert rc == 0 and "samples: 30 of 30" in out, err
     assert not (tmp_path / "f.h5.partial").exists()

@@ -247,9 +247,10 @@ def test_bad_input_names_the_argument(eight_beam, change, name):
     # squares overflowed or underflowed: a response of 0 reported as converged
     (lambda: mcfric.ModalTable([16.2, 1e300], [0.01, 0.01], [[1, 2, 3], [1, 2, 3]]),
      "freq_hz: 1e.300 Hz is beyond"),
-    (lambda: mcfric.ModalTable([16.2], [0.01], [[1e-300, 2, 3]]), "shapes: 1e-300"),
-    (lambda: mcfric.ModalTable([16.2], [0.01], [[1e200, 2, 3]]), "shapes: 1e.200"),
-    (lambda: TABLE_1.column(1.5), "position 1.5 is not in"),      # column 1 before
+    (lambda: mcfric.ModalTable([16.2], [0.01], [[1e-300, 2e-300, 0]]),
+     r"shapes: the largest entry, 2e-300 kg\^-1/2 \(mode 1, column 2\)"),
+    (lambda: mcfric.ModalTable([16.2], [0.01], [[1, 2, 1e200]]), r"1e\+200 kg\^-1/2 \(mode 1, c"),
+    (lambda: TABLE_1.column(1.5), "position: expected an integer"),   # column 1 before
     (lambda: Model.identical(TABLE_1, 1), "n_beams"),
     (lambda: Model.identical(TABLE_1, 2, topology="circular"), "topology"),
     (lambda: Model.identical(TABLE_1, 3, topology="ring"), "topology"),

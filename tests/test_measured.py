@@ -132,6 +132,16 @@ def test_percentiles_round_trip(tmp_path, ensemble):
     np.testing.assert_allclose(back[2].response, p_beam[2], rtol=1e-10)
 
 
+def test_an_up_and_down_sweep_exports_and_reads_back_in_order(tmp_path):
+    """Repeated frequencies (the same numbers) are no clash of 6 printed digits."""
+    f = np.r_[20.0:81.0:10.0, 70.0:19.0:-10.0]
+    y = np.linspace(1e-5, 2e-5, f.size)[:, None] * [1.0, 2.0]
+    export_uff58(tmp_path / "ud.uff", f, y, force_n=0.5, nodes=NODES)
+    (m,) = read_measured(tmp_path / "ud.uff", nodes=NODES)
+    assert np.array_equal(m.frequency_hz, f)
+    np.testing.assert_allclose(np.abs(m.response), y, rtol=1e-11)
+
+
 def test_export_leaves_out_non_finite_points(tmp_path):
     y = np.abs(np.sin(FREQ))[:, None] * [1.0, 2.0] + 1e-6
     y[[3, 10], 0] = np.nan
@@ -302,8 +312,9 @@ def test_truncated_and_wrong_uff_files(tmp_path):
     ({"nodes": NODES, "name": "e.csv"}, "expected a UFF file name"),
     # two frequencies one UFF 58 text prints alike, and ones out of order
     ({"nodes": NODES, "freq": np.r_[FREQ[0], FREQ[0] * (1 + 2e-7), FREQ[2:]]},
-     "print as 9.30000e+00 and 9.30000e+00 in UFF 58's 6 significant digits"),
-    ({"nodes": NODES, "freq": FREQ[::-1]}, "expected increasing frequencies"),
+     "9.3 and 9.30000186 Hz both print as 9.30000e+00 in UFF 58's 6 significant digits"),
+    # apart in the grid: a down sweep after the up sweep
+    ({"nodes": NODES, "freq": np.r_[FREQ[:31], FREQ[29::-1] * (1 + 1e-7)]}, "both print as"),
     ({"nodes": NODES, "description": "rig\nrun 12"}, "description: expected printable ASCII"),
     ({"nodes": NODES, "description": "rig kind=stepped"}, "holds a tag that read_measured"),
 ])

@@ -89,16 +89,17 @@ def export_uff58(path, freq_hz, data, *, force_n, beams=None, nodes=None, percen
     f = np.asarray(freq_hz, dtype=float)
     if f.ndim != 1 or f.size < 2 or not np.all(np.isfinite(f) & (f > 0)):
         raise ValueError(f"{path}: freq_hz: expected at least 2 finite frequencies > 0 Hz")
-    # UFF 58 text prints an uneven abscissa as E13.5: frequencies that print alike (or out
-    # of order) would read back as one point, or as another curve
-    printed = np.array([float(f"{x:.5e}") for x in f])
-    clash = np.flatnonzero(np.diff(printed) <= 0)
+    # UFF 58 text prints an uneven abscissa as E13.5: two different frequencies that print
+    # alike would read back as two points at one frequency (an up-and-down sweep's
+    # repeated frequencies are the same number, and stay)
+    distinct = np.unique(f)
+    printed = np.array([float(f"{x:.5e}") for x in distinct])
+    clash = np.flatnonzero(np.diff(printed) == 0)
     if clash.size:
-        i = int(clash[0])
-        raise ValueError(f"{path}: freq_hz: {f[i]!r} and {f[i + 1]!r} Hz (points {i} and "
-                         f"{i + 1}) print as {printed[i]:.5e} and {printed[i + 1]:.5e} in UFF "
-                         f"58's 6 significant digits: expected increasing frequencies that "
-                         f"differ there")
+        lo, hi = (float(x) for x in distinct[clash[0]:clash[0] + 2])
+        raise ValueError(f"{path}: freq_hz: {lo:.10g} and {hi:.10g} Hz both print as "
+                         f"{printed[clash[0]]:.5e} in UFF 58's 6 significant digits: "
+                         f"expected frequencies that differ there")
     if not isinstance(description, str) or not (description.isascii()
                                                 and description.isprintable()):
         # a line break or a non-ASCII character breaks UFF's fixed 80-column lines
