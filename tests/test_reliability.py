@@ -572,17 +572,25 @@ def test_read_bounds_names_a_damaged_group(tmp_path, how, words):
 def test_an_infinite_indicator_is_counted_and_named(tmp_path, capsys):
     """inf (higher harmonics, no fundamental at the outputs) is flagged, not left out of
     the count as a non-finite value."""
-    def inf(h):
-        v = h["harmonic_indicator"][...]
+    def inf(v):
         v[:] = 0.0
         v[4, 7] = np.inf
-        h["harmonic_indicator"][...] = v
-    res = _damaged(tmp_path, inf)
-    capsys.readouterr()
-    assert cli.main(["info", str(res)]) == 0
-    out = capsys.readouterr().out
+    out = _info_with(tmp_path, capsys, "harmonic_indicator", inf)
     assert "harmonics:   single-harmonic; 1 of 240 converged points" in out, out
     assert "member 4 at " in out and "(inf)" in out
+
+
+def _info_with(tmp_path, capsys, name, edit):
+    """What ``mcfric info`` prints for a small run's file whose dataset ``name`` was
+    edited in place by ``edit(values)``."""
+    def how(h):
+        v = h[name][...]
+        edit(v)
+        h[name][...] = v
+    res = _damaged(tmp_path, how)
+    capsys.readouterr()
+    assert cli.main(["info", str(res)]) == 0
+    return capsys.readouterr().out
 
 
 def _stored(section, key, value):
@@ -671,14 +679,7 @@ def test_info_and_plot_on_edited_attributes_are_one_line_exit_2(tmp_path, capsys
 
 
 def test_a_nan_metric_marked_converged_is_reported_not_ranged(tmp_path, capsys):
-    def nan(h):
-        m = h["metric"][...]
-        m[0, 0] = np.nan
-        h["metric"][...] = m
-    res = _damaged(tmp_path, nan)
-    capsys.readouterr()
-    assert cli.main(["info", str(res)]) == 0
-    out = capsys.readouterr().out
+    out = _info_with(tmp_path, capsys, "metric", lambda m: m.__setitem__((0, 0), np.nan))
     assert "inf" not in out.split("metric:")[1].splitlines()[0]
     assert "1 points marked converged hold no finite metric" in out
 
