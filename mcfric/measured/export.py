@@ -48,8 +48,8 @@ def export_uff58(path, freq_hz, data, *, force_n, beams=None, nodes=None, percen
     path : str or Path
         Output file, written atomically.
     freq_hz : array_like, shape (n_f,)
-        Frequencies, Hz (> 0), increasing, and distinct in 6 significant digits (how
-        UFF 58 text prints them).
+        Frequencies, Hz (> 0), in any order (an up-and-down sweep repeats them); two
+        different ones must differ in 6 significant digits (how UFF 58 text prints them).
     data : array_like
         ``(n_f, n_beams)`` complex responses or real amplitudes of one member; with
         ``percentiles``, ``(n_p, n_f, n_beams)`` or ``(n_p, n_f)`` (percentiles of the
