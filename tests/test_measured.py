@@ -109,6 +109,10 @@ def test_normalisation_is_the_homogeneity_of_the_friction_law(tmp_path, ensemble
     # c times the rig's response is the response at F0 with preload c N0
     np.testing.assert_allclose(norm.response, np.abs(res.response[MEMBER]), rtol=1e-7)
     assert fraction_inside(norm, FREQ, lo, up).overall == 1.0
+    # a force level whose factor overflows is refused, not returned as a response of inf
+    tiny = Measurement(FREQ, meas.response, meas.beams, force_n=1e-310)
+    with pytest.raises(ValueError, match="makes the response overflow"):
+        normalise(tiny, 0.22)
 
 
 def test_percentiles_round_trip(tmp_path, ensemble):

@@ -319,6 +319,11 @@ def test_the_measured_force_can_be_given_on_the_command_line(results, tmp_path, 
     rc, out, err = call(["plot", results, "-o", png, "--measured", data, "--measured-force",
                          "0.44", "--normalise"], capsys)
     assert rc == 0 and "c = F0/F_meas = 0.22/0.44" in out, err
+    # a force level so small that the factor overflows: one line, no figure
+    rc, out, err = call(["plot", results, "-o", tmp_path / "t.png", "--measured", data,
+                         "--measured-force", "1e-310", "--normalise"], capsys)
+    assert rc == 2 and "makes the response overflow" in err and err.count("\n") == 1, err
+    assert not (tmp_path / "t.png").exists()
 
 
 def test_a_triaxial_uff_file_takes_the_measured_direction(results, tmp_path, capsys):

@@ -157,7 +157,10 @@ def _read_measured(args, attrs):
             if args.normalise:
                 if m.force_n is None:
                     raise UsageError(f"--normalise: {data} gives no force level (force_n)")
-                m, report = ms.normalise(m, F0)
+                try:
+                    m, report = ms.normalise(m, F0)
+                except ValueError as e:
+                    raise UsageError(f"--normalise: {data}: {e}") from None
                 # printed once all are read (a refusal prints nothing else), once each
                 if report.text() not in reports:
                     reports.append(report.text())

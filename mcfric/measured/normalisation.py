@@ -7,7 +7,10 @@ preload ``c N0``, ``c = F0 / F_meas``.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
+
+import numpy as np
 
 from ..validators import real
 from .measurement import Measurement
@@ -79,7 +82,14 @@ def normalise(measurement, F0, *, N0_meas=None):
         who = f"{measurement.source}: " if measurement.source else ""
         raise ValueError(f"{who}force level unknown: normalising needs the measurement's "
                          f"force_n (pass force_n= when reading)")
-    c = F0 / measurement.force_n
+    with np.errstate(over="ignore", invalid="ignore"):
+        c = F0 / measurement.force_n
+        finite = np.isfinite(measurement.response * c) | np.isnan(measurement.response)
+    if not (math.isfinite(c) and c > 0 and finite.all()):
+        # a force level of 1e-310 N makes c overflow: say so, not a response of inf
+        raise ValueError(f"normalising from F_meas = {measurement.force_n:g} N to F0 = "
+                         f"{F0:g} N: the factor F0/F_meas = {c:g} makes the response "
+                         f"overflow (is the force level in N?)")
     N0_eq = None
     if N0_meas is not None:
         N0_meas = real("N0_meas", N0_meas, lo=0)
