@@ -9,6 +9,7 @@
 
 from __future__ import annotations
 
+import math
 import textwrap
 from pathlib import Path
 
@@ -94,7 +95,8 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
     quantity : {"displacement", "velocity", "acceleration"}, optional
         Plot ``omega^k`` times the stored amplitudes; default the stored quantity.
     f_window : (float, float), optional
-        Frequency window, Hz.
+        Frequency window, Hz, ``0 <= f_min < f_max``; the axis spans its part inside the
+        file's frequencies.
     member : int or None
         Ensemble member (sample index) drawn in black; None for none.
     max_lines : int
@@ -138,12 +140,16 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
     # converted quantity peaks a little higher up (omega^k |y|), so a lower estimate
     conv = "" if quantity == stored else f"; refined as {stored}, converted: may lie slightly low"
     lo_f, hi_f = (f.min(), f.max()) if f_window is None else map(float, f_window)
-    if not hi_f > lo_f:
-        raise InputError("f_window", f"expected f_min < f_max, got {lo_f:g}, {hi_f:g}")
+    if not (math.isfinite(lo_f) and math.isfinite(hi_f) and 0 <= lo_f < hi_f):
+        raise InputError("f_window", f"expected 0 <= f_min < f_max (finite, Hz), got "
+                         f"{lo_f:g}, {hi_f:g}")
     win = (f >= lo_f) & (f <= hi_f)
     if not win.any():
         raise InputError("f_window", f"no frequencies of {path} in {lo_f:g}..{hi_f:g} Hz")
     fw = f[win]
+    # the axis spans the window's part inside the file's frequencies: nothing is drawn
+    # beyond them, and --f-max 1e308 is no axis to draw
+    lo_f, hi_f = max(lo_f, float(f.min())), min(hi_f, float(f.max()))
 
     fig = _figure((8, 6.0))      # the extra height holds the legend below the axes
     ax = fig.add_subplot()
@@ -409,7 +415,7 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
                         label=text)
     ax.set_yscale("log")
     # a margin: markers at the ends of the band stay visible
-    pad = 0.005 * (hi_f - lo_f)
+    pad = 0.005 * (hi_f - lo_f) or 0.005 * max(hi_f, 1.0)    # a window of one frequency
     ax.set_xlim(lo_f - pad, hi_f + pad)
     ax.autoscale(axis="y")
     if band is not None:
@@ -469,7 +475,7 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
             "n_flagged": int(flagged_at.sum()), "n_not_converged": n_failed,
             "n_peaks_unrefined": n_unrefined, "n_fold_lower": n_fold_lower,
             "bound_peaks": marked,
-            "legend": list(labels), "ylabel": ax.get_ylabel()}
+            "legend": list(labels), "ylabel": ax.get_ylabel(), "xlim": ax.get_xlim()}
 
 
 def _config(attrs):

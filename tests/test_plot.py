@@ -11,6 +11,7 @@ import pytest
 from matplotlib.image import imread
 
 from mcfric import cli
+from mcfric.validators import InputError
 
 TAB_BLUE = (31 / 255, 119 / 255, 180 / 255)     # upper bound
 TAB_RED = (214 / 255, 39 / 255, 40 / 255)       # lower bound
@@ -99,7 +100,7 @@ def test_quantity_and_window(results, tmp_path, capsys):
 
 @pytest.mark.parametrize("case", ["missing file", "jpg output", "f-min above f-max",
                                   "window outside the grid", "bad quantity", "infinite f-max",
-                                  "NaN f-min", "a directory"])
+                                  "NaN f-min", "negative f-min", "a directory"])
 def test_bad_input_is_one_line_exit_2(case, results, tmp_path, capsys):
     out_png = tmp_path / "fig.png"
     argv = {
@@ -112,11 +113,13 @@ def test_bad_input_is_one_line_exit_2(case, results, tmp_path, capsys):
         "bad quantity": ["plot", results, "-o", out_png, "--quantity", "force"],
         "infinite f-max": ["plot", results, "-o", out_png, "--f-max", "inf"],
         "NaN f-min": ["plot", results, "-o", out_png, "--f-min", "nan"],
+        "negative f-min": ["plot", results, "-o", out_png, "--f-min", "-1"],
         "a directory": ["plot", tmp_path, "-o", out_png],
     }[case]
     words = {"f-min above f-max": "--f-min: expected f-min < f-max",
              "infinite f-max": "--f-max: expected a frequency",
              "NaN f-min": "--f-min: expected a frequency",
+             "negative f-min": "--f-min: expected a frequency >= 0 Hz, got -1",
              "a directory": "a directory, not a results file",
              "window outside the grid": "--f-min/--f-max: no frequencies of"}.get(case, "")
     rc, out, err = call(argv, capsys)
@@ -124,6 +127,20 @@ def test_bad_input_is_one_line_exit_2(case, results, tmp_path, capsys):
     lines = err.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("mcfric: error: ") and words in err, err
     assert not out_png.exists() and not (tmp_path / "fig.jpg").exists()
+
+
+def test_a_window_beyond_the_grid_spans_the_grid(results, tmp_path):
+    """--f-min 0 --f-max 1e308 is every frequency: the axis spans the file's frequencies
+    (matplotlib warned of an overflow drawing 1e308 Hz; warnings are errors here)."""
+    from mcfric import plot
+
+    with h5py.File(results, "r") as h5:
+        f = h5["frequency"][()]
+    drawn = plot.results_figure(results, tmp_path / "w.png", f_window=(0.0, 1e308))
+    lo, hi = drawn["xlim"]
+    assert f.min() - 0.01 * np.ptp(f) < lo < f.min() and f.max() < hi < f.max() + 0.01 * np.ptp(f)
+    with pytest.raises(InputError, match="expected 0 <= f_min < f_max"):
+        plot.results_figure(results, tmp_path / "n.png", f_window=(-1.0, 50.0))
 
 
 def _member_csv(results, path, member, scale=1.0):

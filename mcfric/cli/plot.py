@@ -43,8 +43,8 @@ def cmd_plot(args):
         window = (args.f_min if args.f_min is not None else f.min(),
                   args.f_max if args.f_max is not None else f.max())
         for flag, v in (("--f-min", args.f_min), ("--f-max", args.f_max)):
-            if v is not None and not math.isfinite(v):
-                raise UsageError(f"{flag}: expected a frequency in Hz, got {v}")
+            if v is not None and not (math.isfinite(v) and v >= 0):
+                raise UsageError(f"{flag}: expected a frequency >= 0 Hz, got {v:g}")
         if not window[0] < window[1]:
             flag = "--f-min" if args.f_min is not None else "--f-max"
             raise UsageError(f"{flag}: expected f-min < f-max, got {window[0]:g} and "
