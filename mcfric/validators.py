@@ -400,6 +400,22 @@ F0_RANGE = (1e-12, 1e6)
 KC_MAX = 1e12
 
 
+#: Largest slip force ``mu0 N0`` accepted, N: far beyond any damper (a stuck one; forces
+#: above F0_RANGE's top are stuck for every F0). Near 1e308 the force limit 4/pi mu0 N0
+#: overflowed to inf and a response came back as inf.
+SLIP_FORCE_MAX = 1e12
+
+
+def check_slip_force(name, mu0, N0):
+    """Raise :class:`InputError` under ``name`` where ``mu0 N0`` (N, broadcast) exceeds
+    :data:`SLIP_FORCE_MAX`."""
+    with np.errstate(over="ignore"):
+        top = float(np.max(np.asarray(mu0, dtype=float) * np.asarray(N0, dtype=float)))
+    if top > SLIP_FORCE_MAX:
+        raise InputError(name, f"expected mu0 N0 of at most {SLIP_FORCE_MAX:g} N (a stuck "
+                         f"damper), got {top:g}")
+
+
 def check_kc(name, kc):
     """Raise :class:`InputError` under ``name`` where a contact stiffness ``kc`` (N/m,
     any shape) exceeds :data:`KC_MAX`."""
@@ -413,7 +429,8 @@ def per_damper(nd, **params):
 
     Each parameter may be a scalar (all samples and dampers), shape (nd,) (one sample),
     shape (n_s, 1) (same for every damper of a sample) or (n_s, nd). Values must be
-    finite and >= 0; ``kc`` at most :data:`KC_MAX`.
+    finite and >= 0; ``kc`` at most :data:`KC_MAX`, ``mu0 N0`` at most
+    :data:`SLIP_FORCE_MAX`.
     """
     out = {}
     n_s = 1
@@ -446,4 +463,6 @@ def per_damper(nd, **params):
                                  f"{n_s} samples of the other parameters")
             n_s = arr.shape[0]
         out[name] = arr
+    if "mu0" in out and "N0" in out:
+        check_slip_force("N0", out["mu0"], out["N0"])
     return {k: np.ascontiguousarray(np.broadcast_to(v, (n_s, nd))) for k, v in out.items()}

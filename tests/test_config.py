@@ -106,6 +106,27 @@ def test_a_vanishing_force_is_refused():
         == 1e-12
 
 
+def test_a_slip_force_beyond_a_stuck_damper_is_refused():
+    """mu0 N0 near 1e308 made the force limit 4/pi mu0 N0 inf and a response inf: the
+    draws' reach is held to 1e12 N, the API's arrays too; a truncated normal open above
+    (allowed for mu0 and N0) is taken at 8.3 std above its mean."""
+    from mcfric import hbm, two_beam
+    from mcfric.validators import InputError
+
+    fixed = {"dist": "fixed", "value": 1e12}          # with mu0 up to 1: exactly at the limit
+    config.load("two-beam").replace("sampling.N0", fixed)
+    with pytest.raises(ConfigError, match=r"sampling.N0: expected draws with mu0 N0 of at "
+                                          r"most 1e\+12 N .* reach 1.1e\+12"):
+        config.load("two-beam").replace("sampling.N0", {"dist": "fixed", "value": 1.1e12})
+    open_top = {"dist": "truncnormal", "mean": 0.6, "std": 0.1, "low": 0.0,
+                "high": float("inf")}
+    cfg = config.load("two-beam", {"sampling.mu0": (open_top, "--mu0"),
+                                   "bounds.F_lim": (5.0, "--F-lim")})
+    assert cfg.samples > 0
+    with pytest.raises(InputError, match="mu0 N0 of at most 1e\\+12 N"):
+        hbm.solve(two_beam(0.22), [30.0], 1e300, 6000.0, 0.5)
+
+
 def test_file_merges_key_by_key_and_replaces_distribution_tables(tmp_path):
     p = tmp_path / "c.toml"
     p.write_text('[model]\npreset = "two-beam"\n[frequency]\nn = 40\n'

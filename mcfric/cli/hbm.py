@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from .errors import EXIT_OK, UsageError
-from .inputs import check_friction_flag, load_config
+from .inputs import check_friction_flag, check_slip_flags, load_config
 from .outputs import output_path
 
 
@@ -18,6 +18,7 @@ def cmd_hbm(args):
     spec = load_config(args).spec
     for flag, v in (("mu0", args.mu0), ("kc", args.kc), ("N0", args.N0)):
         check_friction_flag(flag, v)
+    check_slip_flags(args.mu0, args.N0)
     out = output_path(args, ".csv", prefix="hbm-", figure=not args.no_figure)
     model, f = spec.model, spec.freq_hz
     H = spec.solver.harmonics

@@ -85,6 +85,17 @@ def check_friction_flag(name, v):
         raise UsageError(str(e)) from None
 
 
+def check_slip_flags(mu0, N0):
+    """``--mu0`` times ``--N0`` at most :data:`mcfric.validators.SLIP_FORCE_MAX` (N); a
+    UsageError naming both flags otherwise."""
+    from ..validators import InputError, check_slip_force
+
+    try:
+        check_slip_force("--mu0 x --N0", mu0, N0)
+    except InputError as e:
+        raise UsageError(str(e)) from None
+
+
 def shortfall_note(cfg):
     """A note where ``[bounds]``' constraints leave out friction the sampling draws (a
     limit given in kN/m, say): the bounds then need not hold for every member."""

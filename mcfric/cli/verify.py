@@ -7,7 +7,7 @@ import math
 from pathlib import Path
 
 from .errors import EXIT_OK, UsageError
-from .inputs import check_friction_flag, load_config
+from .inputs import check_friction_flag, check_slip_flags, load_config
 from .outputs import checked_file, is_hdf5, output_path
 
 
@@ -61,6 +61,7 @@ def _verify_source(args):
         v = default if v is None else v
         check_friction_flag(flag, v)
         params.append(v)
+    check_slip_flags(params[0], params[2])
     return spec.model, params, None, spec
 
 

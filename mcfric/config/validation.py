@@ -16,7 +16,7 @@ import numpy as np
 
 from .. import sampling
 from ..bounds.equivalent_linear import K_MAX_LIMIT, past_limits
-from ..validators import InputError, choices, is_num, show
+from ..validators import SLIP_FORCE_MAX, InputError, choices, is_num, show
 from . import configuration  # at call time: configuration imports this module
 from .schema import BEAM, SPEC, TABLE
 
@@ -271,6 +271,13 @@ def _cross_checks(c):
                          f"contact); this distribution reaches {top:.3g}" +
                          (" (8.3 standard deviations: the draws' reach)"
                           if kc["dist"] in ("normal", "lognormal") else ""))
+    s = c["sampling"]
+    top = _reach(s["mu0"]) * _reach(s["N0"])
+    if top > SLIP_FORCE_MAX:
+        # as for kc: the solvers refuse such draws, so they are refused before the run
+        raise InputError("sampling.N0", f"expected draws with mu0 N0 of at most "
+                         f"{SLIP_FORCE_MAX:g} N (a stuck damper); the mu0 and N0 "
+                         f"distributions reach {top:.3g}")
     if c["bounds"]["enabled"]:
         bounds_limits(c)      # unbounded distributions need explicit limits
     sv = c["solver"]
@@ -304,6 +311,14 @@ def _draw_max(t):
     if d == "lognormal":
         return float(t["median"]) * math.exp(min(8.3 * float(t["sigma"]), 700.0))
     return _dist_max(t)
+
+
+def _reach(t):
+    """:func:`_draw_max`, with a truncated normal open above (``high = inf``, allowed for
+    mu0 and N0) taken to reach 8.3 standard deviations above ``max(low, mean)``."""
+    if t["dist"] == "truncnormal" and math.isinf(float(t["high"])):
+        return max(float(t["low"]), float(t["mean"])) + 8.3 * float(t["std"])
+    return _draw_max(t)
 
 
 def bounds_shortfalls(c):
