@@ -1246,6 +1246,17 @@ def test_an_output_directory_that_cannot_be_written_is_refused_before_the_work(
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="needs Linux's /proc")
+@pytest.mark.parametrize("argv", [["hbm", "two-beam", "--n-freq", "20"],
+                                  ["verify", "two-beam", "--f", "30"]])
+def test_a_directory_that_takes_no_files_is_refused_before_the_work(argv, capsys):
+    """/proc passes os.access for root (as a read-only mount does): hbm and verify
+    computed, then failed to write. A file is made in the directory first."""
+    assert cli.main([*argv, "-o", "/proc/mcfric-test.csv"]) == 2
+    out, err = capsys.readouterr()
+    assert "-o: directory /proc is not writable" in err and out == "", (out, err)
+
+
 def test_verify_of_an_interrupted_run_names_its_partial_file(tmp_path, capsys):
     """`verify FILE` where only FILE.partial exists (an interrupted run) points to it, as
     `plot` does, instead of "no such file" alone."""

@@ -4,6 +4,7 @@ replaces another or the command's input."""
 from __future__ import annotations
 
 import os
+import tempfile
 from pathlib import Path
 
 from .errors import UsageError
@@ -103,6 +104,14 @@ def writable_dir(out):
     is refused now, not after the work."""
     if not os.access(out.parent, os.W_OK | os.X_OK):
         raise UsageError(f"-o: directory {out.parent} is not writable")
+    # os.access says yes to root, and to /proc or a read-only mount: a file is made
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".mcfric-probe-", dir=out.parent)
+    except OSError as e:
+        raise UsageError(f"-o: directory {out.parent} is not writable "
+                         f"({e.strerror or e})") from None
+    os.close(fd)
+    os.unlink(probe)
 
 
 def _not_replacing_input(args, path, what):
