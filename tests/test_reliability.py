@@ -1246,6 +1246,13 @@ def test_an_output_directory_that_cannot_be_written_is_refused_before_the_work(
     assert list(tmp_path.iterdir()) == []
 
 
+def test_verify_takes_every_frequency_given():
+    """`verify --f 30 --f 40` verified 40 Hz only (the second --f replaced the first)."""
+    parse = build_parser().parse_args
+    assert parse(["verify", "--f", "30", "--f", "40", "45"]).f == [30.0, 40.0, 45.0]
+    assert parse(["verify", "--f", "30", "40"]).f == [30.0, 40.0]
+
+
 @pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="needs Linux's /proc")
 @pytest.mark.parametrize("argv", [["hbm", "two-beam", "--n-freq", "20"],
                                   ["verify", "two-beam", "--f", "30"]])

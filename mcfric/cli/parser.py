@@ -238,8 +238,8 @@ def _verify_parser(sub):
                        "--member I taking that member's parameters.")
     v.add_argument("source", nargs="?", help=_source_help() + ", or a results file "
                    "(default: eight-beam)")
-    v.add_argument("--f", type=_hz, nargs="+", required=True, metavar="HZ",
-                   help="drive frequencies, Hz")
+    v.add_argument("--f", type=_hz, nargs="+", action="extend", required=True, metavar="HZ",
+                   help="drive frequencies, Hz (repeated --f add to the list)")
     v.add_argument("--member", type=int, metavar="I",
                    help="member of a results file (0-based) whose parameters to take")
     v.add_argument("--mu0", type=float, help="friction coefficient (default 0.5)")
