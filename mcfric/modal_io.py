@@ -58,6 +58,7 @@ import numpy as np
 from .model import ModalTable
 from .parsing import as_int, csv_rows, short
 from .uff import DIRECTIONS, UFF_SUFFIXES, id_date, read_datasets, si_units_dataset, write_atomic
+from .validators import existing_file
 
 #: UFF 55 analysis types, for messages.
 ANALYSIS_TYPES = {0: "unknown", 1: "static", 2: "normal mode",
@@ -184,8 +185,8 @@ def read_modal_table(path, *, positions=None, direction=None, modes=None, max_im
     """
     path = Path(path)
     fmt = _format(path, format)
-    if fmt != "uff" and not path.is_file():
-        raise ValueError(f"{path}: file not found")
+    if fmt != "uff":
+        existing_file(path)
     if fmt == "uff":
         return _read_uff55(path, positions, direction, modes, max_imag)
     if fmt == "csv":

@@ -16,6 +16,8 @@ import re
 from datetime import datetime
 from pathlib import Path
 
+from .validators import existing_file
+
 UFF_SUFFIXES = (".uff", ".unv", ".uf")
 PYUFF_HINT = ('UFF files need the optional package pyuff: pip install ".[uff]" in the '
               'clone ("mcfric[uff]" where mcfric comes from a package index)')
@@ -83,8 +85,7 @@ def read_datasets(path, wanted):
     """
     pyuff = pyuff_module()
     path = Path(path)
-    if not path.is_file():
-        raise ValueError(f"{path}: file not found")
+    existing_file(path)
     raw = path.read_bytes()
     n_delim = _count_delimiters(raw)
     if n_delim == 0:

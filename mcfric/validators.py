@@ -416,6 +416,17 @@ def check_slip_force(name, mu0, N0):
                          f"damper), got {top:g}")
 
 
+def existing_file(path):
+    """Raise ``ValueError`` naming ``path`` (a Path) where it is no regular file: missing,
+    a directory (``beam.csv/``), or a device or pipe."""
+    if path.is_dir():
+        raise ValueError(f"{path}: a directory, not a file")
+    if not path.exists():
+        raise ValueError(f"{path}: file not found")
+    if not path.is_file():
+        raise ValueError(f"{path}: not a regular file (a device or a pipe)")
+
+
 def check_kc(name, kc):
     """Raise :class:`InputError` under ``name`` where a contact stiffness ``kc`` (N/m,
     any shape) exceeds :data:`KC_MAX`."""

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from mcfric.core.receptance import receptance
+from mcfric.measured import read_measured
 from mcfric.modal_io import UFF_RTOL, read_modal_table, write_modal_table_uff55
 from mcfric.model import TABLE_1, ModalTable, Model
 
@@ -346,6 +347,15 @@ def test_not_a_uff_file_and_missing_file(tmp_path):
     with pytest.raises(ValueError) as e:
         read_modal_table(tmp_path / "none.uff")
     one_line(e, "none.uff", "not found")
+    # a directory named like a file: said so, not "file not found" (CSV and UFF readers)
+    for name in ("dir.uff", "dir.csv"):
+        (tmp_path / name).mkdir()
+        with pytest.raises(ValueError) as e:
+            read_modal_table(tmp_path / name)
+        one_line(e, name, "a directory, not a file")
+        with pytest.raises(ValueError) as e:
+            read_measured(tmp_path / name)
+        one_line(e, name, "a directory, not a file")
     with pytest.raises(ValueError) as e:
         read_modal_table(tmp_path / "table.xlsx")
     one_line(e, "unknown file type", "format=")

@@ -1246,6 +1246,14 @@ def test_an_output_directory_that_cannot_be_written_is_refused_before_the_work(
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.parametrize("command", ["info", "plot"])
+def test_an_empty_file_name_is_named_as_such(command, capsys):
+    """`mcfric info ""` (an unset shell variable) read the current directory: "., a
+    directory"."""
+    assert cli.main([command, ""]) == 2
+    assert "argument file: expected a file name, got ''" in capsys.readouterr().err
+
+
 def test_verify_takes_every_frequency_given():
     """`verify --f 30 --f 40` verified 40 Hz only (the second --f replaced the first)."""
     parse = build_parser().parse_args

@@ -150,7 +150,7 @@ def build_parser():
                    "(FILE or FILE.partial) (default: eight-beam)")
 
     i = sub.add_parser("info", help="summarise a results file")
-    i.add_argument("file", help="results file (FILE or FILE.partial)")
+    i.add_argument("file", type=_file_name, help="results file (FILE or FILE.partial)")
 
     h = sub.add_parser("hbm", help="one deterministic parameter set (like the paper's Fig. 5)",
                        description="Harmonic balance of one parameter set (the same for every "
@@ -194,7 +194,8 @@ def build_parser():
                         description="Bounds band over the ensemble cloud (log amplitude vs "
                         "frequency), optionally with measured data; prints the fraction of "
                         "measured points inside the bounds.")
-    pl.add_argument("file", help="results file (mcfric run) or bounds file (mcfric bounds)")
+    pl.add_argument("file", type=_file_name,
+                    help="results file (mcfric run) or bounds file (mcfric bounds)")
     pl.add_argument("-o", "--output", metavar="FIG",
                     help="figure file, .png/.pdf/.svg (default: FILE with .png)")
     pl.add_argument("--quantity", choices=("displacement", "velocity", "acceleration"),
@@ -262,6 +263,14 @@ def _verify_parser(sub):
                         "run); the PNG goes next to it")
     v.add_argument("--no-figure", action="store_true", help="do not draw the figure")
     v.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def _file_name(text):
+    """A file argument: an empty one ("" from an unset shell variable) named as such, not
+    read as the current directory."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError(f"expected a file name, got {text!r}")
+    return text
 
 
 def _hz(text):

@@ -28,6 +28,7 @@ from ..uff import (
     UFF_SUFFIXES,
     read_datasets,
 )
+from ..validators import existing_file
 from .measurement import KINDS, Measurement
 
 
@@ -275,8 +276,7 @@ _CSV_BEAM = re.compile(r"^(re_|im_)?beam_?(\d+)$")
 
 
 def _read_csv(path, quantity, force_n, kind, scale):
-    if not path.is_file():
-        raise ValueError(f"{path}: file not found")
+    existing_file(path)
     rows = csv_rows(path)
     _, header = rows[0]
     names = [h.strip().lower().replace(" ", "_") for h in header]
