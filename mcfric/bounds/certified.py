@@ -306,16 +306,19 @@ def moments_apply(chain, n_dampers, F_lim):
     return bool(chain and 2 <= n_dampers <= MAX_DAMPERS and np.isfinite(F_lim))
 
 
+def check_moments_choice(moments):
+    """Raise a one-line ValueError unless ``moments`` is ``"auto"``, True or False."""
+    if not (is_bool(moments) or (isinstance(moments, str) and moments == "auto")):
+        raise ValueError(f'moments: expected "auto", True or False, got {moments!r}')
+
+
 def resolve_moments(moments, chain, n_dampers, F_lim):
     """The second order on or off: ``"auto"`` (the default) where it applies
     (:func:`moments_apply`), ``True`` everywhere (a one-line ValueError where it cannot
     run), ``False`` nowhere."""
+    check_moments_choice(moments)
     if isinstance(moments, str):
-        if moments != "auto":
-            raise ValueError(f'moments: expected "auto", True or False, got {moments!r}')
         moments = moments_apply(chain, n_dampers, F_lim)
-    elif not is_bool(moments):
-        raise ValueError(f'moments: expected "auto", True or False, got {moments!r}')
     if moments:
         check_moments(chain, n_dampers, F_lim)
     return bool(moments)

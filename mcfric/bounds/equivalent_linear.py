@@ -43,7 +43,7 @@ from ..model import Model
 from ..threads import threads
 from ..validators import KC_MAX, InputError, flag, integer, is_bool, real
 from ..validators import frequencies as check_frequencies
-from .certified import Certificate, certify, resolve_moments, within
+from .certified import Certificate, certify, check_moments_choice, resolve_moments, within
 from .search import box_extreme, starts
 
 #: Largest k_max (and k_max_im) the bounds accept, N/m: far stiffer than any contact
@@ -390,9 +390,7 @@ def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity
         if v is not None:       # None: the certificate's default
             integer(lo)(v, name)
     flag("certified", certified)
-    if not (is_bool(moments) or (isinstance(moments, str) and moments == "auto")):
-        # checked without certification too: "yes" was ignored there silently
-        raise ValueError(f'moments: expected "auto", True or False, got {moments!r}')
+    check_moments_choice(moments)    # without certification too: "yes" was ignored there
     if progress is not None and not is_bool(progress):
         raise ValueError(f"progress: expected True, False or None, got {progress!r}")
     for i, t in enumerate(model.beams):
