@@ -313,7 +313,8 @@ def test_a_source_that_is_no_configuration_file_is_one_line(tmp_path, monkeypatc
     h5py.File(h5, "w").close()
     for source, words in (("", "expected a preset"), (tmp_path, "a directory"),
                           (h5, "an HDF5 file (results?)"),
-                          (tmp_path / "nope.toml", "no such file")):
+                          (tmp_path / "nope.toml", "no such file"),
+                          ("/dev/null", "nothing read (a device or a pipe)")):
         with pytest.raises(config.ConfigError, match=re.escape(words)) as e:
             config.load(source)
         assert len(str(e.value).splitlines()) == 1

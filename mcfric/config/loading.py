@@ -77,6 +77,10 @@ def read_toml(path):
             # an empty file read as an empty TOML ran the default ensemble
             raise InputError(str(path), "an empty file, not a TOML configuration (nor a "
                              "results file)")
+        if not data.strip() and not p.is_file():
+            # /dev/null, or a pipe whose writer wrote nothing, ran the default ensemble
+            raise InputError(str(path), "nothing read (a device or a pipe): give a TOML "
+                             "configuration or a preset")
         # a byte-order mark (as some Windows editors write) is no TOML error
         text = data.decode("utf-8-sig")
     except FileNotFoundError:
