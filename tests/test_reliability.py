@@ -1254,6 +1254,19 @@ def test_an_empty_file_name_is_named_as_such(command, capsys):
     assert "argument file: expected a file name, got ''" in capsys.readouterr().err
 
 
+def test_keep_harmonics_that_stores_nothing_is_said(tmp_path, capsys):
+    """[output] keep_harmonics = true with a single-harmonic run was ignored silently."""
+    toml = tmp_path / "k.toml"
+    toml.write_text('model.preset = "two-beam"\n[output]\nkeep_harmonics = true\n'
+                    '[bounds]\nenabled = false\n')
+    out = tmp_path / "k.h5"
+    assert cli.main(["run", str(toml), *SMALL[1:], "-o", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "note: keep_harmonics = true stores nothing with harmonics = 1" in text, text
+    with h5py.File(out, "r") as h5:
+        assert "response_harmonics" not in h5
+
+
 def test_verify_takes_every_frequency_given():
     """`verify --f 30 --f 40` verified 40 Hz only (the second --f replaced the first)."""
     parse = build_parser().parse_args
