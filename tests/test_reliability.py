@@ -1267,6 +1267,16 @@ def test_keep_harmonics_that_stores_nothing_is_said(tmp_path, capsys):
         assert "response_harmonics" not in h5
 
 
+@pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="needs Linux's /proc")
+def test_a_figure_linked_into_an_unwritable_directory_is_refused_first(tmp_path, capsys):
+    """A figure name that is a symbolic link is written through; hbm wrote its CSV and
+    then failed on the figure. Its target's directory is checked before the work."""
+    (tmp_path / "h.png").symlink_to("/proc/mcfric-test.png")
+    assert cli.main(["hbm", "two-beam", "--n-freq", "5", "-o", str(tmp_path / "h.csv")]) == 2
+    assert "directory /proc is not writable" in capsys.readouterr().err
+    assert not (tmp_path / "h.csv").exists()
+
+
 def test_verify_takes_every_frequency_given():
     """`verify --f 30 --f 40` verified 40 Hz only (the second --f replaced the first)."""
     parse = build_parser().parse_args

@@ -80,6 +80,7 @@ def output_path(args, suffix, prefix="", figure=False):
             raise UsageError(f"-o: the figure {png} is a directory; choose another -o")
         not_replacing_hdf5(png, "figure")
         _not_replacing_input(args, png, "figure")
+        writable_dir(png)
     # a name that promises the other format (the reader would then fail on it)
     other = {".h5": (".csv", ".png", ".txt", ".toml"),
              ".csv": (".h5", ".hdf5", ".hdf", ".nc", ".png", ".toml")}[suffix]
@@ -101,7 +102,12 @@ def regular_or_none(path, label="-o: "):
 
 def writable_dir(out):
     """An output is renamed into its directory when complete: one that cannot be written
-    is refused now, not after the work."""
+    is refused now, not after the work. A symbolic link is written through: its target's
+    directory is the one checked."""
+    if out.is_symlink():
+        out = Path(os.path.realpath(out))
+    if not out.parent.is_dir():
+        raise UsageError(f"-o: directory {out.parent} does not exist")
     if not os.access(out.parent, os.W_OK | os.X_OK):
         raise UsageError(f"-o: directory {out.parent} is not writable")
     # os.access says yes to root, and to /proc or a read-only mount: a file is made
