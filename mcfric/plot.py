@@ -96,7 +96,7 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
         Plot ``omega^k`` times the stored amplitudes; default the stored quantity.
     f_window : (float, float), optional
         Frequency window, Hz, ``0 <= f_min < f_max``; the axis spans its part inside the
-        file's frequencies.
+        frequencies drawn (the file's and the measured ones).
     member : int or None
         Ensemble member (sample index) drawn in black; None for none.
     max_lines : int
@@ -139,6 +139,7 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
     # peaks refined in another quantity, converted at their own frequency: the
     # converted quantity peaks a little higher up (omega^k |y|), so a lower estimate
     conv = "" if quantity == stored else f"; refined as {stored}, converted: may lie slightly low"
+    measured = tuple(measured)        # read twice (drawn, then the axis' extent)
     lo_f, hi_f = (f.min(), f.max()) if f_window is None else map(float, f_window)
     if not (math.isfinite(lo_f) and math.isfinite(hi_f) and 0 <= lo_f < hi_f):
         raise InputError("f_window", f"expected 0 <= f_min < f_max (finite, Hz), got "
@@ -147,9 +148,6 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
     if not win.any():
         raise InputError("f_window", f"no frequencies of {path} in {lo_f:g}..{hi_f:g} Hz")
     fw = f[win]
-    # the axis spans the window's part inside the file's frequencies: nothing is drawn
-    # beyond them, and --f-max 1e308 is no axis to draw
-    lo_f, hi_f = max(lo_f, float(f.min())), min(hi_f, float(f.max()))
 
     fig = _figure((8, 6.0))      # the extra height holds the legend below the axes
     ax = fig.add_subplot()
@@ -415,8 +413,13 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
                         label=text)
     ax.set_yscale("log")
     # a margin: markers at the ends of the band stay visible
-    pad = 0.005 * (hi_f - lo_f) or 0.005 * max(hi_f, 1.0)    # a window of one frequency
-    ax.set_xlim(lo_f - pad, hi_f + pad)
+    # the axis spans the window's part inside the frequencies drawn (the file's and the
+    # measured ones): --f-max 1e308 is no axis to draw
+    shown = [f] + [np.asarray(m.frequency_hz, float) for m in measured]
+    x_lo = max(lo_f, min(float(x.min()) for x in shown if x.size))
+    x_hi = min(hi_f, max(float(x.max()) for x in shown if x.size))
+    pad = 0.005 * (x_hi - x_lo) or 0.005 * max(x_hi, 1.0)    # a window of one frequency
+    ax.set_xlim(x_lo - pad, x_hi + pad)
     ax.autoscale(axis="y")
     if band is not None:
         # the band between the bounds; where only 0 is proved below, down to the axis,

@@ -209,11 +209,11 @@ def scheduler_address():
             return v
         # Dask's own schemes: others pass here and fail only when the run connects
         if not m and re.fullmatch(r"(tcp|tls|ucx|ws|wss|inproc)://[^\s/]+(/\S*)?", v):
-            port = re.fullmatch(r"(tcp|tls|ws|wss)://[^\s/]+:(\d+)/?", v)
-            if port and not 1 <= int(port.group(2)) <= 65535:
+            port = re.fullmatch(r"(tcp|tls|ws|wss)://[^\s/]+:(\d*)(/\S*)?", v)
+            if port and not (port.group(2) and 1 <= int(port.group(2)) <= 65535):
                 # found now, not after the connection's timeout
-                raise InputError(key, f"expected a port in 1..65535, got {port.group(2)} "
-                                 f"in {show(v)}")
+                raise InputError(key, f"expected a port in 1..65535, got "
+                                 f"{port.group(2) or 'none'} in {show(v)}")
             return v
         raise InputError(key, f"expected {what}, got {show(v)}")
     check.what = what

@@ -115,8 +115,8 @@ def test_a_slip_force_beyond_a_stuck_damper_is_refused():
 
     fixed = {"dist": "fixed", "value": 1e12}          # with mu0 up to 1: exactly at the limit
     config.load("two-beam").replace("sampling.N0", fixed)
-    with pytest.raises(ConfigError, match=r"sampling.N0: expected draws with mu0 N0 of at "
-                                          r"most 1e\+12 N .* reach 1.1e\+12"):
+    with pytest.raises(ConfigError, match=r"sampling.mu0 x sampling.N0: expected draws with "
+                                          r"mu0 N0 of at most 1e\+12 N .* reach 1.1e\+12"):
         config.load("two-beam").replace("sampling.N0", {"dist": "fixed", "value": 1.1e12})
     open_top = {"dist": "truncnormal", "mean": 0.6, "std": 0.1, "low": 0.0,
                 "high": float("inf")}
@@ -314,7 +314,7 @@ def test_a_source_that_is_no_configuration_file_is_one_line(tmp_path, monkeypatc
     for source, words in (("", "expected a preset"), (tmp_path, "a directory"),
                           (h5, "an HDF5 file (results?)"),
                           (tmp_path / "nope.toml", "no such file"),
-                          ("/dev/null", "nothing read (a device or a pipe)")):
+                          ("/dev/null", "no key read from a device or a pipe")):
         with pytest.raises(config.ConfigError, match=re.escape(words)) as e:
             config.load(source)
         assert len(str(e.value).splitlines()) == 1
@@ -327,6 +327,31 @@ def test_a_source_that_is_no_configuration_file_is_one_line(tmp_path, monkeypatc
             f"an HDF5 file (results?), not a TOML configuration (`mcfric config {h5} > "
             f"run.toml` writes a results file's)")):
         config.load(h5)
+
+
+def test_a_pipe_is_read_as_a_file_unless_it_gives_no_key(tmp_path):
+    """`mcfric run <(...)` reads the pipe; one that gives no key (only a comment) is
+    refused, as /dev/null is; an empty regular file is a configuration of defaults."""
+    import os
+    import threading
+
+    def piped(text):
+        r, w = os.pipe()
+        threading.Thread(target=lambda: (os.write(w, text.encode()), os.close(w))).start()
+        return f"/dev/fd/{r}", r
+
+    for text, ok in (('model.preset = "two-beam"\n', True), ("# nothing\n\n", False)):
+        path, r = piped(text)
+        try:
+            if ok:
+                assert config.load(path).model().n_beams == 2
+            else:
+                with pytest.raises(ConfigError, match="no key read from a device or a pipe"):
+                    config.load(path)
+        finally:
+            os.close(r)
+    (tmp_path / "empty.toml").write_text("")
+    assert config.load(tmp_path / "empty.toml").model().name == config.load().model().name
 
 
 def test_replace_takes_numpy_values_as_a_toml_file_gives_them():

@@ -111,7 +111,7 @@ def test_normalisation_is_the_homogeneity_of_the_friction_law(tmp_path, ensemble
     assert fraction_inside(norm, FREQ, lo, up).overall == 1.0
     # a force level whose factor overflows is refused, not returned as a response of inf
     tiny = Measurement(FREQ, meas.response, meas.beams, force_n=1e-310)
-    with pytest.raises(ValueError, match="makes the response overflow"):
+    with pytest.raises(ValueError, match="puts the response out of range"):
         normalise(tiny, 0.22)
 
 

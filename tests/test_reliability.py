@@ -1263,8 +1263,14 @@ def test_keep_harmonics_that_stores_nothing_is_said(tmp_path, capsys):
     assert cli.main(["run", str(toml), *SMALL[1:], "-o", str(out)]) == 0
     text = capsys.readouterr().out
     assert "note: keep_harmonics = true stores nothing with harmonics = 1" in text, text
-    with h5py.File(out, "r") as h5:
-        assert "response_harmonics" not in h5
+    # with H > 1 it stores the harmonics, unless the response is not kept
+    toml.write_text('model.preset = "two-beam"\n[output]\nkeep_harmonics = true\n'
+                    'keep_response = false\n[solver]\nharmonics = 3\n'
+                    '[bounds]\nenabled = false\n')
+    small = ["--samples", "2", "--n-freq", "4", "--no-progress", "--no-figure"]
+    assert cli.main(["run", str(toml), *small, "-o", str(tmp_path / "k3.h5")]) == 0
+    text = capsys.readouterr().out
+    assert "note: keep_harmonics = true stores nothing with keep_response = false" in text
 
 
 @pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="needs Linux's /proc")
@@ -1275,6 +1281,15 @@ def test_a_figure_linked_into_an_unwritable_directory_is_refused_first(tmp_path,
     assert cli.main(["hbm", "two-beam", "--n-freq", "5", "-o", str(tmp_path / "h.csv")]) == 2
     assert "directory /proc is not writable" in capsys.readouterr().err
     assert not (tmp_path / "h.csv").exists()
+
+
+def test_a_results_file_name_that_is_a_link_replaces_the_link(tmp_path, capsys):
+    """A results file is renamed onto -o (a link there is replaced, not written through):
+    a link to an unwritable place is no reason to refuse the run."""
+    out = tmp_path / "r.h5"
+    out.symlink_to("/nonexistent-dir/r.h5")
+    assert cli.main(["run", *SMALL, "-o", str(out)]) == 0, capsys.readouterr().err
+    assert out.is_file() and not out.is_symlink()
 
 
 def test_verify_takes_every_frequency_given():

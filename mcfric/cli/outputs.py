@@ -55,7 +55,7 @@ def output_path(args, suffix, prefix="", figure=False):
                                  f"({e.strerror or e}); give -o FILE") from None
             MADE_DIRS.append(out.parent)
         regular_or_none(out, "")
-    writable_dir(out)
+    writable_dir(out, through=suffix != ".h5")
     if suffix == ".h5":
         from ..store import partial_path
 
@@ -80,7 +80,8 @@ def output_path(args, suffix, prefix="", figure=False):
             raise UsageError(f"-o: the figure {png} is a directory; choose another -o")
         not_replacing_hdf5(png, "figure")
         _not_replacing_input(args, png, "figure")
-        writable_dir(png)
+        if png.is_symlink():
+            writable_dir(png)        # written through: its target's directory
     # a name that promises the other format (the reader would then fail on it)
     other = {".h5": (".csv", ".png", ".txt", ".toml"),
              ".csv": (".h5", ".hdf5", ".hdf", ".nc", ".png", ".toml")}[suffix]
@@ -100,24 +101,25 @@ def regular_or_none(path, label="-o: "):
         raise UsageError(f"{label}{path} is not a regular file (a device or a pipe)")
 
 
-def writable_dir(out):
+def writable_dir(out, through=True):
     """An output is renamed into its directory when complete: one that cannot be written
-    is refused now, not after the work. A symbolic link is written through: its target's
-    directory is the one checked."""
-    if out.is_symlink():
+    is refused now, not after the work. ``through``: the output is written through a
+    symbolic link at ``out`` (CSV and figures; ``store.files.replacing``), so the link's
+    target's directory is the one checked; a results file replaces the link itself."""
+    if through and out.is_symlink():
         out = Path(os.path.realpath(out))
-    if not out.parent.is_dir():
-        raise UsageError(f"-o: directory {out.parent} does not exist")
+        if not out.parent.is_dir():
+            raise UsageError(f"-o: directory {out.parent} (a link's target) does not exist")
     if not os.access(out.parent, os.W_OK | os.X_OK):
         raise UsageError(f"-o: directory {out.parent} is not writable")
     # os.access says yes to root, and to /proc or a read-only mount: a file is made
+    # (without a name where the system allows, and closed and gone whatever happens)
     try:
-        fd, probe = tempfile.mkstemp(prefix=".mcfric-probe-", dir=out.parent)
+        with tempfile.TemporaryFile(dir=out.parent):
+            pass
     except OSError as e:
         raise UsageError(f"-o: directory {out.parent} is not writable "
                          f"({e.strerror or e})") from None
-    os.close(fd)
-    os.unlink(probe)
 
 
 def _not_replacing_input(args, path, what):

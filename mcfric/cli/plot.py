@@ -160,7 +160,8 @@ def _read_measured(args, attrs):
                 try:
                     m, report = ms.normalise(m, F0)
                 except ValueError as e:
-                    raise UsageError(f"--normalise: {data}: {e}") from None
+                    msg = str(e) if m.source else f"{data}: {e}"    # the file named once
+                    raise UsageError(f"--normalise: {msg}") from None
                 # printed once all are read (a refusal prints nothing else), once each
                 if report.text() not in reports:
                     reports.append(report.text())

@@ -77,10 +77,6 @@ def read_toml(path):
             # an empty file read as an empty TOML ran the default ensemble
             raise InputError(str(path), "an empty file, not a TOML configuration (nor a "
                              "results file)")
-        if not data.strip() and not p.is_file():
-            # /dev/null, or a pipe whose writer wrote nothing, ran the default ensemble
-            raise InputError(str(path), "nothing read (a device or a pipe): give a TOML "
-                             "configuration or a preset")
         # a byte-order mark (as some Windows editors write) is no TOML error
         text = data.decode("utf-8-sig")
     except FileNotFoundError:
@@ -89,9 +85,15 @@ def read_toml(path):
     except (OSError, UnicodeDecodeError) as e:
         raise InputError(str(path), f"cannot read: {e}") from None
     try:
-        return tomllib.loads(text)
+        user = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         raise InputError(str(path), f"invalid TOML: {e}") from None
+    if not user and not p.is_file():
+        # /dev/null, or a pipe that gave no key, ran the default ensemble; an empty
+        # regular file stays a configuration of defaults
+        raise InputError(str(path), "no key read from a device or a pipe: give a TOML "
+                         "configuration or a preset")
+    return user
 
 
 def load(source=None, overrides=None):

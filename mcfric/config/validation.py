@@ -275,8 +275,8 @@ def _cross_checks(c):
     top = _reach(s["mu0"]) * _reach(s["N0"])
     if top > SLIP_FORCE_MAX:
         # as for kc: the solvers refuse such draws, so they are refused before the run
-        raise InputError("sampling.N0", f"expected draws with mu0 N0 of at most "
-                         f"{SLIP_FORCE_MAX:g} N (a stuck damper); the mu0 and N0 "
+        raise InputError("sampling.mu0 x sampling.N0", f"expected draws with mu0 N0 of at "
+                         f"most {SLIP_FORCE_MAX:g} N (a stuck damper); the two "
                          f"distributions reach {top:.3g}")
     if c["bounds"]["enabled"]:
         bounds_limits(c)      # unbounded distributions need explicit limits

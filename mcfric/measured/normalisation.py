@@ -86,10 +86,12 @@ def normalise(measurement, F0, *, N0_meas=None):
         c = F0 / measurement.force_n
         finite = np.isfinite(measurement.response * c) | np.isnan(measurement.response)
     if not (math.isfinite(c) and c > 0 and finite.all()):
-        # a force level of 1e-310 N makes c overflow: say so, not a response of inf
-        raise ValueError(f"normalising from F_meas = {measurement.force_n:g} N to F0 = "
-                         f"{F0:g} N: the factor F0/F_meas = {c:g} makes the response "
-                         f"overflow (is the force level in N?)")
+        # a force level of 1e-310 N makes c overflow (or a tiny F0 underflow): say so,
+        # not a response of inf or 0
+        who = f"{measurement.source}: " if measurement.source else ""
+        raise ValueError(f"{who}normalising from F_meas = {measurement.force_n:g} N to F0 = "
+                         f"{F0:g} N: the factor F0/F_meas = {c:g} puts the response out "
+                         f"of range (is the force level in N?)")
     N0_eq = None
     if N0_meas is not None:
         N0_meas = real("N0_meas", N0_meas, lo=0)
