@@ -480,5 +480,5 @@ def per_damper(nd, **params):
             n_s = arr.shape[0]
         out[name] = arr
     if "mu0" in out and "N0" in out:
-        check_slip_force("N0", out["mu0"], out["N0"])
+        check_slip_force("mu0 x N0", out["mu0"], out["N0"])
     return {k: np.ascontiguousarray(np.broadcast_to(v, (n_s, nd))) for k, v in out.items()}

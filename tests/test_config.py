@@ -123,7 +123,7 @@ def test_a_slip_force_beyond_a_stuck_damper_is_refused():
     cfg = config.load("two-beam", {"sampling.mu0": (open_top, "--mu0"),
                                    "bounds.F_lim": (5.0, "--F-lim")})
     assert cfg.samples > 0
-    with pytest.raises(InputError, match="mu0 N0 of at most 1e\\+12 N"):
+    with pytest.raises(InputError, match="mu0 x N0: expected mu0 N0 of at most 1e\\+12 N"):
         hbm.solve(two_beam(0.22), [30.0], 1e300, 6000.0, 0.5)
 
 
