@@ -1237,9 +1237,16 @@ def test_an_output_directory_that_cannot_be_written_is_refused_before_the_work(
         tmp_path, capsys, monkeypatch):
     """A directory the user may not write (a read-only mount): refused in one line
     before anything is solved, not after."""
-    real = os.access
-    monkeypatch.setattr(os, "access",
-                        lambda p, mode: False if str(p) == str(tmp_path) else real(p, mode))
+    import tempfile
+
+    real = tempfile.TemporaryFile
+
+    def refused(*a, dir=None, **k):
+        if str(dir) == str(tmp_path):
+            raise PermissionError(13, "Permission denied")
+        return real(*a, dir=dir, **k)
+
+    monkeypatch.setattr(tempfile, "TemporaryFile", refused)
     rc = cli.main(["hbm", "two-beam", "--n-freq", "20", "-o", str(tmp_path / "h.csv")])
     err = capsys.readouterr().err
     assert rc == 2 and f"-o: directory {tmp_path} is not writable" in err, err

@@ -78,8 +78,8 @@ def normalise(measurement, F0, *, N0_meas=None):
         raise ValueError(f"measurement: expected a Measurement, got "
                          f"{type(measurement).__name__}")
     F0 = real("F0", F0, lo=0, lo_open=True)           # "1" and True are no force
+    who = f"{measurement.source}: " if measurement.source else ""
     if measurement.force_n is None:
-        who = f"{measurement.source}: " if measurement.source else ""
         raise ValueError(f"{who}force level unknown: normalising needs the measurement's "
                          f"force_n (pass force_n= when reading)")
     with np.errstate(over="ignore", invalid="ignore"):
@@ -88,7 +88,6 @@ def normalise(measurement, F0, *, N0_meas=None):
     if not (math.isfinite(c) and c > 0 and finite.all()):
         # a force level of 1e-310 N makes c overflow (or a tiny F0 underflow): say so,
         # not a response of inf or 0
-        who = f"{measurement.source}: " if measurement.source else ""
         raise ValueError(f"{who}normalising from F_meas = {measurement.force_n:g} N to F0 = "
                          f"{F0:g} N: the factor F0/F_meas = {c:g} puts the response out "
                          f"of range (is the force level in N?)")
