@@ -60,7 +60,9 @@ STATIC_REGULARIZATION = 1e-7
 
 
 def available():
-    """Whether Clarabel (the ``moments`` extra) is installed."""
+    """Whether Clarabel is importable. It is a core dependency; an environment built
+    without it gets a one-line error from :func:`mcfric.bounds.certified.check_moments`
+    instead of a traceback."""
     try:
         import clarabel  # noqa: F401
     except ImportError:
