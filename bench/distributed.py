@@ -38,7 +38,7 @@ from pathlib import Path
 sys.path[:] = [p for p in sys.path
                if Path(p or ".").resolve() != Path(__file__).resolve().parent]
 
-from mcfric import config, ensemble  # noqa: E402
+from mcfric import config, ensemble, run_file  # noqa: E402
 from mcfric.distributed import Cluster  # noqa: E402
 
 
@@ -67,7 +67,7 @@ def startup(workers, repeat):
     for _ in range(repeat):
         t0 = time.perf_counter()
         c = Cluster.connect(f"local:{workers}", spec=spec, task=ensemble.solve_records,
-                            fingerprint=ensemble.fingerprint)
+                            fingerprint=run_file.fingerprint)
         times.append(time.perf_counter() - t0)
         c.close()
     return statistics.median(times)
@@ -156,7 +156,7 @@ def run_bench(a, workdir):
                         times["connect"].append(s.startup_s)
             med = {k: statistics.median(v) for k, v in times.items()}
             up = med["cluster"] - med["connect"]
-            mb = ensemble.output_bytes(specs["local"]) / 1e6
+            mb = run_file.output_bytes(specs["local"]) / 1e6
             rows.append(("complex response" if keep else "metric only", med, up,
                          med["local"] / up, mb))
         print()

@@ -36,7 +36,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from mcfric import config, ensemble, hbm
+from mcfric import config, ensemble, hbm, run_file
 from mcfric.store import Store, partial_path
 
 
@@ -73,7 +73,7 @@ def end_to_end(spec, path):
 
 def synchronous(spec, path, chunk):
     """The same work with writes in the main thread (what the writer thread overlaps)."""
-    coords, variables, attrs, ph = ensemble.layout(spec)
+    coords, variables, attrs, ph = run_file.layout(spec)
     t0 = time.perf_counter()
     st = Store.create(path, record_dim="sample", n_records=spec.samples, coords=coords,
                       variables=variables, attrs=attrs, placeholders=ph)
@@ -206,7 +206,7 @@ def run_bench(a, workdir):
 
     cfg = cfg_for(a.samples, a.n_freq)
     model = cfg.model
-    chunk = ensemble.auto_chunk(cfg)
+    chunk = run_file.auto_chunk(cfg)
     n_pts = a.samples * a.n_freq
     print(f"mcfric ensemble benchmark: eight-beam, {a.samples} samples x {a.n_freq} "
           f"frequencies x {model.n_beams} beams; {numba.get_num_threads()} threads, "

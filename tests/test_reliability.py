@@ -16,7 +16,7 @@ import h5py
 import numpy as np
 import pytest
 
-from mcfric import cli, ensemble, store
+from mcfric import cli, ensemble, run_file, store
 from mcfric.cli.inputs import load_config
 from mcfric.cli.parser import build_parser
 from mcfric.store import Store, writer
@@ -218,7 +218,7 @@ def test_the_size_estimate_is_the_file_size(tmp_path):
     spec = load_config(args).spec
     ensemble.run(spec, out, progress=False)
     size = out.stat().st_size
-    assert 0.85 * size <= ensemble.output_bytes(spec) <= size
+    assert 0.85 * size <= run_file.output_bytes(spec) <= size
 
 
 def test_the_memory_check_counts_the_dense_fallbacks_scratch(monkeypatch):
