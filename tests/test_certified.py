@@ -39,10 +39,11 @@ def _assembled(model, freq_hz):
     return _ASSEMBLED[key][1:]
 
 
-def physical_grid(model, freq_hz, K, forces=False):
+def physical_grid(model, freq_hz, K, forces=False, beams=None):
     """M and the largest ``|K_j q_j| / F_LIM`` at every row of ``K`` (P, nd), solved in
     physical space: ``(I - D Kphys) Y = D Fext`` batched over the rows (``forces``: every
-    damper's ``|K_j q_j|`` (P, nd; N) instead of the largest ratio)."""
+    damper's ``|K_j q_j|`` (P, nd; N) instead of the largest ratio; ``beams``: the
+    0-based beams of M, default all)."""
     D, Fext, index, pairs = _assembled(model, freq_hz)
     n = D.shape[0]
     # Kphys is zero outside the contact dofs: D Kphys is D's contact columns times its
@@ -63,7 +64,7 @@ def physical_grid(model, freq_hz, K, forces=False):
         A[:, :, c] -= D[:, c] @ Kc
         Y[lo:lo + 200] = np.linalg.solve(
             A, np.broadcast_to(D @ Fext, (len(Kp), n))[..., None])[..., 0]
-    out = [index[(b, 1)] for b in range(model.n_beams)]
+    out = [index[(b, 1)] for b in (range(model.n_beams) if beams is None else beams)]
     M = np.abs(Y[:, out]).max(axis=1)
     q = np.stack([Y[:, index[(a, 0)]] - Y[:, index[(b, 0)]] for a, b in pairs], axis=1)
     if forces:
@@ -71,7 +72,7 @@ def physical_grid(model, freq_hz, K, forces=False):
     return M, (np.abs(K * q) / F_LIM).max(axis=1)
 
 
-def random_admissible(model, freq_hz, n, seed):
+def random_admissible(model, freq_hz, n, seed, beams=None):
     """``M`` (m) at the admissible ones of ``n`` random points of the box (each ``K``
     scaled by one log-uniform factor in [1e-3, 1], so that small ``K`` are sampled too):
     those where every damper force is at or below ``F_LIM``; physical-space solves."""
@@ -79,7 +80,7 @@ def random_admissible(model, freq_hz, n, seed):
     nd = model.n_dampers
     s = 10.0 ** rng.uniform(-3, 0, (n, 1))
     K = s * (rng.uniform(0, K_MAX, (n, nd)) + 1j * rng.uniform(0, K_MAX, (n, nd)))
-    M, force = physical_grid(model, freq_hz, K)
+    M, force = physical_grid(model, freq_hz, K, beams=beams)
     return M[force <= 1.0]
 
 

@@ -13,7 +13,7 @@ proof) and the lower one never below 0.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -338,6 +338,83 @@ def check_moments(chain, n_dampers, F_lim):
                          f"force limit (this one: {n_dampers} damper"
                          f"{'s' if n_dampers != 1 else ''}, {'a chain' if chain else 'not a chain'}"
                          f", F_lim = {F_lim:g} N)")
+
+
+def turns(n_dampers, F_lim):
+    """Whether :func:`certify` relaxes a tuned ring of ``n_dampers`` blades with every
+    blade in the metric (``turned``): above ``MAX_DAMPERS`` and up to ``MAX_TIED``, with
+    a finite force limit (N)."""
+    return bool(RELAX and np.isfinite(F_lim) and MAX_DAMPERS < n_dampers <= MAX_TIED)
+
+
+def subset_of_ring(sub, whole, G, q0, ylin, H, beams, F_lim, scale):
+    """A tuned ring's certificate for some of its blades, with the upper bound and its
+    witness of the whole ring's.
+
+    Every blade's response is at most the largest over all blades, so ``whole.upper``
+    bounds the subset's maximum too. Turning the ring maps the admissible set onto
+    itself and one blade's response onto another's, so a turn of the whole ring's upper
+    witness puts its largest blade on the subset's first: both ways of turning are
+    tried, and the better admissible result (its value and forces recomputed here)
+    replaces ``sub``'s witness where it is higher. The lower bound stays ``sub``'s (the
+    minimum over a subset has no such symmetry).
+
+    Parameters
+    ----------
+    sub, whole : Certificate
+        Of the subset (``turned`` off) and of every blade (``turned`` on), same grid.
+    G, q0, ylin, H : ndarray
+        The contact-space arrays of every blade (:func:`mcfric.core.receptance.
+        contact_space`; ``ylin`` and ``H`` in m before ``scale``).
+    beams : list of int
+        The subset, 0-based.
+    F_lim : float
+        Force limit, N.
+    scale : ndarray, shape (n_f,)
+        The metric's factor (``omega ** k`` for the quantity).
+    """
+    n_f, nd = q0.shape
+    eye = np.eye(nd)
+    target = beams[0]            # by the symmetry every blade of the subset does as well
+    value = np.empty((n_f, 2))
+    force = np.empty((n_f, 2, nd))
+    cand = np.empty((n_f, 2, nd), complex)
+    for lo in range(0, n_f, 64):                 # (64, 2, nd, nd) systems at a time
+        f = slice(lo, lo + 64)
+
+        def responses(K, f=f):
+            """Every blade's response (m) and damper force (N) at the candidates ``K``
+            (n, c, nd): ``q = (I + G diag(K))^-1 q0``, as the kernels solve it."""
+            T = eye + G[f, None] * K[:, :, None, :]
+            q = np.linalg.solve(T, np.broadcast_to(q0[f, None, :, None],
+                                                   K.shape + (1,)))[..., 0]
+            p = K * q
+            return ylin[f, None] - np.einsum("fbj,fcj->fcb", H[f], p), np.abs(p)
+
+        Kw = whole.K_upper[f]
+        with np.errstate(all="ignore"):
+            y, _ = responses(Kw[:, None])
+            top = np.argmax(np.nan_to_num(np.abs(y[:, 0]), nan=-1.0), axis=1)
+            # turn the largest blade onto the target, one way or the other round
+            s = np.stack([(target - top) % nd, (top - target) % nd], axis=1)
+            idx = (np.arange(nd)[None, None, :] - s[:, :, None]) % nd
+            cand[f] = np.take_along_axis(np.broadcast_to(Kw[:, None, :], idx.shape), idx,
+                                         axis=2)
+            y, force[f] = responses(cand[f])
+            value[f] = np.abs(y[..., beams]).max(axis=2) * scale[f, None]
+    ok = np.isfinite(value) & np.all(force <= F_lim, axis=2)
+    value = np.where(ok, value, -np.inf)
+    best = np.argmax(value, axis=1)
+    found = value[np.arange(n_f), best]
+    better = found > sub.upper_witness
+    wit = np.where(better, found, sub.upper_witness)
+    K = np.where(better[:, None], cand[np.arange(n_f), best], sub.K_upper)
+    upper = np.maximum(np.fmin(sub.upper, whole.upper), wit)
+    converged = sub.converged.copy()
+    converged[0] |= _met(True, upper, wit, sub.rtol, 0.0)
+    return replace(sub, upper=upper, upper_witness=wit, K_upper=K, converged=converged,
+                   relaxed=sub.relaxed or whole.relaxed,
+                   first_order=sub.first_order + whole.first_order)
 
 
 def _met(want_max, cert, wit, rtol, atol):

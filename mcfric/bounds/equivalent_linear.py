@@ -43,7 +43,15 @@ from ..model import Model
 from ..threads import threads
 from ..validators import KC_MAX, InputError, flag, integer, is_bool, real
 from ..validators import frequencies as check_frequencies
-from .certified import Certificate, certify, check_moments_choice, resolve_moments, within
+from .certified import (
+    Certificate,
+    certify,
+    check_moments_choice,
+    resolve_moments,
+    subset_of_ring,
+    turns,
+    within,
+)
 from .search import box_extreme, starts
 
 #: Largest k_max (and k_max_im) the bounds accept, N/m: far stiffer than any contact
@@ -413,6 +421,7 @@ def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity
     a, b = model.dampers
     G, q0, ylin, H = contact_space(rec, model.force, a, b)
     sel = list(beams)
+    ylin_all, H_all = ylin, H
     ylin = np.ascontiguousarray(ylin[:, sel])
     H = np.ascontiguousarray(H[:, sel, :])
     # the maximum is sought beam by beam; on a tuned ring under a travelling wave every
@@ -436,11 +445,19 @@ def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity
                                      max_sweeps=int(max_sweeps), gradient=not invariant)
         lower, K_lower = lower[0], K_lower[0]
         scale = omega ** QUANTITIES.index(quantity)
+        every = sel == list(range(model.n_beams))
         cert = (certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget,
-                        split=split, moments=moments,
-                        turned=invariant and sel == list(range(model.n_beams)),
+                        split=split, moments=moments, turned=invariant and every,
                         progress=progress)
                 if certified else None)
+        if certified and invariant and not every and turns(model.n_dampers, F_lim):
+            # a tuned ring's relaxations need every blade in the metric; the largest
+            # response over all blades bounds any subset's (docs/bounds.md, tuned rings)
+            whole = certify(G, q0, np.ascontiguousarray(ylin_all),
+                            np.ascontiguousarray(H_all), kr, ki, F_lim, K_upper, K_lower,
+                            scale, budget, split=split, moments=moments, turned=True,
+                            progress=progress)
+            cert = subset_of_ring(cert, whole, G, q0, ylin_all, H_all, sel, F_lim, scale)
     return Bounds(f, upper * scale, lower * scale, upper_box * scale, upper_force * scale,
                   limited_by, K_upper, K_lower, kr, ki, F_lim, quantity, beams, cert)
 
