@@ -810,10 +810,10 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
     relax = RELAX and np.isfinite(F_lim) and 2 <= nd <= MAX_DAMPERS
     # rings above MAX_DAMPERS: the relaxation of the whole box alone
     turn = bool(turned) and ylin.shape[1] == nd
-    whole = RELAX and np.isfinite(F_lim) and turn and MAX_DAMPERS < nd <= MAX_TURNED
+    whole = turn and turns(nd, F_lim) and nd <= MAX_TURNED
     # larger tuned rings: tied multipliers (the full relaxation takes seconds per
     # frequency there)
-    tied = RELAX and np.isfinite(F_lim) and turn and MAX_TURNED < nd <= MAX_TIED
+    tied = turn and turns(nd, F_lim) and nd > MAX_TURNED
     from .moments import is_chain
     moments = resolve_moments(moments, is_chain(G), nd, F_lim)
     second_order = np.zeros(2, np.int64)
