@@ -443,6 +443,52 @@ def test_a_tuned_ring_with_some_blades_in_the_metric_takes_the_whole_rings_upper
     np.testing.assert_allclose(C.upper_witness, every.upper_witness, rtol=1e-9)
 
 
+def test_the_metric_is_a_set_of_beams_whose_order_and_repeats_change_nothing():
+    """Every blade of an 8-blade tuned ring listed backwards, one of them twice: the
+    bounds are those of every blade in order, bit for bit, certificate included (the
+    ring's relaxations, which need every blade in the metric, run for this list too;
+    before, it took the path of a subset: a lower bound of 0 at twice the time). The
+    listed beams are kept as given."""
+    from mcfric.bounds import compute_bounds
+
+    from .test_certified import F_LIM, K_MAX
+
+    f = np.array([30.0, 104.0])
+    model = mcfric.disk(8, 1, 1.1)
+    every = compute_bounds(model, f, K_MAX, F_lim=F_LIM)
+    listed = (7, 6, 5, 4, 3, 2, 1, 0, 3)
+    B = compute_bounds(model, f, K_MAX, F_lim=F_LIM, beams=listed)
+    assert B.beams == listed
+    assert np.all(every.certificate.lower > 0)
+    for name in ("upper", "lower", "K_upper", "K_lower"):
+        np.testing.assert_array_equal(getattr(B, name), getattr(every, name))
+    for name in ("upper", "lower", "upper_witness", "lower_witness", "K_upper", "K_lower"):
+        np.testing.assert_array_equal(getattr(B.certificate, name),
+                                      getattr(every.certificate, name))
+
+
+def test_an_upper_only_certificate_is_the_upper_half_of_the_full_one():
+    """``certify(..., lower=False)`` (the whole ring's certificate behind a blade
+    subset's) gives the full certificate's upper bound and witness bit for bit, and for
+    the lower bound only the trivial 0, marked as not met and without a witness."""
+    from mcfric.bounds.certified import certify
+
+    from .test_certified import F_LIM, K_MAX
+
+    model = mcfric.disk(8, 1, 1.1)
+    f = np.array([30.0, 104.0])
+    G, q0, ylin, H = contact_arrays(model, f)
+    K0 = np.full((2, 8), 0.5 * K_MAX * (1 + 1j))
+    full, upper = (certify(G, q0, ylin, H, K_MAX, K_MAX, F_LIM, K0, K0, np.ones(2),
+                           turned=True, lower=lower) for lower in (True, False))
+    for name in ("upper", "upper_witness", "K_upper"):
+        np.testing.assert_array_equal(getattr(upper, name), getattr(full, name))
+    np.testing.assert_array_equal(upper.converged[0], full.converged[0])
+    assert np.all(full.lower > 0)
+    assert np.all(upper.lower == 0) and not upper.converged[1].any()
+    assert np.isnan(upper.lower_witness).all() and np.isnan(upper.K_lower).all()
+
+
 def test_turned_multipliers_prove_the_bound_of_every_blade():
     """An 8-blade tuned ring, three frequencies: the whole box's upper bound with each
     blade's relaxation solved (no turning) and with the first blade's multipliers turned

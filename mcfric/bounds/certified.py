@@ -755,7 +755,7 @@ def _pct(x):
 
 
 def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
-            rtol=None, split=None, moments=False, turned=False, progress=None):
+            rtol=None, split=None, moments=False, turned=False, progress=None, lower=True):
     """Certified bounds from contact-space arrays (all beams of the metric).
 
     Parameters
@@ -800,6 +800,10 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
         Progress bars on stderr for the stages that take long (the splitting of the box,
         the second-order relaxations): None (default) on a terminal only, False never,
         True always.
+    lower : bool
+        Certify the lower bound too (default). False: the upper bound only, for a caller
+        that uses nothing else (:func:`subset_of_ring`'s whole ring); the lower bound is
+        then the trivial ``0``, not met, with a NaN witness.
 
     Returns
     -------
@@ -845,7 +849,8 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
     out = {}
     force = (np.abs(ylin) + (F_lim * np.abs(H).sum(axis=2) if np.isfinite(F_lim) else np.inf)
              ).max(axis=1) * (1 + _FORCE_MARGIN)
-    for want_max, init, atol in ((True, init_up, np.zeros(n_f)), (False, init_lo, None)):
+    passes = ((True, init_up, np.zeros(n_f)), (False, init_lo, None))
+    for want_max, init, atol in passes[:2 if lower else 1]:
         if atol is None:
             atol = ATOL_FRACTION * out[True][0]
             atol = np.where(np.isfinite(atol), atol, 0.0)
@@ -928,6 +933,9 @@ def certify(G, q0, ylin, H, kr, ki, F_lim, K_upper, K_lower, scale, budget=None,
             cert = np.clip(cert, 0.0, wit)
         ok = ok | _met(want_max, cert, wit, rtol, atol)
         out[want_max] = (cert, wit, K, ev, ok)
+    if not lower:       # 0 bounds the response from below; nothing attains it
+        out[False] = (np.zeros(n_f), np.full(n_f, np.nan), np.full((n_f, nd), np.nan + 0j),
+                      np.zeros(n_f, np.int64), np.zeros(n_f, np.bool_))
     (up, wu, Ku, eu, ou), (lo, wl, Kl, el, ol) = out[True], out[False]
     return Certificate(up * scale, lo * scale, wu * scale, wl * scale, Ku, Kl,
                        np.stack([ou, ol]), np.stack([eu, el]), int(budget),

@@ -337,7 +337,8 @@ def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity
         Default ``inf`` (no force constraint: the upper bound is the box maximum).
     quantity : {"displacement", "velocity", "acceleration"}
     beams : sequence of int, optional
-        0-based beams of the metric; default all.
+        0-based beams of the metric (a set: order and repeats change nothing; kept as
+        given in the result); default all.
     n_starts : int
         Starts of the search for the minimum per frequency (at least
         ``MIN_TOTAL_STARTS / n_f``; the default 3 on a 1000-point grid: the centre and
@@ -420,7 +421,9 @@ def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity
     rec = model.receptances(omega)[0]
     a, b = model.dampers
     G, q0, ylin, H = contact_space(rec, model.force, a, b)
-    sel = list(beams)
+    # the metric is the largest over a set of beams: order and repeats change nothing,
+    # and the ring's turns and a chain's mirror pairs read the beams in their order
+    sel = sorted(set(beams))
     ylin_all, H_all = ylin, H
     ylin = np.ascontiguousarray(ylin[:, sel])
     H = np.ascontiguousarray(H[:, sel, :])
@@ -456,7 +459,7 @@ def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity
             whole = certify(G, q0, np.ascontiguousarray(ylin_all),
                             np.ascontiguousarray(H_all), kr, ki, F_lim, K_upper, K_lower,
                             scale, budget, split=split, moments=moments, turned=True,
-                            progress=progress)
+                            progress=progress, lower=False)
             cert = subset_of_ring(cert, whole, G, q0, ylin_all, H_all, sel, F_lim, scale)
     return Bounds(f, upper * scale, lower * scale, upper_box * scale, upper_force * scale,
                   limited_by, K_upper, K_lower, kr, ki, F_lim, quantity, beams, cert)
