@@ -5,11 +5,28 @@ equivalent-linear response bounds, after "Predicting response bounds for frictio
 gas turbine blades with uncertain friction coupling".
 """
 
-from .hbm import HBMResult, solve
-from .model import TABLE_1, Excitation, ModalTable, Model
-from .presets import disk, eight_beam, preset, two_beam
-from .provenance import __version__
-from .store import open_results
+#: The public names and their modules, loaded on first use: the command line's entry
+#: point (:func:`mcfric.cli.main`) starts before numpy and numba load, so that Ctrl-C
+#: while they load is one line, not a traceback.
+_PUBLIC = {"HBMResult": "hbm", "solve": "hbm", "TABLE_1": "model", "Excitation": "model",
+           "ModalTable": "model", "Model": "model", "disk": "presets",
+           "eight_beam": "presets", "preset": "presets", "two_beam": "presets",
+           "open_results": "store", "__version__": "provenance"}
 
 __all__ = ["HBMResult", "solve", "TABLE_1", "Excitation", "ModalTable", "Model",
            "disk", "eight_beam", "preset", "two_beam", "open_results", "__version__"]
+
+
+def __getattr__(name):
+    module = _PUBLIC.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    from importlib import import_module
+
+    value = getattr(import_module(f".{module}", __name__), name)
+    globals()[name] = value          # once: later lookups find it directly
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_PUBLIC))

@@ -294,6 +294,44 @@ def test_no_progress_silences_the_certification_bars(tmp_path, monkeypatch, caps
         assert all(x is True for _, x in bars[2:]), (argv, bars)
 
 
+def test_ctrl_c_while_the_libraries_load_is_one_line(tmp_path):
+    """Ctrl-C while numpy, numba and the commands load (about the first second of a
+    command) is one line and exit 130, as later: the package loads none of them before
+    the entry point runs (before, a SIGINT 0.01-1.07 s after the start printed Python's
+    26-line traceback). Simulated by an import hook that raises KeyboardInterrupt when
+    numpy is first imported."""
+    script = "\n".join([
+        "import sys",
+        "class Interrupt:",
+        "    def find_spec(self, name, path=None, target=None):",
+        "        if name == 'numpy':",
+        "            raise KeyboardInterrupt",
+        "sys.meta_path.insert(0, Interrupt())",
+        "from mcfric.cli import main",
+        "sys.exit(main(['info', 'nothing.h5']))"])
+    p = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                       cwd=tmp_path, timeout=120)
+    assert (p.returncode, p.stderr, p.stdout) == (130, "mcfric: interrupted\n", "")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_the_public_names_load_on_first_use():
+    """``import mcfric`` loads no solver module (the entry point's Ctrl-C above); every
+    name of ``__all__`` is there on first use, and ``dir`` lists them."""
+    script = ("import sys, mcfric; print(sorted({'numpy', 'numba', 'h5py'} & "
+              "set(sys.modules)))")
+    p = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                       timeout=120)
+    assert p.stdout == "[]\n", p.stderr
+    import mcfric
+
+    for name in mcfric.__all__:
+        assert getattr(mcfric, name) is not None and name in dir(mcfric)
+    assert mcfric.preset("two-beam").n_beams == 2
+    with pytest.raises(AttributeError, match="no attribute 'nothing'"):
+        mcfric.nothing
+
+
 def test_info_of_a_partial_file(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
 

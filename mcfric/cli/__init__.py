@@ -3,7 +3,7 @@
 One module per command (:mod:`.run`, :mod:`.bounds`, :mod:`.plot`, :mod:`.info` with
 ``config``, :mod:`.hbm`, :mod:`.verify`), beside the parser, the configuration a command
 runs (:mod:`.inputs`), its output paths (:mod:`.outputs`), the errors and exit codes
-(:mod:`.errors`) and the entry point (:mod:`.main`).
+(:mod:`.errors`) and the dispatch to the commands (:mod:`.dispatch`).
 
 ::
 
@@ -38,7 +38,23 @@ written), 130 interrupted by Ctrl-C, SIGTERM or SIGHUP (the finished chunks are 
 continue with ``--resume``).
 """
 
+import sys
+
 from .errors import EXIT_FAIL, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE, UsageError
-from .main import main
+
+
+def main(argv=None):
+    """Entry point of ``mcfric`` (:func:`.dispatch.main`); returns the exit code.
+
+    The commands, numpy and numba load here rather than when the package is imported,
+    so Ctrl-C while they load is an interrupt like any other: one line, exit 130.
+    """
+    try:
+        from .dispatch import main as dispatch
+    except KeyboardInterrupt:
+        print("mcfric: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    return dispatch(argv)
+
 
 __all__ = ["main", "UsageError", "EXIT_OK", "EXIT_FAIL", "EXIT_USAGE", "EXIT_INTERRUPTED"]

@@ -1,10 +1,12 @@
-"""``mcfric``'s entry point: dispatch to the commands, signals, and errors as one line."""
+"""``mcfric``'s dispatch to the commands, its signals, and errors as one line (the
+entry point, :func:`mcfric.cli.main`, loads it)."""
 
 from __future__ import annotations
 
 import os
 import sys
 
+from ..store import StoreError
 from .bounds import cmd_bounds
 from .errors import EXIT_FAIL, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE, UsageError, one_line
 from .hbm import cmd_hbm
@@ -59,9 +61,8 @@ def _command_typo(word):
 
 
 def main(argv=None):
-    """Entry point of ``mcfric``; returns the exit code."""
-    from ..store import StoreError
-
+    """The commands' dispatch, behind the entry point :func:`mcfric.cli.main`; returns
+    the exit code."""
     argv = list(sys.argv[1:] if argv is None else argv)
     typo = _command_typo(argv[0]) if argv else None
     if typo:
