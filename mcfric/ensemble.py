@@ -38,6 +38,7 @@ from .memory import check_fits, human
 from .metric import METRIC_UNITS
 from .peaks import file_report as peak_report
 from .peaks import report_text, unrefined_lines
+from .results_check import check_file
 from .run_file import (
     RECORD,
     bounds_bytes,
@@ -239,6 +240,10 @@ def prepare(spec, path, *, resume=False, force=False):
                                "use --force to recompute it" + (
                                    f", --resume to continue {part}" if part.exists() else "")
                                + ", or choose another -o")
+            try:
+                check_file(final)       # edited or damaged: not "this run, nothing to do"
+            except StoreError as e:
+                raise RunError(f"{e}; use --force to replace it") from None
             return "complete", attrs
         if not (resume and part.exists()):
             raise RunError(f"{final} exists and holds a different run (first difference: "

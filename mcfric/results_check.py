@@ -3,9 +3,10 @@
 ``mcfric info`` and ``mcfric plot`` read files that may have been edited, truncated by
 hand or written by another tool. :func:`check_file` checks what they rely on: the layout
 version, the configuration record, the required datasets, every dataset's dimensions
-against its coordinates and the record's sizes, the kinds of the known datasets and the
-frequencies' values. It reads metadata and the frequencies only (cheap for any file size)
-and raises one :class:`~mcfric.store.StoreError` naming the first problem.
+against its coordinates and the record's sizes, the kinds of the known datasets, the
+frequencies' values and, in a file marked complete, that every sample is done. It reads
+metadata, the frequencies and ``done`` only (a byte per sample) and raises one
+:class:`~mcfric.store.StoreError` naming the first problem.
 """
 
 from __future__ import annotations
@@ -54,8 +55,9 @@ def check_file(path):
     Raises
     ------
     StoreError
-        Not an HDF5 file, not an mcfric file, another layout version, or a dataset that is
-        missing, misshapen or of the wrong type (one line, naming it).
+        Not an HDF5 file, not an mcfric file, another layout version, a dataset that is
+        missing, misshapen or of the wrong type, or samples not done in a file marked
+        complete (one line, naming it).
     """
     d = describe(path)          # StoreError for a file HDF5 cannot open
     a, ds = d["attrs"], d["datasets"]
@@ -98,6 +100,13 @@ def check_file(path):
                 raise StoreError(f"{path}: dataset {name} has {size} along {dim}, expected "
                                  f"{expected}")
     _check_against_record(path, cfg, ds)
+    if a.get("complete") == 1 and n > 0:
+        # the readers take a complete file's members as all there: a sample not done
+        # would be left out of every count and figure without a word
+        left = n - int(np.count_nonzero(read(path, "done") == 1))
+        if left:
+            raise StoreError(f"{path}: marked complete, but {left:,} of {n:,} samples are "
+                             f"not done (an edited or damaged file)")
     g = read_group(path, "bounds")
     if g is not None:
         check_bounds(path, *g, ds["frequency"][1][0])

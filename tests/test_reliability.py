@@ -633,6 +633,9 @@ DAMAGED = [
     (_stored("frequency", "f_min", None), "stored configuration: frequency.f_min"),
     (_stored("metric", "quantity", "force"), "stored configuration: metric.quantity"),
     (lambda h: h.attrs.__setitem__("layout_version", 99), "layout_version 99"),
+    # a sample not done in a file marked complete (info called it complete and left the
+    # sample out of its counts; plot drew the rest)
+    (lambda h: h["done"].__setitem__(5, 0), "marked complete, but 1 of 12 samples are not"),
     # the bounds group: everything its reader uses
     (lambda h: h["bounds"].__delitem__("upper_box"), "bounds/upper_box is missing"),
     (lambda h: h["bounds"].__delitem__("upper_witness"), "bounds/upper_witness is missing"),
@@ -655,6 +658,58 @@ def test_edited_results_files_give_one_line_exit_2(tmp_path, capsys, how, messag
         err = capsys.readouterr().err.strip()
         assert rc == 2 and message in err and len(err.splitlines()) == 1, (argv, err)
     assert not (tmp_path / "f.png").exists() and not (tmp_path / "v.csv").exists()
+
+
+@pytest.mark.parametrize("how, message", [
+    (lambda h: h.__delitem__("converged"), "dataset converged is missing"),
+    (lambda h: h["done"].__setitem__(5, 0), "marked complete, but 1 of 12 samples are not"),
+    (lambda h: h["bounds"].__delitem__("upper_box"), "bounds/upper_box is missing"),
+], ids=["converged", "done", "bounds"])
+def test_a_run_of_an_edited_complete_file_refuses_it_in_one_line(tmp_path, capsys, how,
+                                                                  message):
+    """A run whose output is a complete file of the same run, edited or damaged, is not
+    "nothing to do": it refuses in one line, exit 2, before anything is written (before,
+    it said "already holds this run", printed a summary, then failed with exit 1, or
+    with a sample not done exited 0)."""
+    res = _damaged(tmp_path, how)
+    before = res.read_bytes()
+    capsys.readouterr()
+    rc = cli.main(["run", *SMALL, "-o", str(res)])
+    out, err = capsys.readouterr()
+    assert rc == 2 and message in err and "--force" in err and len(err.splitlines()) == 1
+    assert "nothing to do" not in out and res.read_bytes() == before
+
+
+def test_a_partial_marked_complete_with_samples_not_done_is_refused(tmp_path, capsys,
+                                                                    monkeypatch):
+    """A partial file marked complete (the state between the last commit and the rename)
+    whose ``done`` says otherwise: info and plot refuse it in one line instead of calling
+    it complete; --resume computes the missing samples and renames it."""
+    from .test_cli import _before_third_solve
+
+    def stop():
+        raise KeyboardInterrupt
+
+    out = tmp_path / "p.h5"
+    argv = ["run", "two-beam", "--samples", "30", "--n-freq", "8", "--chunk", "10",
+            "--no-progress", "--no-figure", "--no-certify", "-o", str(out)]
+    with monkeypatch.context() as m:
+        _before_third_solve(m, stop)
+        assert cli.main(argv) == 130
+    part = store.partial_path(out)
+    with h5py.File(part, "r+") as h:
+        assert int(h["done"][...].sum()) == 20
+        h.attrs["complete"] = np.int8(1)
+    capsys.readouterr()
+    for command in (["info", str(part)], ["plot", str(part), "-o", str(tmp_path / "f.png")]):
+        rc = cli.main(command)
+        err = capsys.readouterr().err.strip()
+        assert rc == 2 and "marked complete, but 10 of 30 samples are not done" in err
+        assert len(err.splitlines()) == 1, err
+    assert cli.main(argv + ["--resume"]) == 0
+    with h5py.File(out, "r") as h:
+        assert h["done"][...].all() and h.attrs["complete"] == 1
+    assert not part.exists()
 
 
 @pytest.mark.parametrize("how, commands", [
