@@ -294,18 +294,22 @@ def test_no_progress_silences_the_certification_bars(tmp_path, monkeypatch, caps
         assert all(x is True for _, x in bars[2:]), (argv, bars)
 
 
-def test_ctrl_c_while_the_libraries_load_is_one_line(tmp_path):
-    """Ctrl-C while numpy, numba and the commands load (about the first second of a
-    command) is one line and exit 130, as later: the package loads none of them before
-    the entry point runs (before, a SIGINT 0.01-1.07 s after the start printed Python's
-    26-line traceback). Simulated by an import hook that raises KeyboardInterrupt when
-    numpy is first imported."""
+@pytest.mark.parametrize("signal_", ["raise KeyboardInterrupt",
+                                     "os.kill(os.getpid(), signal.SIGTERM)",
+                                     "os.kill(os.getpid(), signal.SIGHUP)"])
+def test_ctrl_c_while_the_libraries_load_is_one_line(tmp_path, signal_):
+    """Ctrl-C, SIGTERM or SIGHUP while numpy, numba and the commands load (about the
+    first second of a command) is one line and exit 130, as later: the package loads
+    none of them before the entry point runs, which takes the signals first (before, a
+    SIGINT 0.01-1.07 s after the start printed Python's 26-line traceback, a SIGTERM
+    before 1.2 s ended the process with no word, exit -15). Simulated by an import hook
+    that signals when numpy is first imported."""
     script = "\n".join([
-        "import sys",
+        "import os, signal, sys",
         "class Interrupt:",
         "    def find_spec(self, name, path=None, target=None):",
         "        if name == 'numpy':",
-        "            raise KeyboardInterrupt",
+        "            " + signal_,
         "sys.meta_path.insert(0, Interrupt())",
         "from mcfric.cli import main",
         "sys.exit(main(['info', 'nothing.h5']))"])
@@ -313,6 +317,51 @@ def test_ctrl_c_while_the_libraries_load_is_one_line(tmp_path):
                        cwd=tmp_path, timeout=120)
     assert (p.returncode, p.stderr, p.stdout) == (130, "mcfric: interrupted\n", "")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_finished_command_ends_with_its_exit_code_whatever_signal_comes_after():
+    """Called as the program, the entry point ignores Ctrl-C, SIGTERM and SIGHUP once the
+    command has returned: a signal while the interpreter shuts down (up to a second)
+    ended a finished ``mcfric bounds`` as killed (exit -2, no word)."""
+    script = "\n".join([
+        "import os, signal, sys",
+        "sys.argv = ['mcfric', 'config', 'two-beam']",
+        "from mcfric.cli import main",
+        "rc = main()",
+        "for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):",
+        "    os.kill(os.getpid(), s)",
+        "print('exit', rc)"])
+    p = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                       timeout=120)
+    assert p.returncode == 0 and p.stdout.endswith("exit 0\n") and p.stderr == ""
+
+
+def test_an_interrupt_after_the_bounds_file_is_written_says_it_is_complete(
+        tmp_path, monkeypatch, capsys):
+    """``mcfric bounds`` cut short while it draws the figure: the file is whole (renamed
+    into place), and the message says so, as ``mcfric run``'s does (it said only
+    "interrupted")."""
+    from mcfric.bounds import read_bounds
+
+    def stop(*a, **k):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(plot, "results_figure", stop)
+    out = tmp_path / "b.h5"
+    rc, text, err = call(["bounds", "two-beam", "--n-freq", "20", "--no-certify", "-o",
+                          str(out), "--no-progress"], capsys)
+    assert rc == 130 and err.strip() == (f"interrupted: {out} is complete; the figure after "
+                                         f"it was cut short (`mcfric plot {out}`)")
+    assert read_bounds(out).upper.shape == (20,) and f"bounds: {out}" in text
+    # cut short before the file is written: the plain message, nothing left
+    from mcfric import bounds as bounds_api
+
+    monkeypatch.setattr(bounds_api, "write_bounds_file", stop)
+    (tmp_path / "c").mkdir()
+    rc, _, err = call(["bounds", "two-beam", "--n-freq", "20", "--no-certify", "-o",
+                       str(tmp_path / "c" / "b.h5"), "--no-progress"], capsys)
+    assert rc == 130 and err.strip() == "mcfric: interrupted"
+    assert list((tmp_path / "c").iterdir()) == []
 
 
 def test_the_public_names_load_on_first_use():

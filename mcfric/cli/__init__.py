@@ -47,14 +47,42 @@ def main(argv=None):
     """Entry point of ``mcfric`` (:func:`.dispatch.main`); returns the exit code.
 
     The commands, numpy and numba load here rather than when the package is imported,
-    so Ctrl-C while they load is an interrupt like any other: one line, exit 130.
+    so Ctrl-C, SIGTERM or SIGHUP while they load is an interrupt like any other: one
+    line, exit 130. Called as the program (``argv`` None), it ignores those signals once
+    the command has returned: the interpreter's shutdown (numba, h5py) takes up to a
+    second, and a signal then would end a finished command as killed.
     """
+    import signal
+    import threading
+
+    main_thread = threading.current_thread() is threading.main_thread()
+
+    def interrupt(signum, frame):
+        raise KeyboardInterrupt(signal.Signals(signum).name)
+
+    stops = [getattr(signal, s) for s in ("SIGTERM", "SIGHUP") if hasattr(signal, s)]
+    previous = {s: signal.signal(s, interrupt) for s in stops} if main_thread else {}
     try:
-        from .dispatch import main as dispatch
-    except KeyboardInterrupt:
-        print("mcfric: interrupted", file=sys.stderr)
-        return EXIT_INTERRUPTED
-    return dispatch(argv)
+        try:
+            from .dispatch import main as dispatch
+        except KeyboardInterrupt:
+            print("mcfric: interrupted", file=sys.stderr)
+            return EXIT_INTERRUPTED
+        try:
+            # it holds the signals from when its own modules have loaded, and hands these
+            # handlers back when it returns
+            rc = dispatch(argv)
+        except KeyboardInterrupt:       # in the instants before and after it holds them
+            print("mcfric: interrupted", file=sys.stderr)
+            rc = EXIT_INTERRUPTED
+        if argv is None and main_thread:
+            for s in [signal.SIGINT, *stops]:
+                signal.signal(s, signal.SIG_IGN)
+        return rc
+    finally:
+        if argv is not None:
+            for s, h in previous.items():
+                signal.signal(s, h)
 
 
 __all__ = ["main", "UsageError", "EXIT_OK", "EXIT_FAIL", "EXIT_USAGE", "EXIT_INTERRUPTED"]

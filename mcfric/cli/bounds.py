@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
-from .errors import EXIT_OK, UsageError
+import sys
+
+from .errors import EXIT_INTERRUPTED, EXIT_OK, UsageError
 from .inputs import load_config, shortfall_note
 from .outputs import only_replacing_bounds, output_path
 
@@ -23,32 +25,42 @@ def cmd_bounds(args):
         lock.acquire()
     except LockError as e:
         raise UsageError(str(e)) from None
+    written = False
     try:
-        only_replacing_bounds(out)
-        print(f"mcfric bounds: {model.name}, {len(f)} frequencies {f[0]:g}-{f[-1]:g} Hz, "
-              f"F0 = {model.excitation.F0:g} N; box 0 <= Re K <= {lim.k_max_re:g} N/m, "
-              f"0 <= Im K <= {lim.k_max_im:g} N/m, F_lim = {lim.F_lim:g} N", flush=True)
-        shortfall_note(cfg)
-        t = time.perf_counter()
-        B = bounds.from_spec(spec, progress=False if args.no_progress else None)
-        print(f"{B.summary()} ({time.perf_counter() - t:.1f} s)")
-        peak = None
-        if spec.peaks:
-            # as a run's bounds group has it: the upper bound's peak between grid points
-            from ..bounds.peak import peak_attrs
+        try:
+            only_replacing_bounds(out)
+            print(f"mcfric bounds: {model.name}, {len(f)} frequencies {f[0]:g}-{f[-1]:g} Hz, "
+                  f"F0 = {model.excitation.F0:g} N; box 0 <= Re K <= {lim.k_max_re:g} N/m, "
+                  f"0 <= Im K <= {lim.k_max_im:g} N/m, F_lim = {lim.F_lim:g} N", flush=True)
+            shortfall_note(cfg)
+            t = time.perf_counter()
+            B = bounds.from_spec(spec, progress=False if args.no_progress else None)
+            print(f"{B.summary()} ({time.perf_counter() - t:.1f} s)")
+            peak = None
+            if spec.peaks:
+                # as a run's bounds group has it: the upper bound's peak between grid points
+                from ..bounds.peak import peak_attrs
 
-            peak = peak_attrs(model, B, spec.peaks.rtol)
-        bounds.write_bounds_file(out, cfg, B, peak=peak)
-        from ..metric import METRIC_UNITS
-        from ..peaks import bound_peak, bound_peak_lines
+                peak = peak_attrs(model, B, spec.peaks.rtol)
+            bounds.write_bounds_file(out, cfg, B, peak=peak)
+            written = True
+            from ..metric import METRIC_UNITS
+            from ..peaks import bound_peak, bound_peak_lines
 
-        for line in bound_peak_lines(bound_peak(out), METRIC_UNITS[spec.metric.quantity]):
-            print(line)
-    finally:
-        lock.release()
-    print(f"bounds: {out}")
-    if not args.no_figure:
-        png = out.with_suffix(".png")
-        plot.results_figure(out, png)
-        print(f"figure: {png}")
+            for line in bound_peak_lines(bound_peak(out), METRIC_UNITS[spec.metric.quantity]):
+                print(line)
+        finally:
+            lock.release()
+        print(f"bounds: {out}")
+        if not args.no_figure:
+            png = out.with_suffix(".png")
+            plot.results_figure(out, png)
+            print(f"figure: {png}")
+    except KeyboardInterrupt:
+        if not written:
+            raise
+        # the file is whole (written by a rename): only the lines or figure after it
+        print(f"interrupted: {out} is complete; the figure after it was cut short "
+              f"(`mcfric plot {out}`)", file=sys.stderr)
+        return EXIT_INTERRUPTED
     return EXIT_OK
