@@ -18,11 +18,17 @@ __all__ = ["HBMResult", "solve", "TABLE_1", "Excitation", "ModalTable", "Model",
 
 
 def __getattr__(name):
-    module = _PUBLIC.get(name)
-    if module is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
     from importlib import import_module
 
+    module = _PUBLIC.get(name)
+    if module is None:
+        # a submodule (``mcfric.ensemble.run`` after ``import mcfric``), as before
+        try:
+            return import_module(f".{name}", __name__)
+        except ModuleNotFoundError as e:
+            if e.name != f"{__name__}.{name}":
+                raise
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}") from None
     value = getattr(import_module(f".{module}", __name__), name)
     globals()[name] = value          # once: later lookups find it directly
     return value

@@ -350,8 +350,9 @@ def test_an_interrupt_after_the_bounds_file_is_written_says_it_is_complete(
     out = tmp_path / "b.h5"
     rc, text, err = call(["bounds", "two-beam", "--n-freq", "20", "--no-certify", "-o",
                           str(out), "--no-progress"], capsys)
-    assert rc == 130 and err.strip() == (f"interrupted: {out} is complete; the figure after "
-                                         f"it was cut short (`mcfric plot {out}`)")
+    assert rc == 130 and err.strip() == (f"interrupted: {out} is complete; the lines or the "
+                                         f"figure after it were cut short (`mcfric info "
+                                         f"{out}`, `mcfric plot {out}`)")
     assert read_bounds(out).upper.shape == (20,) and f"bounds: {out}" in text
     # cut short before the file is written: the plain message, nothing left
     from mcfric import bounds as bounds_api
@@ -377,6 +378,8 @@ def test_the_public_names_load_on_first_use():
     for name in mcfric.__all__:
         assert getattr(mcfric, name) is not None and name in dir(mcfric)
     assert mcfric.preset("two-beam").n_beams == 2
+    # submodules too, as when __init__ imported them
+    assert mcfric.ensemble.run is ensemble.run and mcfric.hbm.solve is mcfric.solve
     with pytest.raises(AttributeError, match="no attribute 'nothing'"):
         mcfric.nothing
 

@@ -60,7 +60,7 @@ def cmd_bounds(args):
         if not written:
             raise
         # the file is whole (written by a rename): only the lines or figure after it
-        print(f"interrupted: {out} is complete; the figure after it was cut short "
-              f"(`mcfric plot {out}`)", file=sys.stderr)
+        print(f"interrupted: {out} is complete; the lines or the figure after it were "
+              f"cut short (`mcfric info {out}`, `mcfric plot {out}`)", file=sys.stderr)
         return EXIT_INTERRUPTED
     return EXIT_OK
