@@ -489,6 +489,29 @@ def test_a_stop_signal_dropped_while_compiling_still_stops_the_run(tmp_path, mon
     assert ensemble.STOP_SIGNALS == ["SIGTERM"]
 
 
+def test_a_caller_gets_its_signal_handlers_back_and_a_fresh_note(tmp_path, monkeypatch,
+                                                                  capsys):
+    """Called with arguments (a test, a script), the entry point hands SIGTERM and SIGHUP
+    back as it found them, and a stop noted by an earlier command does not stop the
+    next one."""
+    import signal
+
+    monkeypatch.chdir(tmp_path)
+    mine = {s: (lambda signum, frame: None) for s in (signal.SIGTERM, signal.SIGHUP)}
+    before = {s: signal.signal(s, h) for s, h in mine.items()}
+    try:
+        ensemble.STOP_SIGNALS[:] = ["SIGTERM"]         # left by an earlier, stopped command
+        rc, _, err = call(["run", "two-beam", "--samples", "20", "--n-freq", "5",
+                           "-o", "r.h5", "--no-progress", "--no-certify", "--no-figure"],
+                          capsys)
+        assert rc == 0, err
+        assert (tmp_path / "r.h5").exists() and ensemble.STOP_SIGNALS == []
+        assert all(signal.getsignal(s) is h for s, h in mine.items())
+    finally:
+        for s, h in before.items():
+            signal.signal(s, h)
+
+
 @pytest.mark.parametrize("limit, admitted", [("k_max = 15.0", "none"),   # kN/m for N/m
                                              ("F_lim = 0.2", "some")])
 def test_members_outside_the_bounds_constraints_are_named_and_left_out(tmp_path, capsys,

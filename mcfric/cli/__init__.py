@@ -48,9 +48,12 @@ def main(argv=None):
 
     The commands, numpy and numba load here rather than when the package is imported,
     so Ctrl-C, SIGTERM or SIGHUP while they load is an interrupt like any other: one
-    line, exit 130. Called as the program (``argv`` None), it ignores those signals once
-    the command has returned: the interpreter's shutdown (numba, h5py) takes up to a
-    second, and a signal then would end a finished command as killed.
+    line, exit 130. SIGTERM and SIGHUP stop a run as Ctrl-C does (the finished chunks
+    are committed, a message says how to resume) from here until the command returns;
+    their handlers are restored when it is called with ``argv``. Called as the program
+    (``argv`` None), it ignores those signals once the command has returned: the
+    interpreter's shutdown (numba, h5py) takes up to a second, and a signal then would
+    end a finished command as killed.
     """
     import signal
     import threading
@@ -58,8 +61,17 @@ def main(argv=None):
     main_thread = threading.current_thread() is threading.main_thread()
 
     def interrupt(signum, frame):
-        raise KeyboardInterrupt(signal.Signals(signum).name)
+        name = signal.Signals(signum).name
+        # noted too: raised inside a ctypes callback (numba compiling) the exception is
+        # printed and dropped, and a run checks the note between chunks
+        notes = getattr(sys.modules.get("mcfric.ensemble"), "STOP_SIGNALS", None)
+        if notes is not None:
+            notes.append(name)
+        raise KeyboardInterrupt(name)
 
+    notes = getattr(sys.modules.get("mcfric.ensemble"), "STOP_SIGNALS", None)
+    if notes is not None:
+        notes.clear()               # a caller's earlier command
     stops = [getattr(signal, s) for s in ("SIGTERM", "SIGHUP") if hasattr(signal, s)]
     previous = {s: signal.signal(s, interrupt) for s in stops} if main_thread else {}
     try:
@@ -69,10 +81,8 @@ def main(argv=None):
             print("mcfric: interrupted", file=sys.stderr)
             return EXIT_INTERRUPTED
         try:
-            # it holds the signals from when its own modules have loaded, and hands these
-            # handlers back when it returns
             rc = dispatch(argv)
-        except KeyboardInterrupt:       # in the instants before and after it holds them
+        except KeyboardInterrupt:       # in the instants before and after its own guard
             print("mcfric: interrupted", file=sys.stderr)
             rc = EXIT_INTERRUPTED
         if argv is None and main_thread:

@@ -1,5 +1,5 @@
-"""``mcfric``'s dispatch to the commands, its signals, and errors as one line (the
-entry point, :func:`mcfric.cli.main`, loads it)."""
+"""``mcfric``'s dispatch to the commands, and errors as one line (the entry point,
+:func:`mcfric.cli.main`, loads it and holds the signals)."""
 
 from __future__ import annotations
 
@@ -16,32 +16,6 @@ from .parser import COMMANDS, build_parser
 from .plot import cmd_plot
 from .run import cmd_run
 from .verify import cmd_verify
-
-
-def _stop_signals_interrupt():
-    """SIGTERM and SIGHUP stop a run as Ctrl-C does: the finished chunks are committed, a
-    message says how to resume, exit 130 (main thread only; elsewhere a no-op)."""
-    import signal
-    import threading
-
-    if threading.current_thread() is not threading.main_thread():
-        return {}
-
-    from .. import ensemble
-
-    def handler(signum, frame):
-        # also noted: raised inside a ctypes callback (numba compiling) the exception is
-        # printed and dropped, and the run checks the note between chunks
-        ensemble.STOP_SIGNALS.append(signal.Signals(signum).name)
-        raise KeyboardInterrupt(signal.Signals(signum).name)
-
-    ensemble.STOP_SIGNALS.clear()
-    previous = {}
-    for name in ("SIGTERM", "SIGHUP"):
-        if hasattr(signal, name):
-            sig = getattr(signal, name)
-            previous[sig] = signal.signal(sig, handler)
-    return previous
 
 
 def _command_typo(word):
@@ -70,12 +44,7 @@ def main(argv=None):
         return EXIT_USAGE
     if not argv or (argv[0] not in COMMANDS and argv[0] not in ("-h", "--help", "--version")):
         argv = ["run"] + argv        # `mcfric` alone (or `mcfric two-beam`) means `mcfric run`
-    import signal
-
-    previous = {}
     try:
-        # inside: Ctrl-C while the solver's modules load is an interrupt like any other
-        previous = _stop_signals_interrupt()
         args = build_parser().parse_args(argv)
         from ..threads import leaving_on_interrupt
 
@@ -107,8 +76,6 @@ def main(argv=None):
               "than is free: fewer beams, frequencies or samples per chunk)", file=sys.stderr)
         return EXIT_FAIL
     finally:
-        for sig, h in previous.items():
-            signal.signal(sig, h)
         while MADE_DIRS:
             try:
                 MADE_DIRS.pop().rmdir()         # only an empty one
