@@ -327,6 +327,26 @@ def test_no_output_silently_replaces_another(tmp_path, capsys, argv, message):
     assert snapshot(tmp_path) == before
 
 
+def test_a_figure_beside_another_commands_output_is_not_replaced(tmp_path, capsys):
+    """`run -o r.h5` draws r.png; `hbm -o r.csv` would draw r.png too: refused in one
+    line before any work, nothing touched; with --no-figure it goes on. The other way
+    round the same; once r.csv exists, r.png is its own."""
+    hbm = ["hbm", "two-beam", "--n-freq", "8"]
+    assert cli.main(["run", *SMALL[:-1], "-o", str(tmp_path / "r.h5")]) == 0
+    assert cli.main([*hbm, "-o", str(tmp_path / "s.csv")]) == 0
+    capsys.readouterr()
+    before = snapshot(tmp_path)
+    for argv, beside in ([*hbm, "-o", str(tmp_path / "r.csv")], "r.h5"),\
+            (["run", *SMALL[:-1], "-o", str(tmp_path / "s.h5")], "s.csv"):
+        assert cli.main(argv) == 2
+        err = capsys.readouterr().err.strip()
+        assert f"beside {beside}" in err and len(err.splitlines()) == 1, err
+        assert snapshot(tmp_path) == before
+    assert cli.main([*hbm, "-o", str(tmp_path / "r.csv"), "--no-figure"]) == 0
+    assert snapshot(tmp_path)["r.png"] == before["r.png"]
+    assert cli.main([*hbm, "-o", str(tmp_path / "r.csv")]) == 0     # r.csv's own now
+
+
 @pytest.mark.parametrize("command", [["run", *SMALL], ["bounds", "two-beam", "--n-freq",
                                                         "10", "--no-figure"]])
 def test_a_file_of_another_kind_at_the_lock_name_is_neither_emptied_nor_removed(

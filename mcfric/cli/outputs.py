@@ -32,7 +32,9 @@ MADE_DIRS = []
 def output_path(args, suffix, prefix="", figure=False):
     """The output path; the default directory is created, a given one must exist.
 
-    ``figure``: the command also writes ``FILE.png`` next to it; the two must differ.
+    ``figure``: the command also writes ``FILE.png`` next to it; the two must differ,
+    and an existing ``FILE.png`` beside a results file or CSV of the other kind is that
+    file's figure, not replaced until ``FILE`` itself exists.
     Neither may replace an HDF5 file unless the command writes HDF5 itself (``suffix``
     ``.h5``, whose own checks decide), nor the command's own input, nor be a directory,
     nor end in the other format's suffix (found now, not after the work).
@@ -82,6 +84,13 @@ def output_path(args, suffix, prefix="", figure=False):
         _not_replacing_input(args, png, "figure")
         if png.is_symlink():
             writable_dir(png)        # written through: its target's directory
+        # FILE.png beside another command's FILE.h5 (or FILE.csv) is that file's figure
+        # (`run -o r.h5`, then `hbm -o r.csv`); once our own output exists, it is ours
+        sibling = out.with_suffix(".csv" if suffix == ".h5" else ".h5")
+        if png.exists() and sibling.is_file() and not out.exists():
+            raise UsageError(f"-o: {png} exists beside {sibling.name}, whose figure it may "
+                             f"be; the {what}'s figure would replace it: choose another -o, "
+                             f"or --no-figure")
     # a name that promises the other format (the reader would then fail on it)
     other = {".h5": (".csv", ".png", ".txt", ".toml"),
              ".csv": (".h5", ".hdf5", ".hdf", ".nc", ".png", ".toml")}[suffix]
