@@ -53,6 +53,10 @@ class ModalTable:
     def __post_init__(self):
         f = finite_array("freq_hz", self.freq_hz, 1, positive=True)
         z = finite_array("zeta", self.zeta, 1, nonnegative=True)
+        if np.any(z > 1):
+            # overdamped: no resonance; more often a damping in percent (2 for 0.02)
+            raise ValueError(f"zeta: expected damping ratios in [0, 1] (0.02 for 2 %), "
+                             f"got {z.max():g}")
         u = finite_array("shapes", self.shapes, 2)
         if len(f) == 0:
             raise ValueError("freq_hz: a modal table needs at least one mode")

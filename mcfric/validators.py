@@ -237,9 +237,9 @@ def boolean():
     return check
 
 
-def numbers(lo=None, lo_open=False, nonempty=True):
-    """A list of finite numbers, each within the limit; returns a list of floats."""
-    item = number(lo=lo, lo_open=lo_open)
+def numbers(lo=None, lo_open=False, nonempty=True, hi=None):
+    """A list of finite numbers, each within the limits; returns a list of floats."""
+    item = number(lo=lo, lo_open=lo_open, hi=hi)
     what = "a list of " + item.what.replace("a finite number", "finite numbers")
 
     def check(v, key):

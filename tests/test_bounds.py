@@ -350,6 +350,39 @@ def test_bad_input_names_the_argument(kwargs, name):
         compute_bounds(args.pop("model"), args.pop("freq_hz"), **args)
 
 
+def _scaled_two_beam(zeta1=None, shape=None):
+    t = mcfric.two_beam().beams[0]
+    z = t.zeta.copy() if zeta1 is None else np.array([zeta1, t.zeta[1]])
+    u = t.shapes.copy()
+    if shape is not None:
+        u[0, 0] = shape
+    table = mcfric.ModalTable(t.freq_hz, z, u, t.positions)
+    m = mcfric.two_beam()
+    return dataclasses.replace(m, beams=(table,) * m.n_beams)
+
+
+@pytest.mark.parametrize("zeta1, shape", [(1e-30, None), (1e-300, None), (None, 1e7)])
+def test_a_table_out_of_scale_is_refused_not_divided_by_zero(zeta1, shape):
+    """A damping of 1e-30 or a shape of 1e7 kg^-1/2 (a table in wrong units) made the
+    box search's Moebius maps lose their 1 and divide by complex zero: a 38-line
+    ZeroDivisionError from the kernel. Refused up front, naming the scale."""
+    model = _scaled_two_beam(zeta1, shape)
+    with pytest.raises(ValueError, match=r"beyond the 1e\+15 the bounds resolve"):
+        compute_bounds(model, np.linspace(10.0, 150.0, 8), 15000.0, certified=False)
+
+
+@pytest.mark.parametrize("name", ["two-beam", "eight-beam", "disk-24", "disk-72"])
+def test_every_preset_is_in_scale_up_to_the_stiffest_box(name):
+    """The scale check leaves every preset its whole range of k_max (up to a stuck
+    damper, 1e12 N/m) with two decades to spare."""
+    from mcfric.bounds.equivalent_linear import K_MAX_LIMIT, SCALE_MAX, check_scales
+
+    model = mcfric.preset(name)
+    check_scales(model, 100 * K_MAX_LIMIT, 100 * K_MAX_LIMIT)
+    with pytest.raises(ValueError):
+        check_scales(model, 1e4 * SCALE_MAX, 1e4 * SCALE_MAX)
+
+
 def test_a_failed_frequency_is_not_counted_as_set_by_the_box():
     """The summary counted a frequency whose search failed (NaN bound, limited_by 0)
     as set by the box."""

@@ -57,6 +57,10 @@ from .search import box_extreme, starts
 #: Largest k_max (and k_max_im) the bounds accept, N/m: far stiffer than any contact
 #: (a stuck damper); beyond it the search's arithmetic overflows. The solvers' limit.
 K_MAX_LIMIT = KC_MAX
+#: Largest product of the box's largest describing function |K| and the contacts'
+#: receptance at resonance that the bounds take: near 1e16 the ``1 + G K`` of the
+#: searches' Moebius maps keeps none of the 1 in rounding and a search divides by zero.
+SCALE_MAX = 1e15
 
 #: ``limited_by`` codes: which constraint sets the upper bound.
 LIMITED_BY = ("box", "force")
@@ -317,6 +321,40 @@ def rotation_invariant(model):
                for t in model.beams)
 
 
+def check_scales(model, k_max, k_max_im, key="model"):
+    """Refuse a box whose stiffest describing function dwarfs the beams at the contacts.
+
+    Parameters
+    ----------
+    model : Model
+        The array; every mode damped (zeta > 0).
+    k_max, k_max_im : float
+        The box's largest ``Re K`` and ``Im K``, N/m.
+    key : str
+        The input blamed in the error (``model``; ``model.table`` from a configuration).
+
+    Raises
+    ------
+    InputError
+        Where ``2 max_b sum_k u_ck^2 / (2 zeta_k w_k^2)`` (an upper estimate of a damper's
+        receptance at resonance, m/N) times ``|k_max + i k_max_im|`` is above
+        :data:`SCALE_MAX`: a table in wrong units (shapes not mass-normalised, zeta
+        near 0), for which the searches would lose the response in rounding.
+    """
+    f, z, u = model.modal_arrays()
+    w = 2 * np.pi * f
+    with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
+        peak = float(np.max((u[:, :, 0] ** 2 / (2 * z * w * w)).sum(axis=1)))
+        ratio = 2 * peak * float(np.hypot(k_max, k_max_im))
+    if not ratio <= SCALE_MAX:
+        raise InputError(key, f"the contacts' receptance at resonance (u^2 / (2 zeta w^2) "
+                              f"summed over the modes: {peak:.3g} m/N) times the largest "
+                              f"describing function modulus ({np.hypot(k_max, k_max_im):.3g} N/m) "
+                              f"is {ratio:.3g}, beyond the {SCALE_MAX:g} the bounds resolve "
+                              f"in rounding: check the table's units (shapes mass-normalised, "
+                              f"kg^-1/2; zeta a ratio)")
+
+
 def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity="displacement",
                    beams=None, n_starts=N_STARTS, max_sweeps=MAX_SWEEPS, seed=0, n_threads=None,
                    certified=True, budget=None, split=None, moments="auto", progress=None):
@@ -409,6 +447,7 @@ def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity
             raise InputError("model", f"beam {i + 1} has a mode without damping (zeta = 0); "
                              f"the bounds need every mode damped (zeta > 0): an undamped "
                              f"mode has an unbounded resonance")
+    check_scales(model, kr, ki)
     if model.contact_law != "coulomb":
         # the box of describing functions and the force limit are Coulomb friction's
         raise ValueError(f"model: the bounds are for Coulomb friction contacts, got "

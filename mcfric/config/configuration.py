@@ -58,6 +58,9 @@ class Config:
                              " an undamped mode has an unbounded resonance; give zeta > 0 or "
                              "set bounds.enabled = false")
         limits = validation.bounds_limits(d) if b["enabled"] else None
+        if b["enabled"]:
+            from ..bounds.equivalent_linear import check_scales
+            check_scales(model, limits[0], limits[1], key="model.table")
         moments = b["certify_moments"]
         if b["enabled"] and b["certify"]:
             from ..bounds.certified import resolve_moments

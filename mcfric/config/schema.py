@@ -96,7 +96,7 @@ def defaults(preset=DEFAULT_PRESET):
 
 TABLE = {
     "freq_hz": (numbers(lo=0, lo_open=True), "natural frequencies, Hz, one per mode"),
-    "zeta": (numbers(lo=0), "modal damping ratios (-), one per mode"),
+    "zeta": (numbers(lo=0, hi=1), "modal damping ratios (-), one per mode"),
     "shapes": (matrix(), "mass-normalised mode shapes, kg^-1/2: one row per mode, "
                          "one column per position"),
     "positions": (integers(), "position label of each column of shapes"),
