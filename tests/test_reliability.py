@@ -306,6 +306,10 @@ OVERWRITES = [
     (["run", *SMALL, "-o", ""], 'got ""'),
     (["hbm", "two-beam", "-o", ""], 'got ""'),
     (["plot", "{res}", "-o", ""], 'got ""'),
+    # a path reads "out.h5/" as "out.h5": the run wrote a file where a directory was meant
+    (["run", *SMALL, "-o", "{dir}/out.h5/"], "a directory's name"),
+    (["hbm", "two-beam", "--n-freq", "10", "-o", "{dir}/h.csv/"], "a directory's name"),
+    (["plot", "{res}", "-o", "{dir}/f.png/"], "a directory's name"),
     # a run on FILE takes FILE.lock as its lock and removes it at the end
     (["run", *SMALL, "-o", "{dir}/next.h5.lock"], "ends in .lock"),
     (["bounds", "two-beam", "--n-freq", "10", "-o", "{dir}/next.lock", "--no-figure"],
@@ -1365,13 +1369,29 @@ def test_a_figure_linked_into_an_unwritable_directory_is_refused_first(tmp_path,
     assert not (tmp_path / "h.csv").exists()
 
 
-def test_a_results_file_name_that_is_a_link_replaces_the_link(tmp_path, capsys):
-    """A results file is renamed onto -o (a link there is replaced, not written through):
-    a link to an unwritable place is no reason to refuse the run."""
+@pytest.mark.parametrize("command", [["run", *SMALL], ["bounds", "two-beam", "--n-freq",
+                                                        "10", "--no-figure"]])
+def test_a_results_file_name_that_is_a_link_is_written_through(tmp_path, capsys, command):
+    """-o LINK, as for a CSV or a figure: the link stays and its target gets the results
+    (it was replaced by a regular file, the target never made: a link to a larger disk
+    silently ignored). A link into a directory that does not exist: one line, exit 2,
+    nothing made."""
+    (tmp_path / "disk").mkdir()
     out = tmp_path / "r.h5"
-    out.symlink_to("/nonexistent-dir/r.h5")
-    assert cli.main(["run", *SMALL, "-o", str(out)]) == 0, capsys.readouterr().err
-    assert out.is_file() and not out.is_symlink()
+    out.symlink_to(tmp_path / "disk" / "target.h5")
+    assert cli.main([*command, "-o", str(out)]) == 0, capsys.readouterr().err
+    assert out.is_symlink() and (tmp_path / "disk" / "target.h5").is_file()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["disk", "r.h5"]
+    with h5py.File(out) as f:            # through the link: a whole results file
+        assert "layout_version" in f.attrs
+    capsys.readouterr()
+    dangling = tmp_path / "d.h5"
+    dangling.symlink_to(tmp_path / "nodir" / "d.h5")
+    before = snapshot(tmp_path)
+    assert cli.main([*command, "-o", str(dangling)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "(a link's target) does not exist" in err and len(err.splitlines()) == 1, err
+    assert snapshot(tmp_path) == before and dangling.is_symlink()
 
 
 def test_verify_takes_every_frequency_given():

@@ -40,9 +40,7 @@ def output_path(args, suffix, prefix="", figure=False):
     nor end in the other format's suffix (found now, not after the work).
     """
     if args.output is not None:
-        if not str(args.output).strip():
-            raise UsageError('-o: expected a file name, got ""')
-        out = Path(args.output)
+        out = file_name(args.output)
         if not out.parent.is_dir():
             raise UsageError(f"-o: directory {out.parent} does not exist")
         regular_or_none(out)
@@ -57,7 +55,16 @@ def output_path(args, suffix, prefix="", figure=False):
                                  f"({e.strerror or e}); give -o FILE") from None
             MADE_DIRS.append(out.parent)
         regular_or_none(out, "")
-    writable_dir(out, through=suffix != ".h5")
+    if suffix == ".h5" and out.is_symlink():
+        # written through, as a CSV or a figure is: the link stays, its target gets the
+        # results (and the .partial and the lock beside it)
+        target = Path(os.path.realpath(out))
+        if not target.parent.is_dir():
+            raise UsageError(f"-o: directory {target.parent} (a link's target) does not "
+                             f"exist")
+        out = target
+        regular_or_none(out, "-o: ")
+    writable_dir(out)
     if suffix == ".h5":
         from ..store import partial_path
 
@@ -101,6 +108,18 @@ def output_path(args, suffix, prefix="", figure=False):
     return out
 
 
+def file_name(value):
+    """``-o``'s path: not empty, and not a directory's name (``out.h5/``, which a path
+    would read as ``out.h5``)."""
+    text = str(value)
+    if not text.strip():
+        raise UsageError('-o: expected a file name, got ""')
+    if text.endswith(("/", os.sep)):
+        raise UsageError(f"-o: {text} ends in {text[-1]}, a directory's name; give a file "
+                         f"name")
+    return Path(text)
+
+
 def regular_or_none(path, label="-o: "):
     """Refuse an output name held by a directory, a device or a pipe (``--force`` would
     replace a device such as /dev/null with a results file; a pipe hangs)."""
@@ -110,12 +129,12 @@ def regular_or_none(path, label="-o: "):
         raise UsageError(f"{label}{path} is not a regular file (a device or a pipe)")
 
 
-def writable_dir(out, through=True):
+def writable_dir(out):
     """An output is renamed into its directory when complete: one that cannot be written
-    is refused now, not after the work. ``through``: the output is written through a
-    symbolic link at ``out`` (CSV and figures; ``store.files.replacing``), so the link's
-    target's directory is the one checked; a results file replaces the link itself."""
-    if through and out.is_symlink():
+    is refused now, not after the work. An output is written through a symbolic link at
+    ``out`` (CSV and figures: ``store.files.replacing``; a results file: the link's target
+    is its path), so the link's target's directory is the one checked."""
+    if out.is_symlink():
         out = Path(os.path.realpath(out))
         if not out.parent.is_dir():
             raise UsageError(f"-o: directory {out.parent} (a link's target) does not exist")

@@ -7,7 +7,7 @@ import math
 from pathlib import Path
 
 from .errors import EXIT_OK, UsageError, reading
-from .outputs import checked_file, no_such_file, not_replacing_hdf5, writable_dir
+from .outputs import checked_file, file_name, no_such_file, not_replacing_hdf5, writable_dir
 
 
 def cmd_plot(args):
@@ -25,9 +25,7 @@ def cmd_plot(args):
     attrs = checked_file(path)[0]
     if attrs.get("complete") != 1:
         raise UsageError(f"{path}: the run is not complete (continue it with --resume)")
-    if args.output is not None and not str(args.output).strip():
-        raise UsageError('-o: expected a file name, got ""')
-    out = Path(args.output) if args.output else path.with_suffix(".png")
+    out = file_name(args.output) if args.output is not None else path.with_suffix(".png")
     if out.suffix.lower() not in (".png", ".pdf", ".svg"):
         raise UsageError(f"-o: expected a .png, .pdf or .svg file, got {out.name}")
     if not out.parent.is_dir():
