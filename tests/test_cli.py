@@ -489,6 +489,25 @@ def test_a_stop_signal_dropped_while_compiling_still_stops_the_run(tmp_path, mon
     assert ensemble.STOP_SIGNALS == ["SIGTERM"]
 
 
+@pytest.mark.parametrize("argv, kind", [
+    (["run", "two-beam", "--samples", "3_0"], "int"),          # int() reads 30
+    (["run", "two-beam", "--n-freq", "\u0663"], "int"),        # Arabic-Indic 3
+    (["run", "two-beam", "--seed", "1_000"], "int"),
+    (["hbm", "two-beam", "--mu0", "1_0"], "float"),           # float() reads 10.0
+    (["hbm", "two-beam", "--F0", "\u0661.5"], "float"),
+    (["verify", "two-beam", "--f", "3_0"], "frequency"),
+    (["bounds", "two-beam", "--F-lim", "0_5"], "F-lim"),
+])
+def test_numbers_in_flags_are_ascii_decimals(argv, kind, tmp_path, monkeypatch, capsys):
+    """Python's int() and float() take digit separators and other scripts' digits: a
+    typo ran silently as another number. One line, exit 2, nothing written."""
+    monkeypatch.chdir(tmp_path)
+    rc, out, err = call(argv + ["-o", "x.csv" if argv[0] in ("hbm", "verify") else "x.h5"],
+                        capsys)
+    assert rc == 2 and kind in err and len(err.strip().splitlines()) == 1, err
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_a_caller_gets_its_signal_handlers_back_and_a_fresh_note(tmp_path, monkeypatch,
                                                                   capsys):
     """Called with arguments (a test, a script), the entry point hands SIGTERM and SIGHUP

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
 
 from .errors import UsageError
 
@@ -111,20 +112,20 @@ def build_parser():
     r.add_argument("-o", "--output", metavar="FILE",
                    help="results file (default: mcfric-results/<name>.h5, <name> the preset or "
                         "the TOML file's name, default without a source)")
-    r.add_argument("--samples", type=int, metavar="N", help="ensemble size")
-    r.add_argument("--seed", type=int, metavar="S", help="root seed (>= 0)")
+    r.add_argument("--samples", type=_int, metavar="N", help="ensemble size")
+    r.add_argument("--seed", type=_int, metavar="S", help="root seed (>= 0)")
     r.add_argument("--resume", action="store_true",
                    help="continue FILE.partial left by an interrupted run")
     r.add_argument("--force", action="store_true",
                    help="replace an existing FILE or FILE.partial holding another run")
-    r.add_argument("--threads", type=int, metavar="T", help="numba threads (0 = all)")
-    r.add_argument("--chunk", type=int, metavar="N", help="samples per chunk (0 = auto)")
+    r.add_argument("--threads", type=_int, metavar="T", help="numba threads (0 = all)")
+    r.add_argument("--chunk", type=_int, metavar="N", help="samples per chunk (0 = auto)")
     r.add_argument("--scheduler", metavar="ADDRESS",
                    help='solve the chunks on a Dask cluster: "local:N" (N worker processes '
                         'on this machine) or "tcp://host:port" (needs mcfric[dask])')
-    r.add_argument("--peaks", type=int, metavar="N",
+    r.add_argument("--peaks", type=_int, metavar="N",
                    help="resolved peaks kept per member (default: one per mode)")
-    r.add_argument("--peak-rtol", type=float, metavar="X",
+    r.add_argument("--peak-rtol", type=_float, metavar="X",
                    help="relative tolerance of a refined peak (default 1e-4)")
     r.add_argument("--no-peaks", action="store_true",
                    help="do not refine peaks or look for folds")
@@ -156,10 +157,10 @@ def build_parser():
                        description="Harmonic balance of one parameter set (the same for every "
                        "damper): writes a CSV and a PNG next to it.")
     h.add_argument("source", nargs="?", help=_source_help() + " (default: eight-beam)")
-    h.add_argument("--mu0", type=float, default=0.5, help="friction coefficient (default 0.5)")
-    h.add_argument("--kc", type=float, default=6000.0, metavar="N_PER_M",
+    h.add_argument("--mu0", type=_float, default=0.5, help="friction coefficient (default 0.5)")
+    h.add_argument("--kc", type=_float, default=6000.0, metavar="N_PER_M",
                    help="tangential stiffness, N/m (default 6000)")
-    h.add_argument("--N0", type=float, default=0.5, metavar="N",
+    h.add_argument("--N0", type=_float, default=0.5, metavar="N",
                    help="normal preload, N (default 0.5)")
     _model_flags(h)
     _harmonic_flags(h)
@@ -176,12 +177,12 @@ def build_parser():
     b.add_argument("-o", "--output", metavar="FILE",
                    help="bounds file (default: mcfric-results/bounds-<name>.h5, <name> as in run)")
     _model_flags(b)
-    b.add_argument("--k-max", type=float, metavar="N_PER_M",
+    b.add_argument("--k-max", type=_float, metavar="N_PER_M",
                    help="largest Re K of a damper, N/m, and Im K unless k_max_im is "
                         "set (default: from kc)")
     b.add_argument("--F-lim", type=_number_or_none, metavar="N",
                    help='friction force limit, N, or "none" (default: 4/pi mu0_max N0_max)')
-    b.add_argument("--threads", type=int, metavar="T", help="numba threads (0 = all)")
+    b.add_argument("--threads", type=_int, metavar="T", help="numba threads (0 = all)")
     b.add_argument("--no-certify", action="store_true",
                    help="skip the certification of the bounds (a quick look: the searched "
                         "bounds alone)")
@@ -200,9 +201,9 @@ def build_parser():
                     help="figure file, .png/.pdf/.svg (default: FILE with .png)")
     pl.add_argument("--quantity", choices=("displacement", "velocity", "acceleration"),
                     help="plotted quantity (default: the stored one)")
-    pl.add_argument("--f-min", type=float, metavar="HZ", help="lower end of the window, Hz")
-    pl.add_argument("--f-max", type=float, metavar="HZ", help="upper end of the window, Hz")
-    pl.add_argument("--member", type=int, default=None, metavar="I",
+    pl.add_argument("--f-min", type=_float, metavar="HZ", help="lower end of the window, Hz")
+    pl.add_argument("--f-max", type=_float, metavar="HZ", help="upper end of the window, Hz")
+    pl.add_argument("--member", type=_int, default=None, metavar="I",
                     help="ensemble member drawn in black (default 0; -1: none; a bounds "
                          "file has none)")
     pl.add_argument("--measured", nargs="+", metavar="DATA", default=[],
@@ -214,10 +215,10 @@ def build_parser():
     pl.add_argument("--measured-quantity", choices=("displacement", "velocity",
                                                     "acceleration"),
                     help="what the measured values are, when the file does not say")
-    pl.add_argument("--measured-force", type=float, metavar="N",
+    pl.add_argument("--measured-force", type=_float, metavar="N",
                     help="force level of the measured run, N, when the file does not give "
                          "one (UFF FRFs need it)")
-    pl.add_argument("--measured-direction", type=int, choices=(1, 2, 3), metavar="D",
+    pl.add_argument("--measured-direction", type=_int, choices=(1, 2, 3), metavar="D",
                     help="UFF: keep the records of response direction D (1 X, 2 Y, 3 Z), "
                          "for files with several per node")
     pl.add_argument("--normalise", action="store_true",
@@ -241,21 +242,21 @@ def _verify_parser(sub):
                    "(default: eight-beam)")
     v.add_argument("--f", type=_hz, nargs="+", action="extend", required=True, metavar="HZ",
                    help="drive frequencies, Hz (repeated --f add to the list)")
-    v.add_argument("--member", type=int, metavar="I",
+    v.add_argument("--member", type=_int, metavar="I",
                    help="member of a results file (0-based) whose parameters to take")
-    v.add_argument("--mu0", type=float, help="friction coefficient (default 0.5)")
-    v.add_argument("--kc", type=float, metavar="N_PER_M",
+    v.add_argument("--mu0", type=_float, help="friction coefficient (default 0.5)")
+    v.add_argument("--kc", type=_float, metavar="N_PER_M",
                    help="tangential stiffness, N/m (default 6000)")
-    v.add_argument("--N0", type=float, metavar="N", help="normal preload, N (default 0.5)")
-    v.add_argument("--F0", type=float, metavar="NEWTONS",
+    v.add_argument("--N0", type=_float, metavar="N", help="normal preload, N (default 0.5)")
+    v.add_argument("--F0", type=_float, metavar="NEWTONS",
                    help="excitation amplitude of the preset's pattern, N")
-    v.add_argument("--harmonics", type=int, metavar="H",
+    v.add_argument("--harmonics", type=_int, metavar="H",
                    help="highest odd harmonic (>= 3) of the multi-harmonic solution "
                         "compared beside the single-harmonic one (default: the run's or "
                         "configuration's solver.harmonics where it is > 1, else 9)")
     v.add_argument("--start", choices=("single", "rest"), default="single",
                    help="initial state: the single-harmonic solution (default) or rest")
-    v.add_argument("--max-periods", type=int, default=20000, metavar="N",
+    v.add_argument("--max-periods", type=_int, default=20000, metavar="N",
                    help="periods after which a response counts as not periodic "
                         "(default %(default)s)")
     v.add_argument("-o", "--output", metavar="OUT.csv",
@@ -263,6 +264,31 @@ def _verify_parser(sub):
                         "run); the PNG goes next to it")
     v.add_argument("--no-figure", action="store_true", help="do not draw the figure")
     v.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+# int() and float() also take "3_0" (30) and other scripts' digits ("٣"): a typo
+# read as a number
+_INTEGER = re.compile(r"\s*[+-]?[0-9]+\s*")
+_REAL = re.compile(r"\s*[+-]?(([0-9]+\.?[0-9]*|\.[0-9]+)([eE][+-]?[0-9]+)?|nan|inf|infinity)\s*",
+                   re.IGNORECASE)
+
+
+def _int(text):
+    """An integer flag's value: ASCII digits with an optional sign."""
+    if not _INTEGER.fullmatch(text):
+        raise ValueError(text)
+    return int(text)
+
+
+def _float(text):
+    """A real flag's value: a decimal number, as Python writes it without ``_`` (nan and
+    inf pass, for the checks after to name)."""
+    if not _REAL.fullmatch(text):
+        raise ValueError(text)
+    return float(text)
+
+
+_int.__name__, _float.__name__ = "int", "float"       # argparse: "invalid int value"
 
 
 def _file_name(text):
@@ -278,7 +304,7 @@ def _hz(text):
     from ..presets import PRESETS
 
     try:
-        return float(text)
+        return _float(text)
     except ValueError:
         source = (text in PRESETS or text.endswith((".toml", ".h5", ".partial"))
                   or os.path.exists(text))
@@ -288,10 +314,10 @@ def _hz(text):
 
 
 def _harmonic_flags(p):
-    p.add_argument("--harmonics", type=int, metavar="H",
+    p.add_argument("--harmonics", type=_int, metavar="H",
                    help="balance the odd harmonics 1, 3, ..., H (default 1: the "
                         "single-harmonic describing function)")
-    p.add_argument("--n-time", type=int, metavar="N",
+    p.add_argument("--n-time", type=_int, metavar="N",
                    help="AFT samples per period (default max(32, 8 H))")
 
 
@@ -304,11 +330,11 @@ def _order_flags(p):
 
 
 def _model_flags(p):
-    p.add_argument("--F0", type=float, metavar="NEWTONS",
+    p.add_argument("--F0", type=_float, metavar="NEWTONS",
                    help="excitation amplitude of the preset's pattern, N")
-    p.add_argument("--f-min", type=float, metavar="HZ", help="lowest frequency, Hz")
-    p.add_argument("--f-max", type=float, metavar="HZ", help="highest frequency, Hz")
-    p.add_argument("--n-freq", type=int, metavar="N", help="number of frequencies")
+    p.add_argument("--f-min", type=_float, metavar="HZ", help="lowest frequency, Hz")
+    p.add_argument("--f-max", type=_float, metavar="HZ", help="highest frequency, Hz")
+    p.add_argument("--n-freq", type=_int, metavar="N", help="number of frequencies")
 
 
 def _number_or_none(text):
@@ -316,6 +342,6 @@ def _number_or_none(text):
     if text.strip().lower() == "none":
         return "none"
     try:
-        return float(text)
+        return _float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f'expected a number or "none", got {text!r}') from None
