@@ -370,3 +370,27 @@ def test_a_source_of_another_type_is_named(source):
     with pytest.raises(ValueError, match=f"^source: expected a preset name, a TOML file's "
                                          f"path, a dict or None, got {type(source).__name__}$"):
         config.load(source)
+
+
+@pytest.mark.parametrize("toml, override, key", [
+    ('sampling.samples = "x"', {"sampling.samples": (3, "--samples")}, "sampling.samples"),
+    ("frequency.n = -5", {"frequency.n": (5, "--n-freq")}, "frequency.n"),
+    ('bounds.certify = "yes"', {"bounds.certify": (False, "--no-certify")}, "bounds.certify"),
+])
+def test_a_bad_value_in_the_file_is_named_though_a_flag_replaces_it(tmp_path, toml, override,
+                                                                    key):
+    """A file's bad value hidden by a flag ran silently (the file fails without it)."""
+    path = tmp_path / "c.toml"
+    path.write_text(toml + "\n")
+    with pytest.raises(config.ConfigError, match=rf"^{key}: .*in the configuration file, "
+                                                  rf"though {override[key][1]} replaces it"):
+        config.load(str(path), override)
+
+
+def test_a_file_made_consistent_by_a_flag_still_loads(tmp_path):
+    """Only each replaced value is checked on its own: f_min = 200 above the preset's
+    150 Hz is fine with --f-max 300."""
+    path = tmp_path / "c.toml"
+    path.write_text("frequency.f_min = 200.0\n")
+    cfg = config.load(str(path), {"frequency.f_max": (300.0, "--f-max")})
+    assert cfg.data["frequency"]["f_max"] == 300.0

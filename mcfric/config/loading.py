@@ -16,7 +16,7 @@ from pathlib import Path
 
 from ..presets import PRESETS
 from ..validators import InputError, choices, is_int, show
-from .schema import DEFAULT_PRESET, defaults
+from .schema import DEFAULT_PRESET, SPEC, defaults
 from .validation import validate
 
 
@@ -137,10 +137,31 @@ def load(source=None, overrides=None):
     for key, (value, label) in (overrides or {}).items():
         if value is None:
             continue
+        _check_replaced(user, key, label)
         set_key(raw, key, value)
         labels[key] = label
     _rename(raw, user, labels, base_name, n_preset)
     return validate(raw, labels)
+
+
+def _check_replaced(user, key, label):
+    """The file's own value of ``key``, which an override replaces, checked on its own:
+    a bad value in a file is an error even where a flag hides it (the file would fail
+    when run without the flag). Cross-key rules are left to the whole configuration,
+    which the override may have made consistent."""
+    *head, last = key.split(".")
+    tree = user
+    for h in head:
+        tree = tree.get(h) if isinstance(tree, dict) else None
+    if not isinstance(tree, dict) or last not in tree:
+        return
+    entry = SPEC.get(head[0], {}).get(last) if len(head) == 1 else None
+    if isinstance(entry, tuple) and callable(entry[0]):
+        try:
+            entry[0](tree[last], key)
+        except InputError as e:
+            raise InputError(key, f"{e.message} (in the configuration file, though "
+                                  f"{label} replaces it)") from None
 
 
 def _rename(raw, user, labels, base_name, n_preset):
