@@ -57,8 +57,10 @@ class HBMResult:
         ``harmonics > 1``, ``A`` is the fundamental's amplitude ``|Q_j1|``: ``s >= 1`` then
         only suggests a stuck damper (higher harmonics add to the motion).
     status : ndarray of int8, shape (n_s, n_f)
-        0 converged, 1 converged after a restart, 2 by the last-resort solver,
-        -1 not converged; with ``harmonics > 1`` or ``aft`` also :data:`FROM_ABOVE`
+        0 converged, 1 converged after a restart (with ``harmonics > 1`` or ``aft``:
+        from the single-harmonic solution, as every first frequency is, having no
+        previous solution to continue), 2 by the last-resort solver, -1 not
+        converged; with ``harmonics > 1`` or ``aft`` also :data:`FROM_ABOVE`
         (3): converged only from the solution at the next frequency, sweeping back down
         (on an upward grid the branch reached from above, which may differ from the one
         continued from below where there are several); there, 0 also marks a point
