@@ -508,6 +508,40 @@ def test_numbers_in_flags_are_ascii_decimals(argv, kind, tmp_path, monkeypatch, 
     assert list(tmp_path.iterdir()) == []
 
 
+def test_a_compilation_is_announced_once_on_a_terminal_only(monkeypatch):
+    """The first command after an install compiles for minutes (a ring's multi-harmonic
+    kernel about four) in silence: on a terminal one line says so, once per process;
+    a log or a pipe gets nothing, nor does a warm run (no compile event)."""
+    import io
+
+    from mcfric.cli import compiling
+
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+
+    def fresh():            # a new function each time: numba compiles it (no cache)
+        return numba.njit(lambda x: x + 1)
+
+    monkeypatch.setattr(compiling, "_SAID", compiling.threading.Event())
+    pipe, term = io.StringIO(), Terminal()
+    undo = compiling.announce_compilation(pipe)
+    fresh()(1)
+    undo()
+    assert pipe.getvalue() == ""
+    undo = compiling.announce_compilation(term)
+    try:
+        fresh()(1)
+        fresh()(2.0)
+        fresh()(1)          # compiled already: no event
+    finally:
+        undo()
+    assert term.getvalue() == compiling.MESSAGE + "\n"
+    monkeypatch.setattr(compiling, "_SAID", compiling.threading.Event())
+    fresh()(3)              # the listener removed: nothing, though not yet said
+    assert term.getvalue().count("compiling") == 1
+
+
 def test_a_caller_gets_its_signal_handlers_back_and_a_fresh_note(tmp_path, monkeypatch,
                                                                   capsys):
     """Called with arguments (a test, a script), the entry point hands SIGTERM and SIGHUP

@@ -8,6 +8,7 @@ import sys
 
 from ..store import StoreError
 from .bounds import cmd_bounds
+from .compiling import announce_compilation
 from .errors import EXIT_FAIL, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE, UsageError, one_line
 from .hbm import cmd_hbm
 from .info import cmd_config, cmd_info
@@ -44,8 +45,10 @@ def main(argv=None):
         return EXIT_USAGE
     if not argv or (argv[0] not in COMMANDS and argv[0] not in ("-h", "--help", "--version")):
         argv = ["run"] + argv        # `mcfric` alone (or `mcfric two-beam`) means `mcfric run`
+    undo = lambda: None        # noqa: E731
     try:
         args = build_parser().parse_args(argv)
+        undo = announce_compilation()
         from ..threads import leaving_on_interrupt
 
         # the process ends after an interrupt: a chunk's kernel may be left running
@@ -76,6 +79,7 @@ def main(argv=None):
               "than is free: fewer beams, frequencies or samples per chunk)", file=sys.stderr)
         return EXIT_FAIL
     finally:
+        undo()
         while MADE_DIRS:
             try:
                 MADE_DIRS.pop().rmdir()         # only an empty one
