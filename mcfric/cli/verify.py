@@ -53,7 +53,8 @@ def _verify_source(args):
             raise UsageError(f"--member: member {args.member} is not in the file (not done)")
         return spec.model, params, Path(src).stem, spec
     if args.member is not None:
-        raise UsageError("--member: only with a results file")
+        given = f"; {args.source} is not one" if args.source else ""
+        raise UsageError(f"--member: only with a results file (FILE.h5){given}")
     spec = load_config(args).spec
     params = []
     for flag, default in (("mu0", 0.5), ("kc", 6000.0), ("N0", 0.5)):
