@@ -934,6 +934,31 @@ def test_every_engine_orders_names_are_checked_before_the_first_order(tmp_path, 
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted([held, "s.toml"])
 
 
+def test_a_sweep_checks_each_orders_figure_beside_another_commands_output(tmp_path, capsys,
+                                                                        monkeypatch):
+    """An engine-order sweep draws out-eo1.png, out-eo2.png, never out.png: an hbm's
+    out.csv and out.png beside -o out.h5 refused it (its escape, out.h5 existing, never
+    came), and an hbm's out-eo2.png beside out-eo2.csv would have been replaced."""
+    monkeypatch.chdir(tmp_path)
+    Path("s.toml").write_text('[model]\npreset = "disk-24"\n[sampling]\nsamples = 2\n'
+                              '[frequency]\nn = 8\n[bounds]\nenabled = false\n'
+                              '[excitation]\nengine_orders = [1, 2]\n')
+    for name in ("out-eo2.csv", "out-eo2.png"):
+        Path(name).write_text("an hbm's\n")
+    rc = cli.main(["run", "s.toml", "-o", "out.h5", "--no-progress"])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and "engine order 2: out-eo2.png exists beside out-eo2.csv" in err, err
+    assert "\n" not in err and Path("out-eo2.png").read_text() == "an hbm's\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out-eo2.csv", "out-eo2.png",
+                                                          "s.toml"]
+    for name in ("out-eo2.csv", "out-eo2.png"):
+        Path(name).unlink()
+        Path(name.replace("-eo2", "")).write_text("an hbm's\n")
+    rc = cli.main(["run", "s.toml", "-o", "out.h5", "--no-progress"])
+    assert rc == 0, capsys.readouterr().err
+    assert Path("out-eo1.png").exists() and Path("out.png").read_text() == "an hbm's\n"
+
+
 def test_a_default_output_directory_that_cannot_be_made_is_one_line(tmp_path, capsys,
                                                                      monkeypatch):
     monkeypatch.chdir(tmp_path)

@@ -1384,6 +1384,11 @@ def test_a_results_file_name_that_is_a_link_is_written_through(tmp_path, capsys,
     assert sorted(p.name for p in tmp_path.iterdir()) == ["disk", "r.h5"]
     with h5py.File(out) as f:            # through the link: a whole results file
         assert "layout_version" in f.attrs
+    if command[0] == "run":             # the figure beside the results, at the target
+        capsys.readouterr()
+        assert cli.main(["plot", str(out)]) == 0, capsys.readouterr().err
+        assert (tmp_path / "disk" / "target.png").is_file()
+        (tmp_path / "disk" / "target.png").unlink()
     capsys.readouterr()
     dangling = tmp_path / "d.h5"
     dangling.symlink_to(tmp_path / "nodir" / "d.h5")

@@ -48,7 +48,8 @@ def main(argv=None):
     undo = lambda: None        # noqa: E731
     try:
         args = build_parser().parse_args(argv)
-        undo = announce_compilation()
+        if args.command in ("run", "hbm", "bounds", "verify"):     # the ones that solve
+            undo = announce_compilation()
         from ..threads import leaving_on_interrupt
 
         # the process ends after an interrupt: a chunk's kernel may be left running

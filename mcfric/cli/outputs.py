@@ -91,13 +91,7 @@ def output_path(args, suffix, prefix="", figure=False):
         _not_replacing_input(args, png, "figure")
         if png.is_symlink():
             writable_dir(png)        # written through: its target's directory
-        # FILE.png beside another command's FILE.h5 (or FILE.csv) is that file's figure
-        # (`run -o r.h5`, then `hbm -o r.csv`); once our own output exists, it is ours
-        sibling = out.with_suffix(".csv" if suffix == ".h5" else ".h5")
-        if png.exists() and sibling.is_file() and not out.exists():
-            raise UsageError(f"-o: {png} exists beside {sibling.name}, whose figure it may "
-                             f"be; the {what}'s figure would replace it: choose another -o, "
-                             f"or --no-figure")
+        not_replacing_sibling_figure(out, suffix, what)
     # a name that promises the other format (the reader would then fail on it)
     other = {".h5": (".csv", ".png", ".txt", ".toml"),
              ".csv": (".h5", ".hdf5", ".hdf", ".nc", ".png", ".toml")}[suffix]
@@ -106,6 +100,18 @@ def output_path(args, suffix, prefix="", figure=False):
         raise UsageError(f"-o: {out.name}: this command writes {fmt}; give a name ending "
                          f"in {suffix}")
     return out
+
+
+def not_replacing_sibling_figure(out, suffix, what, label="-o: "):
+    """``FILE.png`` beside another command's ``FILE.h5`` (or ``FILE.csv``) is that file's
+    figure (`run -o r.h5`, then `hbm -o r.csv`): not replaced by the figure of ``out``
+    (of ``suffix``) until ``out`` itself exists, when the figure is its own."""
+    png = out.with_suffix(".png")
+    sibling = out.with_suffix(".csv" if suffix == ".h5" else ".h5")
+    if png.exists() and sibling.is_file() and not out.exists():
+        raise UsageError(f"{label}{png} exists beside {sibling.name}, whose figure it may "
+                         f"be; the {what}'s figure would replace it: choose another -o, "
+                         f"or --no-figure")
 
 
 def file_name(value):

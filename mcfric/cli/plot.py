@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 from pathlib import Path
 
 from .errors import EXIT_OK, UsageError, reading
@@ -25,7 +26,9 @@ def cmd_plot(args):
     attrs = checked_file(path)[0]
     if attrs.get("complete") != 1:
         raise UsageError(f"{path}: the run is not complete (continue it with --resume)")
-    out = file_name(args.output) if args.output is not None else path.with_suffix(".png")
+    # a results file reached through a link has its figure beside it, at the target
+    out = (file_name(args.output) if args.output is not None
+           else (Path(os.path.realpath(path)) if path.is_symlink() else path).with_suffix(".png"))
     if out.suffix.lower() not in (".png", ".pdf", ".svg"):
         raise UsageError(f"-o: expected a .png, .pdf or .svg file, got {out.name}")
     if not out.parent.is_dir():

@@ -8,7 +8,13 @@ import sys
 
 from .errors import EXIT_FAIL, EXIT_INTERRUPTED, EXIT_OK, UsageError, one_line
 from .inputs import load_config, shortfall_note
-from .outputs import not_replacing_hdf5, order_path, output_path, regular_or_none
+from .outputs import (
+    not_replacing_hdf5,
+    not_replacing_sibling_figure,
+    order_path,
+    output_path,
+    regular_or_none,
+)
 
 
 def _kept_bounds_note(cfg, out):
@@ -59,8 +65,9 @@ def cmd_run(args):
         # --force won silently and threw a resumable partial away
         raise UsageError("--force: discards FILE.partial, --resume continues it; give one")
     cfg = load_config(args)
-    out = output_path(args, ".h5", figure=not args.no_figure)
     orders = cfg.data["excitation"]["engine_orders"]
+    # a sweep draws each order's figure (FILE-eoE.png), checked below, not FILE.png
+    out = output_path(args, ".h5", figure=not args.no_figure and not orders)
     if not orders:
         return _run_one(args, cfg, out)
     runs = [(cfg.replace("excitation.engine_order", E).replace("excitation.engine_orders",
@@ -74,6 +81,9 @@ def cmd_run(args):
             regular_or_none(path, f"engine order {c.data['excitation']['engine_order']}: ")
         if not args.no_figure:
             not_replacing_hdf5(o.with_suffix(".png"), "figure")
+            not_replacing_sibling_figure(
+                o, ".h5", "results file",
+                f"engine order {c.data['excitation']['engine_order']}: ")
         try:
             # under the order's lock: a writer of it is named, as for one run
             with OutputLock(o, "mcfric run (checking an engine order's files)"):

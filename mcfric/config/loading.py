@@ -160,8 +160,9 @@ def _check_replaced(user, key, label):
         try:
             entry[0](tree[last], key)
         except InputError as e:
+            who = f"this command sets {key}" if label == key else f"{label} replaces it"
             raise InputError(key, f"{e.message} (in the configuration file, though "
-                                  f"{label} replaces it)") from None
+                                  f"{who})") from None
 
 
 def _rename(raw, user, labels, base_name, n_preset):
