@@ -60,18 +60,19 @@ def main(argv=None):
 
     main_thread = threading.current_thread() is threading.main_thread()
 
+    def notes():
+        """The run's note of stop signals, where the ensemble is loaded (else no run
+        can need it)."""
+        return getattr(sys.modules.get("mcfric.ensemble"), "STOP_SIGNALS", [])
+
     def interrupt(signum, frame):
         name = signal.Signals(signum).name
         # noted too: raised inside a ctypes callback (numba compiling) the exception is
         # printed and dropped, and a run checks the note between chunks
-        notes = getattr(sys.modules.get("mcfric.ensemble"), "STOP_SIGNALS", None)
-        if notes is not None:
-            notes.append(name)
+        notes().append(name)
         raise KeyboardInterrupt(name)
 
-    notes = getattr(sys.modules.get("mcfric.ensemble"), "STOP_SIGNALS", None)
-    if notes is not None:
-        notes.clear()               # a caller's earlier command
+    notes().clear()                 # a caller's earlier command
     stops = [getattr(signal, s) for s in ("SIGTERM", "SIGHUP") if hasattr(signal, s)]
     previous = {s: signal.signal(s, interrupt) for s in stops} if main_thread else {}
     try:

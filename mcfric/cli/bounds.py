@@ -2,9 +2,7 @@
 
 from __future__ import annotations
 
-import sys
-
-from .errors import EXIT_INTERRUPTED, EXIT_OK, UsageError
+from .errors import EXIT_OK, UsageError, interrupted_after
 from .inputs import load_config, shortfall_note
 from .outputs import only_replacing_bounds, output_path
 
@@ -59,8 +57,5 @@ def cmd_bounds(args):
     except KeyboardInterrupt:
         if not written:
             raise
-        # the file is whole (written by a rename): only the lines or figure after it
-        print(f"interrupted: {out} is complete; the lines or the figure after it were "
-              f"cut short (`mcfric info {out}`, `mcfric plot {out}`)", file=sys.stderr)
-        return EXIT_INTERRUPTED
+        return interrupted_after(out, "the lines or the figure")
     return EXIT_OK

@@ -30,3 +30,13 @@ def reading(path, fn, *args, **kwargs):
     except (AttributeError, KeyError, TypeError, ValueError) as e:
         raise UsageError(f"{path}: a damaged or edited results file ({type(e).__name__}: "
                          f"{one_line(e)})") from None
+
+
+def interrupted_after(out, cut="the checks or the figure", rest=""):
+    """Exit status of an interrupt after ``out`` was complete (written by a rename, so
+    whole): said on stderr, with what was ``cut`` short and how to see it."""
+    import sys
+
+    print(f"interrupted: {out} is complete; {cut} after it were cut short "
+          f"(`mcfric info {out}`, `mcfric plot {out}`){rest}", file=sys.stderr)
+    return EXIT_INTERRUPTED

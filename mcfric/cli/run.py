@@ -6,7 +6,7 @@ from __future__ import annotations
 import json
 import sys
 
-from .errors import EXIT_FAIL, EXIT_INTERRUPTED, EXIT_OK, UsageError, one_line
+from .errors import EXIT_FAIL, EXIT_INTERRUPTED, EXIT_OK, UsageError, interrupted_after, one_line
 from .inputs import load_config, shortfall_note
 from .outputs import (
     not_replacing_hdf5,
@@ -144,7 +144,8 @@ def _run_one(args, cfg, out, resume_as=None):
             print(f"interrupted: the run's samples are kept in {partial_path(out)}; "
                   f"continue with {resume}", file=sys.stderr)
             return EXIT_INTERRUPTED
-        return _interrupted_after(out, resume if resume_as else None)
+        return interrupted_after(
+            out, rest=f"; the sweep's other engine orders: {resume}" if resume_as else "")
     except ensemble.RunError as e:
         raise UsageError(str(e)) from None
     except ensemble.Interrupted as e:
@@ -169,7 +170,8 @@ def _run_one(args, cfg, out, resume_as=None):
     except KeyboardInterrupt:
         if not summary.complete:
             raise
-        return _interrupted_after(out, resume if resume_as else None)
+        return interrupted_after(
+            out, rest=f"; the sweep's other engine orders: {resume}" if resume_as else "")
     return EXIT_OK
 
 
@@ -180,15 +182,6 @@ def _identity(path):
     except OSError:
         return None
     return st.st_dev, st.st_ino
-
-
-def _interrupted_after(out, resume_sweep):
-    """Exit status of an interrupt after ``out`` was complete: said, with what to do."""
-    # the file is whole: only the summary's checks or the figure were cut short
-    rest = f"; the sweep's other engine orders: {resume_sweep}" if resume_sweep else ""
-    print(f"interrupted: {out} is complete; the checks or the figure after it were "
-          f"cut short (`mcfric info {out}`, `mcfric plot {out}`){rest}", file=sys.stderr)
-    return EXIT_INTERRUPTED
 
 
 def _report_run(args, cfg, out, summary):
