@@ -133,6 +133,10 @@ def _check_modes(path, numbers, freq, zeta, mass, shapes, labels):
             raise ValueError(f"{path}: mode {n}: frequency must be > 0 Hz, got {float(f):g}")
         if not (math.isfinite(z) and z >= 0):
             raise ValueError(f"{path}: mode {n}: damping ratio must be >= 0, got {float(z):g}")
+        if z > 1:
+            # overdamped: no resonance; more often a damping in percent (2 for 0.02)
+            raise ValueError(f"{path}: mode {n}: damping ratio must be <= 1 (0.02 for 2 %), "
+                             f"got {float(z):g}")
         if not (math.isfinite(m) and m >= 0):
             raise ValueError(f"{path}: mode {n}: modal mass must be >= 0, got {float(m):g}")
         if not np.all(np.isfinite(u)):

@@ -413,6 +413,7 @@ def test_csv_and_toml_tables(tmp_path):
     ("freq_hz,zeta,u1\n16.2,0.0017\n", ["line 2", "2 fields"]),
     ("freq_hz,zeta,u1\n16.2,abc,1\n", ["line 2", "zeta", "not a number"]),
     ("freq_hz,zeta,u1\n-16.2,0.001,1\n", ["frequency must be > 0"]),
+    ("mode,freq_hz,zeta,u1\n1,16.2,0.001,1\n7,105.8,2,1\n", ["mode 7", "<= 1", "got 2"]),
     ("freq_hz,zeta,u1\n", ["no modes"]),
 ])
 def test_bad_csv_tables(tmp_path, text, words):
