@@ -750,6 +750,27 @@ def test_hbm_figure_draws_beams_and_metric_in_one_unit(tmp_path, monkeypatch, ca
     assert seen["kw"]["ylabel"] == "acceleration amplitude at the output [m/s^2]"
 
 
+def test_hbm_says_when_beams_differ_or_mistuning_is_not_applied(tmp_path, monkeypatch,
+                                                                  capsys):
+    """The name is free text (often the preset's): a beam with its own table, and a
+    mistuning hbm does not draw, are said on the header line."""
+    monkeypatch.chdir(tmp_path)
+    base = 'model.preset = "eight-beam"\n'
+    for text, said in (
+            ("", None),
+            ("[[model.beam]]\nbeam = 2\nfreq_hz = [16.9, 108.0]\n",
+             "; beam 2 with a modal table unlike beam 1's"),
+            ("[[model.beam]]\nbeam = 1\nfreq_hz = [16.9, 108.0]\n",
+             "; beams 2, 3, 4, 5, 6, 7, 8 with a modal table unlike beam 1's"),
+            ("sampling.mistuning = 0.05\n",
+             "; sampling.mistuning not applied (the nominal tables)")):
+        (tmp_path / "c.toml").write_text(base + text)
+        rc, out, err = call(["hbm", "c.toml", "--n-freq", "3", "--no-figure"], capsys)
+        assert rc == 0, err
+        head = out.splitlines()[0]
+        assert head.endswith("single-harmonic" if said is None else said), head
+
+
 def test_hbm_counts_non_converged_points(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
     # three Newton iterations per attempt: some points cannot converge

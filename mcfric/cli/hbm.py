@@ -56,7 +56,8 @@ def cmd_hbm(args):
     print(f"mcfric hbm: {model.name}, mu0 = {args.mu0:g}, kc = {args.kc:g} N/m, "
           f"N0 = {args.N0:g} N, F0 = {model.excitation.F0:g} N; {len(f)} frequencies "
           f"{f[0]:g}-{f[-1]:g} Hz; " + ("single-harmonic" if H == 1 else
-                                          f"odd harmonics 1..{H} (abs_y: the fundamental)"))
+                                          f"odd harmonics 1..{H} (abs_y: the fundamental)")
+          + _tables_note(model, spec.mistuned))
     print(f"not converged: {bad} of {len(f)} points"
           + (f" (at {', '.join(f'{x:.4g}' for x in f[~conv][:10])} Hz"
              f"{', ...' if bad > 10 else ''}; not drawn)" if bad else ""))
@@ -81,3 +82,27 @@ def cmd_hbm(args):
                                + (" (fundamental)" if H > 1 else ""))
         print(f"figure: {png}")
     return EXIT_OK
+
+
+def _tables_note(model, mistuned):
+    """What the header line adds where the beams are not all alike: the name is free text
+    (often the preset's), so it does not say so itself."""
+    import numpy as np
+
+    first = model.beams[0]
+
+    def same(t):
+        return (t.positions == first.positions and np.array_equal(t.freq_hz, first.freq_hz)
+                and np.array_equal(t.zeta, first.zeta)
+                and np.array_equal(t.shapes, first.shapes))
+
+    own = [b + 1 for b, t in enumerate(model.beams) if not same(t)]
+    note = ""
+    if own:
+        shown = ", ".join(map(str, own[:8])) + (", ..." if len(own) > 8 else "")
+        note = (f"; beam{'s' if len(own) > 1 else ''} {shown} with a modal table unlike "
+                f"beam 1's")
+    if mistuned:
+        # hbm solves the nominal tables; the drawn frequencies belong to a run's members
+        note += "; sampling.mistuning not applied (the nominal tables)"
+    return note
