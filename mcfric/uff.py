@@ -16,6 +16,7 @@ import re
 from datetime import datetime
 from pathlib import Path
 
+from .store.files import keep_mode
 from .validators import existing_file
 
 UFF_SUFFIXES = (".uff", ".unv", ".uf")
@@ -136,6 +137,7 @@ def write_atomic(path, dsets, overwrite):
     tmp = path.with_name(path.name + ".tmp")
     try:
         pyuff.UFF(str(tmp)).write_sets(list(dsets), mode="overwrite")
+        keep_mode(tmp, path)
         os.replace(tmp, path)
     except Exception as e:
         tmp.unlink(missing_ok=True)

@@ -811,6 +811,23 @@ def test_a_closed_stdout_is_not_an_error(tmp_path, capsys):
     assert p.wait() == 0 and err == b""
 
 
+def test_a_run_whose_stdout_goes_away_still_makes_its_files(tmp_path):
+    """`mcfric run ... | head -1`: the run stopped at its second line, exit 0 with no
+    results file; it now drops the rest of its output and makes its files."""
+    out = tmp_path / "p.h5"
+    p = subprocess.Popen([sys.executable, "-m", "mcfric", "run", "two-beam", "--samples", "4",
+                          "--n-freq", "10", "-o", str(out), "--no-progress"],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    assert p.stdout.readline().startswith(b"mcfric run:")
+    p.stdout.close()
+    err = p.stderr.read()
+    p.stderr.close()
+    assert p.wait() == 0 and err == b""
+    assert out.exists() and out.with_suffix(".png").exists()
+    with h5py.File(out) as h:
+        assert h.attrs["complete"] == 1
+
+
 def test_sigterm_stops_a_run_resumably(tmp_path):
     out = tmp_path / "r.h5"
     argv = [sys.executable, "-m", "mcfric", "run", "eight-beam", "--samples", "4000",
@@ -1448,6 +1465,33 @@ def test_replacing_keeps_permissions_and_writes_through_a_symlink(tmp_path):
     assert link.is_symlink() and target.read_text() == "new"
     assert stat.S_IMODE(target.stat().st_mode) == 0o600
     assert sorted(p.name for p in tmp_path.iterdir()) == ["link.csv", "target.csv"]
+
+
+def test_a_replaced_results_or_bounds_file_keeps_its_permissions(tmp_path, capsys):
+    """A results file made again with --force, and a bounds file replaced by its own
+    command, are renamed from a new file: they keep the old file's permission bits (a
+    private 0600 file did become 0644, the umask's)."""
+    old = os.umask(0o022)
+    try:
+        _replaced_files_keep_their_permissions(tmp_path, capsys)
+    finally:
+        os.umask(old)
+
+
+def _replaced_files_keep_their_permissions(tmp_path, capsys):
+    import stat
+
+    res, bnd = tmp_path / "r.h5", tmp_path / "b.h5"
+    for argv, out in ((["run", "two-beam", "--samples", "3", "--n-freq", "5", "--no-bounds",
+                        "--no-progress", "--no-figure", "-o", str(res)], res),
+                      (["bounds", "two-beam", "--n-freq", "5", "--no-certify", "--no-figure",
+                        "-o", str(bnd)], bnd)):
+        assert cli.main(argv) == 0, capsys.readouterr().err
+        assert stat.S_IMODE(out.stat().st_mode) == 0o644
+        os.chmod(out, 0o600)
+        assert cli.main(argv + (["--seed", "8", "--force"] if out == res else [])) == 0, \
+            capsys.readouterr().err
+        assert stat.S_IMODE(out.stat().st_mode) == 0o600, argv
 
 
 def test_a_missing_file_names_the_files_of_an_engine_order_sweep(tmp_path, capsys):

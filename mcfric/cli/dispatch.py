@@ -35,6 +35,42 @@ def _command_typo(word):
             f"{', '.join(COMMANDS)})" if close else None)
 
 
+class _StdoutGone:
+    """``sys.stdout`` for the length of a command: once its reader goes away
+    (``mcfric run ... | head -1``) the rest of the output is dropped and the command goes
+    on, so that its files are made and its exit code is the work's. (Stopping at the first
+    line that could not be printed left no results file and said exit 0.)"""
+
+    def __init__(self, stream):
+        self.stream = stream
+
+    def _gone(self):
+        # the stream's own buffer and any later flush, at exit too, go to /dev/null
+        try:
+            null = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(null, self.stream.fileno())
+            os.close(null)
+        except (OSError, ValueError, AttributeError):
+            self.stream = open(os.devnull, "w")
+
+    def write(self, text):
+        try:
+            return self.stream.write(text)
+        except BrokenPipeError:
+            self._gone()
+            return len(text)
+
+    def flush(self):
+        try:
+            self.stream.flush()
+        except BrokenPipeError:
+            self._gone()
+            self.stream.flush()
+
+    def __getattr__(self, name):
+        return getattr(self.stream, name)
+
+
 def main(argv=None):
     """The commands' dispatch, behind the entry point :func:`mcfric.cli.main`; returns
     the exit code."""
@@ -52,12 +88,17 @@ def main(argv=None):
             undo = announce_compilation()
         from ..threads import leaving_on_interrupt
 
-        # the process ends after an interrupt: a chunk's kernel may be left running
-        with leaving_on_interrupt():
-            rc = {"run": cmd_run, "config": cmd_config, "info": cmd_info, "hbm": cmd_hbm,
-                  "bounds": cmd_bounds, "plot": cmd_plot,
-                  "verify": cmd_verify}[args.command](args)
-        sys.stdout.flush()           # a closed pipe shows here, not at interpreter exit
+        stdout = sys.stdout
+        sys.stdout = _StdoutGone(stdout)
+        try:
+            # the process ends after an interrupt: a chunk's kernel may be left running
+            with leaving_on_interrupt():
+                rc = {"run": cmd_run, "config": cmd_config, "info": cmd_info,
+                      "hbm": cmd_hbm, "bounds": cmd_bounds, "plot": cmd_plot,
+                      "verify": cmd_verify}[args.command](args)
+            sys.stdout.flush()       # a closed pipe shows here, not at interpreter exit
+        finally:
+            sys.stdout = stdout
         return rc
     except UsageError as e:
         print(f"mcfric: error: {one_line(e)}", file=sys.stderr)
@@ -66,7 +107,7 @@ def main(argv=None):
         print("mcfric: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
     except BrokenPipeError:
-        # the reader of stdout went away (`mcfric info FILE | head -1`): stop quietly
+        # a write past the wrapper (from a library holding the stream): stop quietly
         try:
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         except (OSError, ValueError):

@@ -112,8 +112,7 @@ def replacing(path, what):
     tmp = path.with_name(f".{path.stem}.{os.getpid()}.tmp{path.suffix}")
     try:
         yield tmp
-        if path.exists():
-            os.chmod(tmp, stat.S_IMODE(path.stat().st_mode))
+        keep_mode(tmp, path)
         os.replace(tmp, path)
     except BaseException as e:
         tmp.unlink(missing_ok=True)
@@ -123,6 +122,17 @@ def replacing(path, what):
             err.errno = e.errno
             raise err from None
         raise
+
+
+def keep_mode(new, old):
+    """Give ``new`` the permission bits of ``old`` when ``old`` exists, before ``new``
+    replaces it: a replaced output (a CSV, a figure, a results file made again with
+    ``--force``) keeps the access its owner gave it, not the umask's."""
+    try:
+        mode = stat.S_IMODE(os.stat(old).st_mode)
+    except FileNotFoundError:
+        return
+    os.chmod(new, mode)
 
 
 def fsync_dir(path):

@@ -16,6 +16,7 @@ from .files import (
     abandon,
     fsync_dir,
     fsync_path,
+    keep_mode,
     partial_path,
     replacing,
     require_room,
@@ -122,6 +123,7 @@ def write_file(path, coords, groups, attrs):
         h5.close()
         h5 = None
         fsync_path(part)
+        keep_mode(part, path)
         part.replace(path)
     except BaseException as e:
         # nothing half-written stays: a .partial of a bounds file cannot be resumed

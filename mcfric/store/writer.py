@@ -50,6 +50,7 @@ from .files import (
     fsync_dir,
     fsync_path,
     hdf5_reason,
+    keep_mode,
     partial_path,
     require_room,
 )
@@ -391,6 +392,7 @@ class Store:
         self._h5.close()
         os.close(self._fd)
         fsync_path(self.path)
+        keep_mode(self.path, self.final_path)
         os.replace(self.path, self.final_path)
         fsync_dir(self.final_path)
         return self.final_path
