@@ -92,3 +92,17 @@ def test_no_kernel_is_compiled_for_a_literal_or_an_unsigned_index():
     for name in ("relaxation.relaxed_bound", "relaxation_branch.branch", "newton.newton",
                  "multi_harmonic._stuck_back", "aft._segment", "peaks._val"):
         assert cached[name], name
+
+
+def test_no_kernel_lets_llvm_fuse_or_reorder_arithmetic():
+    """docs/guarantees.md: no kernel uses the fastmath flags that fuse or reorder
+    (``contract``, ``reassoc``, ``arcp``, ``afn``, or ``fastmath=True``, all of them):
+    a kernel compiled with its callees inlined and one against cached callees then gave
+    different last bits. ``nsz`` (the sign of a zero) changes no other result."""
+    allowed = {"nsz"}
+    found = []
+    for name, k in _kernels():
+        flags = k.targetoptions.get("fastmath") or set()
+        if flags is True or not set(flags) <= allowed:
+            found.append((name, flags))
+    assert found == []
