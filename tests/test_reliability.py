@@ -331,6 +331,36 @@ def test_no_output_silently_replaces_another(tmp_path, capsys, argv, message):
     assert snapshot(tmp_path) == before
 
 
+def test_bounds_replaces_the_partial_a_killed_bounds_left_and_no_other(tmp_path, capsys):
+    """A `mcfric bounds` killed while writing leaves FILE.partial (torn, or without the root
+    attributes, which go in last): the next `mcfric bounds -o FILE` replaces it. An
+    ensemble's .partial (members a resume would use) or a file that is not HDF5 stays
+    refused, untouched."""
+    res = _results(tmp_path)
+    out = tmp_path / "b.h5"
+    part = tmp_path / "b.h5.partial"
+    argv = ["bounds", "two-beam", "--n-freq", "10", "--no-figure", "-o", str(out)]
+    with h5py.File(part, "w") as h5:                  # killed before the attributes
+        h5.create_dataset("freq_hz", data=np.zeros(10))
+    torn = res.read_bytes()[:96]                      # killed as the file began
+    assert h5py.is_hdf5(part)
+    for content in (part.read_bytes(), torn):
+        part.write_bytes(content)
+        capsys.readouterr()
+        assert cli.main(argv) == 0, capsys.readouterr().err
+        assert out.exists() and not part.exists() and not lock_path(out).exists()
+        assert store.read_attrs(out)["samples"] == 0
+        out.unlink()
+    for content in (res.read_bytes(), b"notes, not HDF5\n"):
+        part.write_bytes(content)
+        capsys.readouterr()
+        before = snapshot(tmp_path)
+        assert cli.main(argv) == 2
+        err = capsys.readouterr().err.strip()
+        assert "b.h5.partial exists" in err and len(err.splitlines()) == 1, err
+        assert snapshot(tmp_path) == before
+
+
 def test_a_figure_beside_another_commands_output_is_not_replaced(tmp_path, capsys):
     """`run -o r.h5` draws r.png; `hbm -o r.csv` would draw r.png too: refused in one
     line before any work, nothing touched; with --no-figure it goes on. The other way

@@ -209,11 +209,17 @@ def checked_file(path):
 
 def only_replacing_bounds(out):
     """``mcfric bounds`` replaces a bounds file of its own, nothing else (an ensemble's
-    results file, its ``.partial``, or a file of another kind)."""
+    results file, its ``.partial``, or a file of another kind).
+
+    A ``.partial`` left by a killed ``mcfric bounds`` (an HDF5 file without the root
+    attributes, which go in last, or one with no members) is its own and is replaced; an
+    ensemble's ``.partial`` (members, resumable by ``mcfric run``) or a file that is not
+    HDF5 is refused.
+    """
     from ..store import StoreError, partial_path, read_attrs
 
     part = partial_path(out)
-    if part.exists():
+    if part.exists() and not _own_partial(part, read_attrs, StoreError):
         raise UsageError(f"{part} exists (an interrupted run?); the bounds would replace "
                          f"it: choose another -o")
     if not out.exists():
@@ -227,6 +233,18 @@ def only_replacing_bounds(out):
             "not an mcfric bounds file"
         raise UsageError(f"{out} exists and is {kind}; the bounds would replace it: "
                          f"choose another -o")
+
+
+def _own_partial(part, read_attrs, StoreError):
+    """Whether ``part`` is a ``.partial`` a killed ``mcfric bounds`` leaves (see
+    :func:`only_replacing_bounds`)."""
+    if not part.is_file() or not is_hdf5(part):
+        return False
+    try:
+        attrs = read_attrs(part)
+    except StoreError:
+        return True             # torn while being written: nothing in it can be read
+    return "layout_version" not in attrs or int(attrs.get("samples", -1)) == 0
 
 
 def order_path(out, E):
