@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import hbm
+from . import hbm, stop_signals
 from .config import first_difference, identity
 from .indicator import file_report as indicator_report
 from .memory import check_fits, human
@@ -52,11 +52,6 @@ from .store import Store, StoreError, iter_records, partial_path, read_attrs
 from .store.lock import LockError, OutputLock
 from .threads import interruptible, threads
 from .validators import show
-
-#: Names of the stop signals (SIGTERM, SIGHUP) the command line received during this run:
-#: the run stops before its next chunk even where the KeyboardInterrupt the signal raised
-#: was dropped (inside a ctypes callback, while numba compiles).
-STOP_SIGNALS = []
 
 
 class RunError(Exception):
@@ -736,8 +731,7 @@ def _drive(spec, store, done, not_conv_before, progress, t_start, cluster=None,
     interrupted = False
     try:
         for item in source:
-            if STOP_SIGNALS:
-                raise KeyboardInterrupt(STOP_SIGNALS[-1])
+            stop_signals.check()    # a KeyboardInterrupt dropped in a callback from C
             _put(q, item, w, err)
             del item
     except KeyboardInterrupt:

@@ -12,6 +12,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numba
 
+from . import stop_signals
 from .validators import InputError, is_int
 
 
@@ -49,11 +50,13 @@ def in_threads(task, items):
     n = min(numba.get_num_threads(), len(items))
     if n <= 1:
         for item in items:
+            stop_signals.check()
             task(item)
         return
     pool = ThreadPoolExecutor(n)
     try:
         for future in [pool.submit(task, item) for item in items]:
+            stop_signals.check()
             future.result()
     finally:
         # on an error or Ctrl-C the queued tasks are dropped, not run to the end
@@ -111,6 +114,7 @@ def interruptible(fn, *args, **kwargs):
     """
     if not _LEAVE[0] or threading.current_thread() is not threading.main_thread():
         return fn(*args, **kwargs)
+    stop_signals.check()
     n = numba.get_num_threads()      # thread-local in numba: the new thread starts at all
     out = {}
 

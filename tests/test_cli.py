@@ -16,7 +16,7 @@ import numba
 import numpy as np
 import pytest
 
-from mcfric import cli, config, ensemble, hbm, plot
+from mcfric import cli, config, ensemble, hbm, plot, stop_signals
 
 ROOT = Path(__file__).resolve().parents[1]
 MARK = "<!-- bad-config-table -->"
@@ -486,7 +486,38 @@ def test_a_stop_signal_dropped_while_compiling_still_stops_the_run(tmp_path, mon
     rc, _, err = call(["run", "two-beam", "--samples", "50", "--n-freq", "10", "--chunk", "10",
                        "-o", "p.h5", "--no-progress", "--no-certify"], capsys)
     assert rc == 130 and "20 of 50 samples saved" in err and "--resume" in err
-    assert ensemble.STOP_SIGNALS == ["SIGTERM"]
+    assert stop_signals.RECEIVED == ["SIGTERM"]
+
+
+def test_a_stop_signal_dropped_in_a_weakref_callback_stops_the_bounds(tmp_path, monkeypatch,
+                                                                      capsys):
+    """A SIGTERM whose KeyboardInterrupt is raised inside a weak reference's callback is
+    dropped there by Python (before: the traceback printed, and `mcfric bounds` ran on to
+    exit 0). The note stops the work at its next step: one line, exit 130, no file, no
+    traceback."""
+    import signal
+    import weakref
+
+    from mcfric import bounds
+
+    monkeypatch.chdir(tmp_path)
+    real = bounds.from_spec
+
+    class Thing:
+        pass
+
+    def from_spec(*a, **k):
+        thing = Thing()
+        ref = weakref.ref(thing, lambda _: signal.raise_signal(signal.SIGTERM))
+        del thing                   # the handler runs inside the callback
+        assert ref() is None
+        return real(*a, **k)
+
+    monkeypatch.setattr(bounds, "from_spec", from_spec)
+    rc, _, err = call(["bounds", "two-beam", "--n-freq", "10", "-o", "b.h5", "--no-progress",
+                       "--no-figure"], capsys)
+    assert rc == 130 and err.strip() == "mcfric: interrupted", err
+    assert list(tmp_path.iterdir()) == []
 
 
 @pytest.mark.parametrize("argv, kind", [
@@ -553,12 +584,12 @@ def test_a_caller_gets_its_signal_handlers_back_and_a_fresh_note(tmp_path, monke
     mine = {s: (lambda signum, frame: None) for s in (signal.SIGTERM, signal.SIGHUP)}
     before = {s: signal.signal(s, h) for s, h in mine.items()}
     try:
-        ensemble.STOP_SIGNALS[:] = ["SIGTERM"]         # left by an earlier, stopped command
+        stop_signals.RECEIVED[:] = ["SIGTERM"]         # left by an earlier, stopped command
         rc, _, err = call(["run", "two-beam", "--samples", "20", "--n-freq", "5",
                            "-o", "r.h5", "--no-progress", "--no-certify", "--no-figure"],
                           capsys)
         assert rc == 0, err
-        assert (tmp_path / "r.h5").exists() and ensemble.STOP_SIGNALS == []
+        assert (tmp_path / "r.h5").exists() and stop_signals.RECEIVED == []
         assert all(signal.getsignal(s) is h for s, h in mine.items())
     finally:
         for s, h in before.items():

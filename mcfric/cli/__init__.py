@@ -58,26 +58,31 @@ def main(argv=None):
     import signal
     import threading
 
-    main_thread = threading.current_thread() is threading.main_thread()
+    from .. import stop_signals
 
-    def notes():
-        """The run's note of stop signals, where the ensemble is loaded (else no run
-        can need it)."""
-        return getattr(sys.modules.get("mcfric.ensemble"), "STOP_SIGNALS", [])
+    main_thread = threading.current_thread() is threading.main_thread()
 
     def interrupt(signum, frame):
         name = signal.Signals(signum).name
-        # noted too: raised inside a ctypes callback (numba compiling) the exception is
-        # printed and dropped, and a run checks the note between chunks
-        notes().append(name)
+        # noted too: raised inside a callback from C (a weak reference's, numba
+        # compiling) the exception is dropped, and the work checks the note
+        stop_signals.RECEIVED.append(name)
         raise KeyboardInterrupt(name)
 
-    notes().clear()                 # a caller's earlier command
+    def unraisable(info, default=sys.unraisablehook):
+        # the dropped interrupt is the note's to act on: no traceback for it
+        if not (isinstance(info.exc_value, KeyboardInterrupt) and stop_signals.RECEIVED):
+            default(info)
+
+    stop_signals.RECEIVED.clear()   # a caller's earlier command
     stops = [getattr(signal, s) for s in ("SIGTERM", "SIGHUP") if hasattr(signal, s)]
     previous = {s: signal.signal(s, interrupt) for s in stops} if main_thread else {}
+    hook, sys.unraisablehook = sys.unraisablehook, unraisable
     try:
         try:
             from .dispatch import main as dispatch
+
+            stop_signals.check()    # dropped while the modules loaded
         except KeyboardInterrupt:
             print("mcfric: interrupted", file=sys.stderr)
             return EXIT_INTERRUPTED
@@ -92,6 +97,7 @@ def main(argv=None):
         return rc
     finally:
         if argv is not None:
+            sys.unraisablehook = hook
             for s, h in previous.items():
                 signal.signal(s, h)
 

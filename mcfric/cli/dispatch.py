@@ -6,6 +6,7 @@ from __future__ import annotations
 import os
 import sys
 
+from .. import stop_signals
 from ..store import StoreError
 from .bounds import cmd_bounds
 from .compiling import announce_compilation
@@ -93,6 +94,7 @@ def main(argv=None):
         try:
             # the process ends after an interrupt: a chunk's kernel may be left running
             with leaving_on_interrupt():
+                stop_signals.check()
                 rc = {"run": cmd_run, "config": cmd_config, "info": cmd_info,
                       "hbm": cmd_hbm, "bounds": cmd_bounds, "plot": cmd_plot,
                       "verify": cmd_verify}[args.command](args)
