@@ -1395,7 +1395,8 @@ def test_keep_harmonics_that_stores_nothing_is_said(tmp_path, capsys):
     out = tmp_path / "k.h5"
     assert cli.main(["run", str(toml), *SMALL[1:], "-o", str(out)]) == 0
     text = capsys.readouterr().out
-    assert "note: keep_harmonics = true stores nothing with harmonics = 1" in text, text
+    assert ("note: output.keep_harmonics = true does nothing: solver.harmonics = 1" in text
+            and text.count("note: output.keep_harmonics") == 1), text
     # with H > 1 it stores the harmonics, unless the response is not kept
     toml.write_text('model.preset = "two-beam"\n[output]\nkeep_harmonics = true\n'
                     'keep_response = false\n[solver]\nharmonics = 3\n'
@@ -1403,7 +1404,45 @@ def test_keep_harmonics_that_stores_nothing_is_said(tmp_path, capsys):
     small = ["--samples", "2", "--n-freq", "4", "--no-progress", "--no-figure"]
     assert cli.main(["run", str(toml), *small, "-o", str(tmp_path / "k3.h5")]) == 0
     text = capsys.readouterr().out
-    assert "note: keep_harmonics = true stores nothing with keep_response = false" in text
+    assert ("note: output.keep_harmonics = true does nothing: output.keep_response = "
+            "false" in text), text
+
+
+def test_settings_that_do_nothing_are_named_and_the_rest_are_not(tmp_path, capsys):
+    """A peak setting with the peaks off, solver.n_time with one harmonic, a bounds
+    setting with the bounds off, excitation.mode with a single-beam pattern,
+    sampling.mistuning_per without mistuning: each was accepted in silence. Each is
+    named in a note; a complete file from `mcfric config` (every key, at its default) and
+    the same settings where they act give none."""
+    small = ["--samples", "2", "--n-freq", "4", "--no-progress", "--no-figure"]
+    idle = ('model.preset = "two-beam"\n[peaks]\nenabled = false\nrtol = 1e-3\n'
+            '[solver]\nn_time = 64\n[bounds]\nenabled = false\nn_starts = 5\n'
+            '[excitation]\nmode = 1\n[sampling]\nmistuning_per = "mode"\n')
+    toml = tmp_path / "idle.toml"
+    toml.write_text(idle)
+    assert cli.main(["run", str(toml), *small, "-o", str(tmp_path / "a.h5")]) == 0
+    notes = [ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("note:")]
+    assert sorted(notes) == sorted([
+        "note: peaks.rtol = 0.001 does nothing: peaks.enabled = false",
+        "note: solver.n_time = 64 does nothing: solver.harmonics = 1 (the describing "
+        "function is exact there; AFT is multi-harmonic)",
+        "note: bounds.n_starts = 5 does nothing: bounds.enabled = false",
+        'note: excitation.mode = 1 does nothing: excitation.pattern is not "mode"',
+        "note: sampling.mistuning_per = \"mode\" does nothing: sampling.mistuning = 0"]), notes
+    # where they act: no note
+    acting = ('model.preset = "two-beam"\n[peaks]\nrtol = 1e-3\n[solver]\nharmonics = 3\n'
+              'n_time = 64\n[bounds]\nenabled = false\n[excitation]\npattern = "mode"\n'
+              'mode = 1\n[sampling]\nmistuning = 0.01\nmistuning_per = "mode"\n')
+    toml.write_text(acting)
+    assert cli.main(["run", str(toml), *small, "-o", str(tmp_path / "b.h5")]) == 0
+    notes = [ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("note:")]
+    assert notes == ["note: peaks.rtol = 0.001 does nothing: peaks are refined in "
+                     "single-harmonic runs only"], notes
+    # a complete file holds every key at its default: nothing to say
+    assert cli.main(["config", "two-beam"]) == 0
+    toml.write_text(capsys.readouterr().out)
+    assert cli.main(["run", str(toml), *small, "--no-bounds", "-o", str(tmp_path / "c.h5")]) == 0
+    assert "note:" not in capsys.readouterr().out
 
 
 @pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="needs Linux's /proc")

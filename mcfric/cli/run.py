@@ -124,10 +124,8 @@ def _run_one(args, cfg, out, resume_as=None):
             # only where this run computes its bounds: a file resumed or complete keeps
             # the bounds it was made with ([bounds] is no part of a run's identity)
             shortfall_note(cfg)
-            if spec.keep_harmonics and (spec.solver.harmonics == 1 or not spec.keep_response):
-                why = ("harmonics = 1 (single-harmonic balance)" if spec.solver.harmonics == 1
-                       else "keep_response = false")
-                print(f"note: keep_harmonics = true stores nothing with {why}", flush=True)
+            for phrase in cfg.idle_settings():
+                print(f"note: {phrase}", flush=True)
         summary = ensemble.run(cfg, out, resume=args.resume, force=args.force,
                                progress=not args.no_progress,
                                space_check=not args.skip_space_check)

@@ -18,7 +18,7 @@ from .. import sampling
 from ..bounds.equivalent_linear import K_MAX_LIMIT, past_limits
 from ..validators import SLIP_FORCE_MAX, InputError, choices, is_num, show
 from . import configuration  # at call time: configuration imports this module
-from .schema import BEAM, SPEC, TABLE
+from .schema import BEAM, SPEC, TABLE, defaults
 
 
 def _unknown(table, allowed, where):
@@ -319,6 +319,66 @@ def _reach(t):
     if t["dist"] == "truncnormal" and math.isinf(float(t["high"])):
         return max(float(t["low"]), float(t["mean"])) + 8.3 * float(t["std"])
     return _draw_max(t)
+
+
+def _single_harmonic(c):
+    return c["solver"]["harmonics"] == 1
+
+
+#: Settings that do nothing under others: ``(dotted key, whether it is idle in a
+#: configuration, why)``.
+_IDLE = (
+    ("solver.n_time", _single_harmonic, "solver.harmonics = 1 (the describing function "
+                                        "is exact there; AFT is multi-harmonic)"),
+    ("output.keep_harmonics", _single_harmonic, "solver.harmonics = 1 (single-harmonic "
+                                                "balance)"),
+    ("output.keep_harmonics", lambda c: not c["output"]["keep_response"],
+     "output.keep_response = false"),
+    *((f"peaks.{k}", lambda c: not c["peaks"]["enabled"], "peaks.enabled = false")
+      for k in ("count", "rtol", "window")),
+    *((f"peaks.{k}", lambda c: not _single_harmonic(c), "peaks are refined in "
+                                                         "single-harmonic runs only")
+      for k in ("count", "rtol", "window")),
+    *((f"bounds.{k}", lambda c: not c["bounds"]["enabled"], "bounds.enabled = false")
+      for k in ("k_max", "k_max_im", "F_lim", "n_starts", "certify", "certify_budget",
+                "certify_split", "certify_moments")),
+    *((f"bounds.{k}", lambda c: c["bounds"]["enabled"] and not c["bounds"]["certify"],
+       "bounds.certify = false") for k in ("certify_budget", "certify_split",
+                                            "certify_moments")),
+    ("sampling.mistuning_per", lambda c: c["sampling"]["mistuning"] == 0,
+     "sampling.mistuning = 0"),
+    ("excitation.beam", lambda c: c["excitation"]["pattern"] != "single",
+     'excitation.pattern is not "single"'),
+    ("excitation.mode", lambda c: c["excitation"]["pattern"] != "mode",
+     'excitation.pattern is not "mode"'),
+    ("excitation.engine_order", lambda c: c["excitation"]["pattern"] != "travelling",
+     'excitation.pattern is not "travelling"'),
+    ("excitation.engine_order", lambda c: bool(c["excitation"]["engine_orders"]),
+     "excitation.engine_orders lists the orders"),
+)
+
+
+def idle_settings(c):
+    """The settings changed from the preset's defaults that do nothing in configuration
+    ``c`` (a peak setting with the peaks off, ``solver.n_time`` with one harmonic, ...):
+    one phrase each, ``"KEY = VALUE does nothing: WHY"``; empty where there are none.
+
+    A value equal to the default is not named: a complete file (``mcfric config``)
+    holds every key.
+    """
+    base = defaults(c["model"]["preset"])
+    out = []
+    for key, idle, why in _IDLE:
+        section, name = key.split(".")
+        value = c[section][name]
+        if value != base[section][name] and idle(c) and not any(o.startswith(f"{key} =")
+                                                                for o in out):
+            out.append(f"{key} = {_toml_value(value)} does nothing: {why}")
+    return out
+
+
+def _toml_value(v):
+    return json.dumps(v) if isinstance(v, (bool, str)) else f"{v:g}" if is_num(v) else show(v)
 
 
 def bounds_shortfalls(c):
