@@ -1445,6 +1445,23 @@ def test_settings_that_do_nothing_are_named_and_the_rest_are_not(tmp_path, capsy
     assert "note:" not in capsys.readouterr().out
 
 
+def test_bounds_names_the_idle_settings_of_the_tables_it_reads(tmp_path, capsys):
+    """`mcfric bounds` named no idle setting: a certify_* setting with certify = false
+    went by in silence. It names those of [bounds], [peaks] and [excitation], and not the
+    ensemble's settings it never reads."""
+    toml = tmp_path / "idle.toml"
+    toml.write_text('model.preset = "two-beam"\n[peaks]\nenabled = false\nrtol = 1e-3\n'
+                    '[solver]\nn_time = 64\n[bounds]\ncertify = false\n'
+                    'certify_budget = 7\n[excitation]\nmode = 1\n')
+    args = ["bounds", str(toml), "--n-freq", "4", "--no-progress", "--no-figure"]
+    assert cli.main([*args, "-o", str(tmp_path / "b.h5")]) == 0
+    notes = [ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("note:")]
+    assert sorted(notes) == sorted([
+        "note: peaks.rtol = 0.001 does nothing: peaks.enabled = false",
+        "note: bounds.certify_budget = 7 does nothing: bounds.certify = false",
+        'note: excitation.mode = 1 does nothing: excitation.pattern is not "mode"']), notes
+
+
 @pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="needs Linux's /proc")
 def test_a_figure_linked_into_an_unwritable_directory_is_refused_first(tmp_path, capsys):
     """A figure name that is a symbolic link is written through; hbm wrote its CSV and

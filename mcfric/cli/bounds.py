@@ -31,6 +31,9 @@ def cmd_bounds(args):
                   f"F0 = {model.excitation.F0:g} N; box 0 <= Re K <= {lim.k_max_re:g} N/m, "
                   f"0 <= Im K <= {lim.k_max_im:g} N/m, F_lim = {lim.F_lim:g} N", flush=True)
             shortfall_note(cfg)
+            # the tables this command reads: the ensemble's settings are not its business
+            for phrase in cfg.idle_settings(("bounds", "peaks", "excitation")):
+                print(f"note: {phrase}", flush=True)
             t = time.perf_counter()
             B = bounds.from_spec(spec, progress=False if args.no_progress else None)
             print(f"{B.summary()} ({time.perf_counter() - t:.1f} s)")

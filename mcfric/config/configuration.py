@@ -117,10 +117,11 @@ class Config:
         sampling draws (empty: every member is admitted)."""
         return validation.bounds_shortfalls(self.data)
 
-    def idle_settings(self):
+    def idle_settings(self, sections=None):
         """Phrases naming the settings changed from the preset's defaults that do nothing
-        here (:func:`~mcfric.config.validation.idle_settings`)."""
-        return validation.idle_settings(self.data)
+        here, of the tables ``sections`` or all
+        (:func:`~mcfric.config.validation.idle_settings`)."""
+        return validation.idle_settings(self.data, sections)
 
     def metric_beams(self):
         """0-based beams of the metric, or None for all."""

@@ -358,18 +358,21 @@ _IDLE = (
 )
 
 
-def idle_settings(c):
+def idle_settings(c, sections=None):
     """The settings changed from the preset's defaults that do nothing in configuration
     ``c`` (a peak setting with the peaks off, ``solver.n_time`` with one harmonic, ...):
     one phrase each, ``"KEY = VALUE does nothing: WHY"``; empty where there are none.
 
     A value equal to the default is not named: a complete file (``mcfric config``)
-    holds every key.
+    holds every key. ``sections``: only the settings of these tables (``mcfric bounds``
+    reads ``[bounds]``, ``[peaks]`` and ``[excitation]``, not the ensemble's), or all.
     """
     base = defaults(c["model"]["preset"])
     out = []
     for key, idle, why in _IDLE:
         section, name = key.split(".")
+        if sections is not None and section not in sections:
+            continue
         value = c[section][name]
         if value != base[section][name] and idle(c) and not any(o.startswith(f"{key} =")
                                                                 for o in out):
