@@ -8,7 +8,8 @@ witness: an admissible set of describing functions that attains it. Rounding can
 break the guarantee (the argument: :mod:`mcfric.core.enclosure`, and the docs' bounds
 page). Where the budget of enclosures runs out first the certified values are still
 valid, only looser; the upper one is never above the force bound (paper Eq. 10, itself a
-proof) and the lower one never below 0.
+proof; rounded outward by ``_FORCE_MARGIN``, so up to 1e-12 relative above the stored
+``upper_force``) and the lower one never below 0.
 """
 
 from __future__ import annotations
