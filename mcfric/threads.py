@@ -1,5 +1,6 @@
-"""Threads: how many numba uses, a pool that runs ``nogil`` kernels over work items, and
-a call that Ctrl-C can leave while its kernel runs.
+"""Threads: how many numba uses, a pool that runs ``nogil`` kernels over work items (whose
+long tasks stop at a :func:`check` when the pool is left), and a call that Ctrl-C can
+leave while its kernel runs.
 
 Results never depend on any of them: the kernels write disjoint parts of their outputs.
 """
@@ -53,14 +54,51 @@ def in_threads(task, items):
             stop_signals.check()
             task(item)
         return
+    abandon = threading.Event()
     pool = ThreadPoolExecutor(n)
     try:
-        for future in [pool.submit(task, item) for item in items]:
+        for future in [pool.submit(_item, task, item, abandon) for item in items]:
             stop_signals.check()
             future.result()
+    except BaseException:
+        # the running tasks stop at their next check(): a task of many solver calls
+        # (a frequency's second-order relaxations) had kept Ctrl-C waiting 15 s
+        abandon.set()
+        raise
     finally:
         # on an error or Ctrl-C the queued tasks are dropped, not run to the end
         pool.shutdown(wait=True, cancel_futures=True)
+
+
+class Abandoned(Exception):
+    """Raised by :func:`check` in a task whose :func:`in_threads` call is being left."""
+
+
+#: The abandon event of the :func:`in_threads` call whose task this thread runs.
+_TASK = threading.local()
+
+
+def _item(task, item, abandon):
+    _TASK.abandon = abandon
+    try:
+        return task(item)
+    finally:
+        _TASK.abandon = None
+
+
+def check():
+    """For a task of :func:`in_threads` made of many steps, between them: raise
+    :class:`Abandoned` if its call is being left (an interrupt, another task's error),
+    ``KeyboardInterrupt`` if a stop signal has been noted; elsewhere the latter only.
+
+    Raises
+    ------
+    Abandoned, KeyboardInterrupt
+    """
+    stop_signals.check()
+    abandon = getattr(_TASK, "abandon", None)
+    if abandon is not None and abandon.is_set():
+        raise Abandoned
 
 
 #: Held by the call :func:`interruptible` runs: one abandoned by an interrupt holds it

@@ -964,6 +964,52 @@ def test_an_interrupted_call_is_left_and_the_next_waits_for_it():
     assert order == ["slow", "next"]
 
 
+def test_a_left_pool_stops_its_running_tasks_at_their_next_check():
+    """A task of many steps (a frequency's second-order relaxations: many Clarabel solves)
+    ran to its end after Ctrl-C, which waited for it: 15 s into `mcfric bounds
+    eight-beam`. Left by an interrupt or by another task's error, the pool's running
+    tasks now stop at their next `threads.check()`."""
+    import signal
+    import threading
+    import time
+
+    import numba
+
+    from mcfric import threads
+
+    if numba.get_num_threads() < 2:
+        pytest.skip("one numba thread: in_threads runs the tasks in the caller")
+    steps = []
+
+    def task(i):
+        for _ in range(300):         # 30 s unless stopped
+            threads.check()
+            time.sleep(0.1)
+            steps.append(i)
+
+    main = threading.main_thread().ident
+    # a real signal at the main thread: the pool's wait wakes for it, as for Ctrl-C
+    threading.Timer(0.5, signal.pthread_kill, (main, signal.SIGINT)).start()
+    t0 = time.monotonic()
+    with pytest.raises(KeyboardInterrupt):
+        threads.in_threads(task, range(4))
+    assert time.monotonic() - t0 < 3
+    n = len(steps)
+    time.sleep(0.3)
+    assert len(steps) == n and 0 < n < 40
+
+    def failing(i):
+        if i == 0:
+            raise ValueError("bad item")
+        task(i)
+
+    t0 = time.monotonic()
+    with pytest.raises(ValueError, match="bad item"):
+        threads.in_threads(failing, range(2))
+    assert time.monotonic() - t0 < 3
+    threads.check()                  # outside a pool: nothing to stop
+
+
 def test_F_lim_none_on_the_command_line_as_in_toml(tmp_path, capsys):
     out = tmp_path / "b.h5"
     assert cli.main(["bounds", "two-beam", "--n-freq", "10", "--F-lim", "none", "-o",

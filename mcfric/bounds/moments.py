@@ -36,6 +36,7 @@ import math
 
 import numpy as np
 
+from .. import threads
 from ..core.quadratic_forms import PER_DAMPER, admissible_forms, response_form
 
 #: Relative margin for the rounding of the constraint coefficients and of the sums that
@@ -380,6 +381,8 @@ def _solve(clarabel, A, b, q, sizes, refine):
     settings.iterative_refinement_enable = refine
     settings.tol_gap_abs = settings.tol_gap_rel = settings.tol_feas = SOLVER_TOL
     settings.tol_ktratio = max(SOLVER_TOL, settings.tol_ktratio)
+    # a frequency's relaxations are many solves in one task: Ctrl-C stops it between them
+    threads.check()
     P = A[:0].T @ A[:0]  # an all-zero (n_moments - 1)^2 sparse matrix
     solver = clarabel.DefaultSolver(P.tocsc(), q, A, b,
                                     [clarabel.PSDTriangleConeT(s) for s in sizes], settings)
