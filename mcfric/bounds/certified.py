@@ -520,12 +520,12 @@ def _relaxed(args, kr, ki, F_lim, want_max, cert, wit, rtol, atol, turn=False, n
     got = np.full(n_f, np.inf if want_max else 0.0)
     floor = np.ascontiguousarray(wit)
     target = np.ascontiguousarray(target)
-    stats = np.zeros((64, 4), np.int64)
+    stats = np.zeros((len(loose), 4), np.int64)
+    # a frequency per task: Ctrl-C waits for one frequency's kernel, not a batch's
     in_threads(lambda item: relax_frequencies(*args, kr, ki, F_lim, want_max, floor,
-                                              target, np.asarray(item[1], np.int64), got,
-                                              K_round, beam_bounds, stats[item[0]],
-                                              bool(turn), np.int64(near)),
-               enumerate(np.array_split(loose, min(len(loose), 64))))
+                                              target, item[1], got, K_round, beam_bounds,
+                                              stats[item[0]], bool(turn), np.int64(near)),
+               enumerate(np.split(loose.astype(np.int64), len(loose))))
     total = stats.sum(axis=0)
     LAST_RELAXATION[int(not want_max)] = total
     cert = np.fmin(cert, got) if want_max else np.fmax(cert, got)
@@ -552,18 +552,18 @@ def _split(args, kr, ki, F_lim, want_max, cert, wit, rtol, atol, beam_bounds, bu
     from tqdm import tqdm
 
     got = cert.copy()
-    stats = np.zeros((64, 5), np.int64)
+    stats = np.zeros((len(loose), 5), np.int64)
     args_ = (*args, kr, ki, F_lim, want_max, np.ascontiguousarray(cert),
              np.ascontiguousarray(target), int(budget))
     # up to a second per frequency: a bar on stderr
     with tqdm(total=len(loose), unit="frequency", disable=_disable(progress), leave=False,
               desc=f"splitting the box ({'upper' if want_max else 'lower'})") as bar:
         def step(item):
-            branch_frequencies(*args_, np.asarray(item[1], np.int64), beam_bounds, got,
-                               stats[item[0]], K_round)
+            branch_frequencies(*args_, item[1], beam_bounds, got, stats[item[0]], K_round)
             bar.update(len(item[1]))
 
-        in_threads(step, enumerate(np.array_split(loose, min(len(loose), 64))))
+        # a frequency per task (up to seconds each): Ctrl-C waits for one, not a batch
+        in_threads(step, enumerate(np.split(loose.astype(np.int64), len(loose))))
     total = stats.sum(axis=0)
     LAST_SPLIT[int(not want_max)] = total
     return ((np.fmin(cert, got) if want_max else np.fmax(cert, got)),
