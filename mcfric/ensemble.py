@@ -55,7 +55,11 @@ from .validators import show
 
 
 class RunError(Exception):
-    """The run cannot start as asked (existing files, a resume that does not match)."""
+    """The run cannot start as asked (existing files, a resume that does not match).
+
+    Its message names the command line's flags, as ``mcfric run`` prints it: from
+    Python, ``--force`` is :func:`run`'s ``force=True``, ``--resume`` its
+    ``resume=True``, ``-o`` its ``path``."""
 
 
 class Interrupted(Exception):
@@ -331,7 +335,7 @@ def _put(q, item, writer, err):
 
 
 def run(spec, path, *, resume=False, force=False, progress=True, groups="auto",
-        space_check=True):
+        space_check=True, started=None):
     """Run (or continue) the Monte Carlo ensemble of ``spec`` into the results file ``path``.
 
     Parameters
@@ -355,6 +359,10 @@ def run(spec, path, *, resume=False, force=False, progress=True, groups="auto",
     space_check : bool
         Refuse, before any work, a run whose file needs more than the free space of its
         file system (:func:`check_space`). False skips the check.
+    started : callable or None
+        Called with no arguments once the run is accepted (the files, the model and the
+        space checked), before any work or any connection to a cluster: ``mcfric run``
+        prints its header there, so a refused run prints its one line only.
 
     Returns
     -------
@@ -404,7 +412,7 @@ def run(spec, path, *, resume=False, force=False, progress=True, groups="auto",
         raise RunError(str(e)) from None
     try:
         return _run_locked(spec, final, resume, force, progress, groups, t_start,
-                           space_check)
+                           space_check, started or (lambda: None))
     finally:
         lock.release()
 
@@ -473,10 +481,12 @@ def check_space(spec, final, resume):
                        f"--skip-space-check if the estimate is wrong")
 
 
-def _run_locked(spec, final, resume, force, progress, groups, t_start, space_check):
+def _run_locked(spec, final, resume, force, progress, groups, t_start, space_check,
+                started):
     n_f = len(spec.freq_hz)
     what, found = prepare(spec, final, resume=resume, force=force)
     if what == "complete":
+        started()
         return Summary(final, spec.samples, n_f, spec.samples, 0,
                        int(found.get("n_not_converged", -1)), time.perf_counter() - t_start,
                        0.0, True, already_complete=True,
@@ -490,6 +500,7 @@ def _run_locked(spec, final, resume, force, progress, groups, t_start, space_che
             # the bounds group that "auto" computes after this (a callable's is unknown)
             Store.require_floor(final, bounds_bytes(spec)
                                 if groups == "auto" and spec.bounds else 0)
+        started()
         cluster = _connect(spec, progress) if spec.execution.scheduler else None
     except BaseException:
         if what == "resume":

@@ -108,6 +108,31 @@ def test_the_lock_is_taken_once_per_process_and_released(tmp_path):
     assert not list(tmp_path.iterdir())
 
 
+def test_a_refused_run_prints_its_one_line_and_nothing_on_stdout(tmp_path, capsys,
+                                                                 monkeypatch):
+    """A run refused for its files (another run there, a partial without --resume, no
+    room) printed its header on stdout first: the docs promise one line on stderr. The
+    header now comes once the run is accepted."""
+    import shutil
+
+    out = tmp_path / "r.h5"
+    assert cli.main(["run", *SMALL, "-o", str(out)]) == 0
+    assert capsys.readouterr().out.startswith("mcfric run: two-beam")
+    refused = [["run", *SMALL, "--seed", "3", "-o", str(out)]]        # another run there
+    (tmp_path / "p.h5.partial").write_bytes(out.read_bytes())
+    refused.append(["run", *SMALL, "-o", str(tmp_path / "p.h5")])     # a partial, no --resume
+    for argv in refused:
+        assert cli.main(argv) == 2
+        o, e = capsys.readouterr()
+        assert o == "" and len(e.strip().splitlines()) == 1, (argv, o, e)
+    real = shutil.disk_usage
+    monkeypatch.setattr(shutil, "disk_usage",
+                        lambda p: real(p)._replace(free=writer.MIN_FREE + (200 << 10)))
+    assert cli.main(["run", *SMALL, "--samples", "300", "-o", str(tmp_path / "s.h5")]) == 2
+    o, e = capsys.readouterr()
+    assert o == "" and "free" in e and len(e.strip().splitlines()) == 1, (o, e)
+
+
 def test_no_space_is_refused_before_any_work(tmp_path, capsys, monkeypatch):
     import shutil
 

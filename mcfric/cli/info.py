@@ -14,7 +14,8 @@ from .outputs import checked_file, is_hdf5
 
 def cmd_config(args):
     """``mcfric config``: the complete, commented configuration on stdout; of a results
-    file (complete or partial), the configuration it was run with."""
+    file (complete or partial), the configuration it was run with, as stored (no
+    comments)."""
     from ..store import partial_path
 
     path = Path(args.source) if args.source is not None else None

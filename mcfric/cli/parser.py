@@ -143,10 +143,11 @@ def build_parser():
                         "space, or the run's arrays for the free memory")
     r.add_argument("--no-figure", action="store_true", help="do not draw the figure")
 
-    c = sub.add_parser("config", help="print a complete, commented configuration",
+    c = sub.add_parser("config", help="print a complete configuration (a preset's commented)",
                        description="Print the complete, commented TOML configuration of a "
                        "preset (or the validated, complete form of a configuration file), "
-                       "or the configuration a results file was run with.")
+                       "or the configuration a results file was run with, as the file "
+                       "stores it (without the comments).")
     c.add_argument("source", nargs="?", help=_source_help() + ", or a results file "
                    "(FILE or FILE.partial) (default: eight-beam)")
 
@@ -260,8 +261,8 @@ def _verify_parser(sub):
                    help="periods after which a response counts as not periodic "
                         "(default %(default)s)")
     v.add_argument("-o", "--output", metavar="OUT.csv",
-                   help="CSV file (default: mcfric-results/verify-<name>.csv, <name> as in "
-                        "run); the PNG goes next to it")
+                   help="CSV file (default: mcfric-results/verify-<name>.csv, <name> the "
+                        "model's name, or a results file's stem); the PNG goes next to it")
     v.add_argument("--no-figure", action="store_true", help="do not draw the figure")
     v.add_argument("--no-progress", action="store_true", help="no progress bar")
 

@@ -114,21 +114,26 @@ def _run_one(args, cfg, out, resume_as=None):
     resume = f"`mcfric run ... -o {resume_as or out} --resume`"
     # which files were there: an interrupt outside the sweep is judged by what changed
     before, partial_before = _identity(out), _identity(partial_path(out))
-    # every refusal (bad config, existing files) happens before anything is written
-    try:
+    # every refusal (bad config, existing files) happens before anything is written;
+    # the notes only where this run computes its bounds: a file resumed or complete
+    # keeps the bounds it was made with ([bounds] is no part of a run's identity)
+    fresh = args.force or not (out.exists() or partial_path(out).exists())
+
+    def started():
+        # once every refusal is made: a refused run prints its one line (stderr) only
         model = spec.model
         print(f"mcfric run: {model.name}, {spec.samples} samples x {len(spec.freq_hz)} "
               f"frequencies, {model.n_beams} beams, F0 = {model.excitation.F0:g} N, "
               f"seed {spec.seed}", flush=True)
-        if args.force or not (out.exists() or partial_path(out).exists()):
-            # only where this run computes its bounds: a file resumed or complete keeps
-            # the bounds it was made with ([bounds] is no part of a run's identity)
+        if fresh:
             shortfall_note(cfg)
             for phrase in cfg.idle_settings():
                 print(f"note: {phrase}", flush=True)
+
+    try:
         summary = ensemble.run(cfg, out, resume=args.resume, force=args.force,
                                progress=not args.no_progress,
-                               space_check=not args.skip_space_check)
+                               space_check=not args.skip_space_check, started=started)
     except KeyboardInterrupt:
         # after the rename the run still reads its peaks and indicator for the summary:
         # a file this run renamed into place is whole (a FILE is always complete)
