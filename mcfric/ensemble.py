@@ -395,6 +395,8 @@ def run(spec, path, *, resume=False, force=False, progress=True, groups="auto",
             raise TypeError(f"{name}: expected True or False, got {value!r}")
     if not (groups is None or groups == "auto" or callable(groups)):
         raise TypeError(f"groups: expected 'auto', None or a callable, got {groups!r}")
+    if not (started is None or callable(started)):
+        raise TypeError(f"started: expected None or a callable, got {started!r}")
     final = Path(path)
     if final.name.endswith((".lock", ".partial")):
         # the names of a run's lock and partial files: a run on the stem would take this

@@ -131,6 +131,9 @@ def test_a_refused_run_prints_its_one_line_and_nothing_on_stdout(tmp_path, capsy
     assert cli.main(["run", *SMALL, "--samples", "300", "-o", str(tmp_path / "s.h5")]) == 2
     o, e = capsys.readouterr()
     assert o == "" and "free" in e and len(e.strip().splitlines()) == 1, (o, e)
+    with pytest.raises(TypeError, match="started: expected None or a callable"):
+        ensemble.run(load_config(build_parser().parse_args(["run", *SMALL])),
+                     tmp_path / "t.h5", started="header")
 
 
 def test_no_space_is_refused_before_any_work(tmp_path, capsys, monkeypatch):
