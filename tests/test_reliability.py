@@ -1428,7 +1428,7 @@ def test_an_interrupt_before_the_sweep_claims_no_file(tmp_path, capsys, monkeypa
     capsys.readouterr()
     assert cli.main(["run", *SMALL[:-1], "-o", str(out), "--force"]) == 130
     assert capsys.readouterr().err.strip() == "mcfric: interrupted"
-    monkeypatch.setattr(cli_run, "shortfall_note", interrupted)
+    monkeypatch.setattr(cli_run, "settings_notes", interrupted)
     assert cli.main(["run", *SMALL[:-1], "-o", str(tmp_path / "u.h5")]) == 130
     assert capsys.readouterr().err.strip() == "mcfric: interrupted"
 

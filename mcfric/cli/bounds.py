@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from .errors import EXIT_OK, UsageError, interrupted_after
-from .inputs import load_config, shortfall_note
+from .inputs import load_config, settings_notes
 from .outputs import only_replacing_bounds, output_path
 
 
@@ -30,10 +30,8 @@ def cmd_bounds(args):
             print(f"mcfric bounds: {model.name}, {len(f)} frequencies {f[0]:g}-{f[-1]:g} Hz, "
                   f"F0 = {model.excitation.F0:g} N; box 0 <= Re K <= {lim.k_max_re:g} N/m, "
                   f"0 <= Im K <= {lim.k_max_im:g} N/m, F_lim = {lim.F_lim:g} N", flush=True)
-            shortfall_note(cfg)
             # the tables this command reads: the ensemble's settings are not its business
-            for phrase in cfg.idle_settings(("bounds", "peaks", "excitation")):
-                print(f"note: {phrase}", flush=True)
+            settings_notes(cfg, ("bounds", "peaks", "excitation"))
             t = time.perf_counter()
             B = bounds.from_spec(spec, progress=False if args.no_progress else None)
             print(f"{B.summary()} ({time.perf_counter() - t:.1f} s)")

@@ -96,11 +96,16 @@ def check_slip_flags(mu0, N0):
         raise UsageError(str(e)) from None
 
 
-def shortfall_note(cfg):
-    """A note where ``[bounds]``' constraints leave out friction the sampling draws (a
-    limit given in kN/m, say): the bounds then need not hold for every member."""
+def settings_notes(cfg, sections=None):
+    """The notes on a configuration before the work: where ``[bounds]``' constraints
+    leave out friction the sampling draws (a limit given in kN/m, say: the bounds then
+    need not hold for every member), then each setting that does nothing under the
+    others, of the tables ``sections`` or all
+    (:meth:`~mcfric.config.Config.idle_settings`)."""
     short = cfg.bounds_shortfalls()
     if short:
         print(f"note: the bounds' constraints leave out members the sampling draws "
               f"({'; '.join(short)}): the bounds need not hold for them, and the check "
               f"against the members leaves them out", flush=True)
+    for phrase in cfg.idle_settings(sections):
+        print(f"note: {phrase}", flush=True)

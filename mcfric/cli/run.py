@@ -7,7 +7,7 @@ import json
 import sys
 
 from .errors import EXIT_FAIL, EXIT_INTERRUPTED, EXIT_OK, UsageError, interrupted_after, one_line
-from .inputs import load_config, shortfall_note
+from .inputs import load_config, settings_notes
 from .outputs import (
     not_replacing_hdf5,
     not_replacing_sibling_figure,
@@ -126,9 +126,7 @@ def _run_one(args, cfg, out, resume_as=None):
               f"frequencies, {model.n_beams} beams, F0 = {model.excitation.F0:g} N, "
               f"seed {spec.seed}", flush=True)
         if fresh:
-            shortfall_note(cfg)
-            for phrase in cfg.idle_settings():
-                print(f"note: {phrase}", flush=True)
+            settings_notes(cfg)
 
     try:
         summary = ensemble.run(cfg, out, resume=args.resume, force=args.force,
