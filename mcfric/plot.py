@@ -411,7 +411,8 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
             else:
                 ax.plot(mf[keep], y[keep], color=color, lw=1.0, ls="-" if is_m else "--",
                         label=text)
-    ax.set_yscale("log")
+    with np.errstate(over="ignore"):     # matplotlib's margin past 1e308: _log_ylim's job
+        ax.set_yscale("log")
     # a margin: markers at the ends of the band stay visible
     # the axis spans the window's part inside the frequencies drawn (the file's and the
     # measured ones): --f-max 1e308 is no axis to draw
@@ -420,7 +421,7 @@ def results_figure(path, out, *, quantity=None, f_window=None, member=0, max_lin
     x_hi = min(hi_f, max(float(x.max()) for x in shown if x.size))
     pad = 0.005 * (x_hi - x_lo) or 0.005 * max(x_hi, 1.0)    # a window of one frequency
     ax.set_xlim(x_lo - pad, x_hi + pad)
-    ax.autoscale(axis="y")
+    _log_ylim(ax)
     if band is not None:
         # the band between the bounds; where only 0 is proved below, down to the axis,
         # and where nothing is proved above (no force limit), up to it
@@ -537,6 +538,32 @@ def _alone(y):
     """Points between two gaps (no line joins them: they need a marker)."""
     ok = np.isfinite(y)
     return ok & ~np.r_[False, ok[:-1]] & ~np.r_[ok[1:], False]
+
+
+def _log_ylim(ax):
+    """Fit a log y-axis to its data, as ``autoscale`` does, also near the float range's ends.
+
+    matplotlib adds its margin in linear space after ``10 **``, which overflows for data
+    near 1e308 (a measured amplitude of 1e308 m left an empty axis from 1 to 10 and a
+    numpy warning); the margin is added here to the exponents, clipped to the range, and
+    the ticks are decades chosen here (the log locator's reach past 1e308 and fail).
+    """
+    from matplotlib.ticker import FixedLocator, NullLocator
+
+    lo, hi = ax.dataLim.minposy, ax.dataLim.y1
+    if not (math.isfinite(lo) and math.isfinite(hi) and 0 < lo < hi):
+        ax.autoscale(axis="y")
+        return
+    a, b = math.log10(lo), math.log10(hi)
+    margin = ax.margins()[1] * (b - a)
+    if -300 < a - margin and b + margin < 300:        # every ordinary figure
+        ax.autoscale(axis="y")
+        return
+    a, b = max(a - margin, -307.0), min(b + margin, 308.0)
+    ax.set_ylim(10.0 ** a, 10.0 ** b)
+    step = max(1, math.ceil((b - a) / 8))
+    ax.yaxis.set_major_locator(FixedLocator(10.0 ** np.arange(math.ceil(a), b, step)))
+    ax.yaxis.set_minor_locator(NullLocator())
 
 
 def _metric_beams(attrs):

@@ -232,6 +232,30 @@ def test_measured_outside_is_counted(results, tmp_path, capsys):
     assert all(p < 100.0 for p, _, _ in fr), out
 
 
+def test_a_measured_amplitude_near_the_float_limit_is_drawn_on_the_axis(results, tmp_path,
+                                                                          monkeypatch):
+    """A measured 1e308 m (and 1e-300 m): matplotlib's log margin overflowed (a numpy
+    warning), the axis ran from 1 to 10 and showed nothing. Now no warning, and the axis
+    holds every measured point and the bounds."""
+    import warnings
+
+    from mcfric import plot
+    from mcfric.measured import read_measured
+
+    data = tmp_path / "huge.csv"
+    data.write_text("frequency_hz,beam1,beam2\n30,1e308,1e-5\n40,1e-300,1e-300\n")
+    saved = []
+    monkeypatch.setattr(plot, "_save", lambda fig, out, dpi: saved.append(fig) or
+                        fig.savefig(tmp_path / "huge.png", dpi=dpi))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        plot.results_figure(results, tmp_path / "x.png",
+                            measured=read_measured(data, force_n=0.22))
+    bottom, top = saved[-1].axes[0].get_ylim()
+    assert 0 < bottom <= 1e-300 and top >= 1e308 and np.isfinite(top)
+    assert (tmp_path / "huge.png").stat().st_size > 10_000
+
+
 def test_measured_points_are_judged_against_the_certified_band(results, tmp_path, capsys):
     """Where the searched (paper's) upper bound lies above the certified one, a point
     between them is outside the band the figure draws: it counts as outside."""
