@@ -25,6 +25,10 @@ from .validators import InputError, flag, fraction, integer, residual_tol
 from .validators import frequencies as check_frequencies
 from .validators import per_damper as check_parameters
 
+#: Time steps per kernel call of the integration: a few tenths of a second on eight beams,
+#: the longest wait for Ctrl-C.
+STEPS_PER_CALL = 200_000
+
 #: Defaults: relative change of the harmonics per period that counts as settled, the
 #: number of consecutive settled periods, and the period limit.
 TOL = 1e-8
@@ -215,6 +219,26 @@ def time_steps(model, freq_hz, kc, steps=None):
     return f, n
 
 
+def _integrate(args, max_periods, outputs):
+    """The kernel's integration in calls of at most ``STEPS_PER_CALL`` steps.
+
+    Ctrl-C acts between calls (a numba kernel cannot be stopped); the state carries over,
+    so the result is bit for bit that of one call. Returns the periods integrated
+    (negative if not periodic) and the last relative change.
+    """
+    n_steps = args[15]                    # the kernel's ``steps``
+    per_call = max(1, STEPS_PER_CALL // n_steps)
+    done, calm = 0, 0
+    while True:
+        periods, change, calm = integrate(*args, calm, min(per_call, max_periods - done),
+                                          *outputs)
+        done += abs(periods)
+        if periods > 0:
+            return done, change
+        if not math.isfinite(change) or done >= max_periods:
+            return -done, change
+
+
 def _single_harmonic_state(model, omega, mu0, kc, N0, s):
     """Modal state at ``t = 0`` and damper forces of the single-harmonic solution."""
     a, b = model.dampers
@@ -291,8 +315,8 @@ def verify(model, freq_hz, mu0, kc, N0=0.5, *, harmonics=9, start="single", tol=
                          f"solution, which it always compares; got {harmonics}")
     if start not in STARTS:
         raise ValueError(f"start: expected one of {STARTS}, got {start!r}")
-    # a floor and a cap: a tolerance below rounding never settles, and the integration
-    # runs in one kernel call that Ctrl-C cannot stop (1e9 periods outran a 60 s limit)
+    # a floor and a cap: a tolerance below rounding never settles, and 1e9 periods would
+    # run for days
     if fraction("tol", tol) < TOL_MIN:
         raise InputError("tol", f"expected a number in [{TOL_MIN:g}, 1) (below it rounding "
                                 f"never settles), got {tol!r}")
@@ -338,9 +362,10 @@ def verify(model, freq_hz, mu0, kc, N0=0.5, *, harmonics=9, start="single", tol=
         q_h = np.zeros((len(projected), model.n_dampers), complex)
         peak = np.zeros(model.n_beams)
         hist = np.zeros((n_steps, model.n_beams))
-        periods, change = integrate(w, np.ascontiguousarray(z), uc, uo, ud, force, omega, a, b,
-                                    kc, mu0 * N0, eta0, vel0, f0, projected, n_steps, float(tol),
-                                    int(settle), int(max_periods), y_h, q_h, peak, hist)
+        periods, change = _integrate(
+            (w, np.ascontiguousarray(z), uc, uo, ud, force, omega, a, b, kc, mu0 * N0,
+             eta0, vel0, f0, projected, n_steps, float(tol), int(settle)),
+            int(max_periods), (y_h, q_h, peak, hist))
         if mhb is not None:
             multi = mhb.response_harmonics[0, k]
             multi_peak = mhb.response_peak[0, k]

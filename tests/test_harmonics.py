@@ -753,14 +753,36 @@ def test_a_time_integration_whose_state_is_nan_is_not_periodic(two_beam):
     eta0 = np.full_like(w, np.nan)
     y_h = np.zeros((len(orders), two_beam.n_beams), complex)
     q_h = np.zeros((len(orders), two_beam.n_dampers), complex)
-    periods, change = integrate(
+    periods, change, _ = integrate(
         w, np.ascontiguousarray(z), uc, uo, ud,
         np.ascontiguousarray(two_beam.force, dtype=np.complex128), 2 * np.pi * 20.0, a, b,
         np.array([6000.0]), np.array([0.25]), eta0, np.zeros_like(w),
-        np.zeros(two_beam.n_dampers), orders, 1024, 1e-9, 3, 20, y_h, q_h,
+        np.zeros(two_beam.n_dampers), orders, 1024, 1e-9, 3, 0, 20, y_h, q_h,
         np.zeros(two_beam.n_beams), np.zeros((1024, two_beam.n_beams)))
     # the periods it integrated (one: NaN from the start), not the limit of 20
     assert periods == -1 and np.isnan(change)
+
+
+def test_an_integration_in_many_calls_is_bit_for_bit_one_call(two_beam, monkeypatch):
+    """verify integrates in kernel calls of at most ``STEPS_PER_CALL`` steps, so that
+    Ctrl-C acts between them; the state carries over between calls, so one period per
+    call gives what one call gives, to the bit: settled and not settled."""
+    from mcfric import verify as verify_module
+
+    def run(steps_per_call, **kw):
+        monkeypatch.setattr(verify_module, "STEPS_PER_CALL", steps_per_call)
+        return verify_module.verify(two_beam, [20.0, 47.0], 0.3, 6000.0, 0.5, harmonics=3,
+                                    **kw)
+
+    for kw in ({}, {"max_periods": 3}):         # settled (after 5 calm periods); not
+        one, many = run(10**9, **kw), run(1, **kw)
+        for x, y in zip(one, many, strict=True):
+            assert (x.periodic, x.periods) == (y.periodic, y.periods)
+            assert (x.periodic and x.periods > 5) if not kw else (
+                not x.periodic and x.periods == 3)
+            for name in ("history", "harmonics", "peak", "even"):
+                assert np.array_equal(getattr(x, name), getattr(y, name)), name
+            assert x.change == y.change
 
 
 def test_the_memory_check_counts_the_threads_the_solve_uses(two_beam, monkeypatch):

@@ -80,9 +80,12 @@ def _sum_abs(z):
 
 
 @jit
-def integrate(w, zeta, uc, uo, ud, force, omega, a, b, kc, fs, eta0, vel0, f0, orders,
-              steps, tol, settle, max_periods, y_h, q_h, y_peak, history):
+def integrate(w, zeta, uc, uo, ud, force, omega, a, b, kc, fs, eta, vel, f_n, orders,
+              steps, tol, settle, calm, max_periods, y_h, q_h, y_peak, history):
     """Integrate period by period until the harmonics settle.
+
+    The state (``eta``, ``vel``, ``f_n``, ``y_h``, ``q_h`` and ``calm``) goes in and comes
+    out, so that a long integration can run as several calls, bit for bit the same as one.
 
     Parameters
     ----------
@@ -98,10 +101,11 @@ def integrate(w, zeta, uc, uo, ud, force, omega, a, b, kc, fs, eta0, vel0, f0, o
         Beams of each damper.
     kc, fs : ndarray, shape (nd,)
         Spring stiffness (N/m) and slip force ``mu0 N0`` (N) per damper.
-    eta0, vel0 : ndarray, shape (n_beams, n_modes)
-        Initial modal displacements and velocities.
-    f0 : ndarray, shape (nd,)
-        Initial damper forces, N (``|f0| <= fs``).
+    eta, vel : ndarray, shape (n_beams, n_modes)
+        In and out: modal displacements and velocities at the start of a period
+        (kg^1/2 m and kg^1/2 m/s).
+    f_n : ndarray, shape (nd,)
+        In and out: the committed damper forces, N (``|f_n| <= fs``).
     orders : ndarray of int64, shape (n_h,)
         Harmonic orders to project (1 first).
     steps : int
@@ -110,12 +114,16 @@ def integrate(w, zeta, uc, uo, ud, force, omega, a, b, kc, fs, eta0, vel0, f0, o
         Settling tolerance on the change of harmonics per period, relative.
     settle : int
         Consecutive periods within ``tol`` needed.
+    calm : int
+        Consecutive periods within ``tol`` before this call (0 at the start).
     max_periods : int
-        Give up after this many periods.
+        Periods to integrate at most in this call.
     y_h : ndarray of complex, shape (n_h, n_beams)
-        Out: output-displacement harmonics of the last period, m.
+        In and out: output-displacement harmonics of the last period, m (zeros at the
+        start).
     q_h : ndarray of complex, shape (n_h, nd)
-        Out: contact-displacement harmonics of the last period, m.
+        In and out: contact-displacement harmonics of the last period, m (zeros at the
+        start).
     y_peak : ndarray, shape (n_beams,)
         Out: largest ``|y(t)|`` over the last period, m.
     history : ndarray, shape (steps, n_beams)
@@ -123,21 +131,19 @@ def integrate(w, zeta, uc, uo, ud, force, omega, a, b, kc, fs, eta0, vel0, f0, o
 
     Returns
     -------
-    (int, float)
-        Periods integrated (negative if the state never settled) and the last relative
-        change of the harmonics.
+    (int, float, int)
+        Periods integrated in this call (negative if the state did not settle in them),
+        the last relative change of the harmonics (NaN where the state blew up) and
+        ``calm`` after the last period.
     """
-    n_beams, n_modes = eta0.shape
+    n_beams, n_modes = eta.shape
     nd = a.shape[0]
     n_h = orders.shape[0]
     dt = 2.0 * math.pi / omega / steps
-    eta = eta0.copy()
-    vel = vel0.copy()
-    f_n = f0.copy()
     q_n = np.zeros(nd)
     f = np.zeros(nd)
     q = np.zeros(nd)
-    # the committed contact displacement of the initial state
+    # the committed contact displacement of the state: a function of eta alone
     _contact_forces(eta, uc, a, b, kc, fs, f_n, q_n, f, q)
     for j in range(nd):
         q_n[j] = q[j]
@@ -150,11 +156,10 @@ def integrate(w, zeta, uc, uo, ud, force, omega, a, b, kc, fs, eta0, vel0, f0, o
     k4v = np.empty_like(eta)
     te = np.empty_like(eta)
     tv = np.empty_like(eta)
-    prev_y = np.zeros((n_h, n_beams), dtype=np.complex128)
-    prev_q = np.zeros((n_h, nd), dtype=np.complex128)
+    prev_y = y_h.copy()
+    prev_q = q_h.copy()
     cur_y = np.zeros((n_h, n_beams), dtype=np.complex128)
     cur_q = np.zeros((n_h, nd), dtype=np.complex128)
-    calm = 0
     change = math.inf
     # e^{-i n theta} on the step grid, once
     ph = np.empty((steps, n_h), dtype=np.complex128)
@@ -241,8 +246,8 @@ def integrate(w, zeta, uc, uo, ud, force, omega, a, b, kc, fs, eta0, vel0, f0, o
         if calm >= settle:
             y_h[:, :] = cur_y
             q_h[:, :] = cur_q
-            return period, change
+            return period, change, calm
     y_h[:, :] = cur_y
     q_h[:, :] = cur_q
     # the periods actually integrated: fewer than max_periods where the state blew up
-    return -period, change
+    return -period, change, calm
