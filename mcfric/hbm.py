@@ -185,7 +185,7 @@ def solve(model, freq_hz, mu0, kc, N0=0.5, *, modal_freq_hz=None, tol=TOL,
     mu0, kc, N0 : array_like
         Friction coefficient (-), tangential stiffness (N/m) and normal preload (N) per
         damper: scalar, (nd,), (n_s, 1) or (n_s, nd); all >= 0, ``kc`` at most 1e12 N/m
-        (:data:`mcfric.validators.KC_MAX`, a stuck contact).
+        (:data:`mcfric.validators.KC_MAX`, a stuck contact). ``N0`` defaults to 0.5 N.
     modal_freq_hz : array_like, shape (n_s, n_beams, n_modes), optional
         Per-sample modal frequencies in Hz (mistuned rigs); default the model's. Friction
         parameters given for one sample apply to all ``n_s``. ``n_modes`` is the largest

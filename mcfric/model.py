@@ -99,7 +99,18 @@ class ModalTable:
         return len(self.freq_hz)
 
     def column(self, position):
-        """Mode shapes (n_modes,) at a position label."""
+        """Mode shapes at a position label.
+
+        Parameters
+        ----------
+        position : int
+            Position label, one of ``positions``.
+
+        Returns
+        -------
+        ndarray, shape (n_modes,)
+            Mass-normalised mode shapes at that position, kg^-1/2.
+        """
         label = integer()(position, "position")        # 1.5 is no label (it gave 1)
         try:
             return self.shapes[:, self.positions.index(label)]
@@ -108,7 +119,20 @@ class ModalTable:
                              f"(positions: {list(self.positions)})") from None
 
     def with_frequency(self, mode, freq_hz):
-        """A copy with mode ``mode`` (1-based) moved to ``freq_hz`` (e.g. Fig. 10b's 108 Hz)."""
+        """A copy with one mode moved to another natural frequency.
+
+        Parameters
+        ----------
+        mode : int
+            The mode, 1-based.
+        freq_hz : float
+            Its new natural frequency, Hz (> 0; e.g. Fig. 10b's 108 Hz for mode 2).
+
+        Returns
+        -------
+        ModalTable
+            The copy; shapes, damping and positions unchanged.
+        """
         f = np.array(self.freq_hz)
         integer(1, len(f))(mode, "mode")
         f[mode - 1] = real("freq_hz", freq_hz, lo=0, lo_open=True)   # not "108" or [108]
@@ -155,7 +179,18 @@ class Excitation:
         integer()(self.engine_order, "engine_order")
 
     def force(self, n_beams):
-        """Complex force amplitudes (n_beams,), N."""
+        """Complex force amplitudes at the drive position of each beam.
+
+        Parameters
+        ----------
+        n_beams : int
+            Number of beams in the array.
+
+        Returns
+        -------
+        ndarray of complex, shape (n_beams,)
+            Force amplitudes, N.
+        """
         b = np.arange(1, n_beams + 1)
         if self.pattern == "single":
             if not 1 <= self.beam <= n_beams:
@@ -248,7 +283,22 @@ class Model:
 
     @classmethod
     def identical(cls, table, n_beams, **kwargs):
-        """An array of ``n_beams`` identical beams with modal table ``table``."""
+        """An array of identical beams.
+
+        Parameters
+        ----------
+        table : ModalTable
+            The modal table of every beam.
+        n_beams : int
+            Number of beams (>= 2).
+        **kwargs
+            The other fields of :class:`Model` (``excitation``, ``topology``, ``contact``,
+            ``output``, ``drive``, ...).
+
+        Returns
+        -------
+        Model
+        """
         return cls(beams=(table,) * integer(2)(n_beams, "n_beams"), **kwargs)
 
     @property
@@ -273,7 +323,17 @@ class Model:
         return self.excitation.force(self.n_beams)
 
     def with_F0(self, F0):
-        """The same model driven with amplitude ``F0`` (N)."""
+        """The same model with another drive amplitude.
+
+        Parameters
+        ----------
+        F0 : float
+            Excitation amplitude, N, of the same pattern.
+
+        Returns
+        -------
+        Model
+        """
         return dataclasses.replace(self, excitation=dataclasses.replace(self.excitation, F0=F0))
 
     def modal_arrays(self):
@@ -282,6 +342,7 @@ class Model:
         Returns
         -------
         freq_hz, zeta : ndarray, shape (n_beams, n_modes)
+            Natural frequencies, Hz, and modal damping ratios (-). Padding modes read 1.
         u : ndarray, shape (n_beams, n_modes, 3)
             Shapes at the contact, output and drive positions, kg^-1/2. Padding modes
             have zero shape and contribute nothing.
@@ -306,7 +367,13 @@ class Model:
         omega : ndarray, shape (n_f,)
             Angular frequencies, rad/s.
         modal_freq_hz : ndarray, shape (n_r, n_beams, n_modes), optional
-            Per-sample modal frequencies (mistuning); default the model's own (n_r = 1).
+            Per-sample natural frequencies, Hz (mistuning); default the model's own
+            (n_r = 1).
+
+        Returns
+        -------
+        ndarray of complex, shape (n_r, n_f, 4, n_beams)
+            The receptances the kernel reads, m/N.
         """
         f, z, u = self.modal_arrays()
         if modal_freq_hz is None:

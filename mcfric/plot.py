@@ -604,16 +604,24 @@ def hbm_figure(freq_hz, amplitude, metric, converged, png_path, title="",
     Parameters
     ----------
     freq_hz : ndarray, shape (n_f,)
+        Drive frequencies, Hz.
     amplitude : ndarray, shape (n_f, n_beams)
         ``|y|`` per beam, in the unit of ``ylabel`` (the metric's: one axis, one unit).
     metric : ndarray, shape (n_f,)
+        The metric M, in the same unit.
     converged : ndarray of bool, shape (n_f,)
         Non-converged points are not drawn.
     png_path : str or Path
+        Where the figure is written.
     title : str
         Figure title.
     metric_label, ylabel : str
         Legend entry of the metric and the axis label, with the unit.
+
+    Returns
+    -------
+    str or Path
+        ``png_path``.
     """
     freq_hz = np.asarray(freq_hz, float)
     n_f = freq_hz.shape[0] if freq_hz.ndim == 1 else -1

@@ -76,12 +76,32 @@ def disk(n_blades=24, engine_order=3, F0=1.1):
 
 
 def disk_24(F0=1.1):
-    """24 blades in a ring, engine order 3."""
+    """24 blades in a ring, engine order 3.
+
+    Parameters
+    ----------
+    F0 : float
+        Amplitude of the travelling-wave excitation, N.
+
+    Returns
+    -------
+    Model
+    """
     return disk(24, 3, F0)
 
 
 def disk_72(F0=1.1):
-    """72 blades in a ring, engine order 8."""
+    """72 blades in a ring, engine order 8.
+
+    Parameters
+    ----------
+    F0 : float
+        Amplitude of the travelling-wave excitation, N.
+
+    Returns
+    -------
+    Model
+    """
     return disk(72, 8, F0)
 
 

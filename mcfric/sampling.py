@@ -46,7 +46,13 @@ NORMAL_MIN_MEAN_OVER_STD = 3.0
 
 @dataclass(frozen=True)
 class Fixed:
-    """Always ``value`` (>= 0)."""
+    """Always the same value.
+
+    Parameters
+    ----------
+    value : float
+        The value (>= 0), in the unit of the parameter drawn (-, N/m or N).
+    """
 
     value: float
     dist = "fixed"
@@ -55,13 +61,30 @@ class Fixed:
         object.__setattr__(self, "value", real("value", self.value, lo=0))
 
     def ppf(self, u):
-        """Inverse CDF at the uniforms ``u`` in (0, 1), in the parameter's unit."""
+        """Inverse CDF.
+
+        Parameters
+        ----------
+        u : array_like
+            Uniforms in (0, 1).
+
+        Returns
+        -------
+        ndarray
+            The quantiles, shaped as ``u``, in the parameter's unit.
+        """
         return np.full(np.shape(u), self.value)
 
 
 @dataclass(frozen=True)
 class Uniform:
-    """Uniform on [low, high], ``0 <= low <= high``."""
+    """Uniform on [low, high].
+
+    Parameters
+    ----------
+    low, high : float
+        The limits, ``0 <= low <= high``, in the unit of the parameter drawn (-, N/m or N).
+    """
 
     low: float
     high: float
@@ -76,7 +99,18 @@ class Uniform:
         object.__setattr__(self, "high", high)
 
     def ppf(self, u):
-        """Inverse CDF at the uniforms ``u`` in (0, 1), in the parameter's unit."""
+        """Inverse CDF.
+
+        Parameters
+        ----------
+        u : array_like
+            Uniforms in (0, 1).
+
+        Returns
+        -------
+        ndarray
+            The quantiles, shaped as ``u``, in the parameter's unit.
+        """
         return self.low + (self.high - self.low) * np.asarray(u)
 
 
@@ -86,6 +120,12 @@ class Normal:
 
     Requires ``mean >= 3 std``, so that the conditioning removes at most 0.135 % of the
     probability; for wider spreads use :class:`TruncNormal` and state the limits.
+
+    Parameters
+    ----------
+    mean, std : float
+        Mean (>= 0) and standard deviation (<= mean / 3), in the unit of the parameter
+        drawn (-, N/m or N).
     """
 
     mean: float
@@ -103,7 +143,18 @@ class Normal:
         object.__setattr__(self, "std", std)
 
     def ppf(self, u):
-        """Inverse CDF at the uniforms ``u`` in (0, 1), in the parameter's unit."""
+        """Inverse CDF.
+
+        Parameters
+        ----------
+        u : array_like
+            Uniforms in (0, 1).
+
+        Returns
+        -------
+        ndarray
+            The quantiles, shaped as ``u``, in the parameter's unit.
+        """
         if self.std == 0:
             return np.full(np.shape(u), self.mean)
         return _truncnorm_ppf(u, self.mean, self.std, 0.0, math.inf)
@@ -111,7 +162,16 @@ class Normal:
 
 @dataclass(frozen=True)
 class TruncNormal:
-    """Normal(mean, std) restricted to [low, high], ``0 <= low < high`` (high may be inf)."""
+    """Normal(mean, std) restricted to [low, high].
+
+    Parameters
+    ----------
+    mean, std : float
+        Mean and standard deviation (> 0) of the normal before the restriction, in the
+        unit of the parameter drawn (-, N/m or N).
+    low, high : float
+        The limits, ``0 <= low < high`` (``high`` may be inf), in the same unit.
+    """
 
     mean: float
     std: float
@@ -134,13 +194,32 @@ class TruncNormal:
             object.__setattr__(self, k, v)
 
     def ppf(self, u):
-        """Inverse CDF at the uniforms ``u`` in (0, 1), in the parameter's unit."""
+        """Inverse CDF.
+
+        Parameters
+        ----------
+        u : array_like
+            Uniforms in (0, 1).
+
+        Returns
+        -------
+        ndarray
+            The quantiles, shaped as ``u``, in the parameter's unit.
+        """
         return _truncnorm_ppf(u, self.mean, self.std, self.low, self.high)
 
 
 @dataclass(frozen=True)
 class LogNormal:
-    """``median * exp(sigma Z)``, Z standard normal: median > 0, sigma >= 0 (std of ln)."""
+    """``median * exp(sigma Z)``, Z standard normal.
+
+    Parameters
+    ----------
+    median : float
+        The median (> 0), in the unit of the parameter drawn (-, N/m or N).
+    sigma : float
+        Standard deviation of ``ln(value)`` (>= 0, dimensionless), e.g. 0.3.
+    """
 
     median: float
     sigma: float
@@ -156,7 +235,18 @@ class LogNormal:
                              f"deviation of ln(value), e.g. 0.3")
 
     def ppf(self, u):
-        """Inverse CDF at the uniforms ``u`` in (0, 1), in the parameter's unit."""
+        """Inverse CDF.
+
+        Parameters
+        ----------
+        u : array_like
+            Uniforms in (0, 1).
+
+        Returns
+        -------
+        ndarray
+            The quantiles, shaped as ``u``, in the parameter's unit.
+        """
         return self.median * np.exp(self.sigma * special.ndtri(np.asarray(u)))
 
 
@@ -251,7 +341,8 @@ class Sampler:
         Dampers per sample (independent draws).
     mu0, kc, N0 : distribution
         One of :class:`Fixed`, :class:`Uniform`, :class:`Normal`, :class:`TruncNormal`,
-        :class:`LogNormal`; every damper of every sample draws independently.
+        :class:`LogNormal`, of the friction coefficient (-), the tangential stiffness (N/m)
+        and the normal preload (N); every damper of every sample draws independently.
     modal_freq_hz : ndarray, shape (n_beams, n_modes), optional
         Nominal modal frequencies, Hz (needed for mistuning).
     mistuning : float
@@ -303,7 +394,18 @@ class Sampler:
         return 3 * self.n_dampers + n_modal
 
     def uniforms(self, index):
-        """The per-sample uniform blocks, shape (len(index), n_uniforms), in (0, 1)."""
+        """The per-sample uniform blocks.
+
+        Parameters
+        ----------
+        index : array_like of int
+            Sample numbers (>= 0).
+
+        Returns
+        -------
+        ndarray, shape (len(index), n_uniforms)
+            Uniforms in (0, 1), one row per sample, each from the sample's own seed.
+        """
         index = np.asarray(index, dtype=np.int64).reshape(-1)
         u = np.empty((len(index), self.n_uniforms))
         n = self.n_uniforms
@@ -313,7 +415,19 @@ class Sampler:
         return u + _HALF_ULP
 
     def draw(self, index):
-        """Parameters of samples ``index`` (any order, any subset), see :class:`Draw`."""
+        """The parameters of some samples.
+
+        Parameters
+        ----------
+        index : array_like of int
+            Sample numbers (>= 0), in any order, any subset.
+
+        Returns
+        -------
+        Draw
+            Their friction coefficients, tangential stiffnesses (N/m), preloads (N) and,
+            with mistuning, modal frequencies (Hz), one row per sample.
+        """
         given = np.asarray(index)
         if given.size and not np.issubdtype(given.dtype, np.integer):
             raise ValueError(f"index: expected integer sample numbers, got dtype {given.dtype}")

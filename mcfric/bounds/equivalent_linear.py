@@ -113,16 +113,18 @@ class Bounds:
     Attributes
     ----------
     freq_hz : ndarray, shape (n_f,)
+        Drive frequencies, Hz.
     upper, lower : ndarray, shape (n_f,)
         The searched bounds on ``M`` in the metric's unit (m, m/s or m/s^2): extremes a
         search found, not certified (the certified ones are ``certificate.upper`` and
         ``certificate.lower``). NaN where the search failed (a singular linear system:
         counted in :meth:`summary`).
     upper_box : ndarray, shape (n_f,)
-        Largest box value found over the beams. Where a beam reached its force bound the
-        search stopped there, so it is then only known to be at least that.
+        Largest box value found over the beams, in the metric's unit. Where a beam
+        reached its force bound the search stopped there, so it is then only known to be
+        at least that.
     upper_force : ndarray, shape (n_f,)
-        Force bound of M (Eq. 10, largest over the beams).
+        Force bound of M (Eq. 10, largest over the beams), in the metric's unit.
     limited_by : ndarray of int8, shape (n_f,)
         0 where the box sets the upper bound, 1 where the force saturation does.
     K_upper, K_lower : ndarray of complex, shape (n_f, nd)
@@ -130,6 +132,8 @@ class Bounds:
     k_max_re, k_max_im, F_lim : float
         The constraints used (N/m, N/m, N; ``inf`` = no force constraint).
     quantity : str
+        What M measures: "displacement" (m), "velocity" (m/s) or "acceleration"
+        (m/s^2).
     beams : tuple of int
         0-based beams the metric takes the maximum over.
     certificate : Certificate or None
