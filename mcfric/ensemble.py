@@ -20,6 +20,7 @@ identical for any thread count, chunk size, interruption and resume, here or on 
 from __future__ import annotations
 
 import json
+import os
 import queue
 import shutil
 import sys
@@ -216,6 +217,8 @@ def prepare(spec, path, *, resume=False, force=False):
     part = partial_path(final)
     if not final.parent.is_dir():
         raise RunError(f"{final.parent}: output directory does not exist")
+    if final.is_dir():
+        raise RunError(f"{final} is a directory, not a results file; choose another path")
     if final.exists() and not force:
         try:
             attrs = read_attrs(final)
@@ -397,6 +400,9 @@ def run(spec, path, *, resume=False, force=False, progress=True, groups="auto",
         raise TypeError(f"groups: expected 'auto', None or a callable, got {groups!r}")
     if not (started is None or callable(started)):
         raise TypeError(f"started: expected None or a callable, got {started!r}")
+    if not isinstance(path, (str, os.PathLike)) or not os.fspath(path):
+        # Path(None) was a TypeError from os; Path("") the current directory
+        raise RunError(f"path: expected a results file's path, got {path!r}")
     final = Path(path)
     if final.name.endswith((".lock", ".partial")):
         # the names of a run's lock and partial files: a run on the stem would take this
@@ -406,6 +412,8 @@ def run(spec, path, *, resume=False, force=False, progress=True, groups="auto",
                        f"choose another name")
     if not final.parent.is_dir():
         raise RunError(f"{final.parent}: output directory does not exist")
+    if final.is_dir():          # force=True cannot replace it: refused before the work
+        raise RunError(f"{final} is a directory, not a results file; choose another path")
     # one owner per output, from the first look at the files to the last rename
     lock = OutputLock(final, "mcfric run")
     try:

@@ -208,6 +208,23 @@ def test_refusals_and_the_already_done_case(tmp_path):
         run(cfg, tmp_path / "nodir" / "r.h5")
 
 
+def test_a_directory_as_the_output_is_refused_before_the_work_even_with_force(tmp_path):
+    """With ``force=True`` a directory at the output path ran the whole ensemble, then
+    failed at the rename (IsADirectoryError) and left its ``.partial`` behind."""
+    cfg = two_beam(samples=4, n=5)
+    out = tmp_path / "d.h5"
+    out.mkdir()
+    for kw in ({}, {"force": True}, {"resume": True}):
+        with pytest.raises(RunError, match=r"d\.h5 is a directory, not a results file; "
+                                           r"choose another path$"):
+            run(cfg, out, **kw)
+    assert [p.name for p in tmp_path.iterdir()] == ["d.h5"] and not any(out.iterdir())
+    # Path(None) was a TypeError from os, Path("") the current directory
+    for bad in (None, 5, ""):
+        with pytest.raises(RunError, match="^path: expected a results file's path"):
+            run(cfg, bad)
+
+
 
 def test_a_spec_changed_behind_its_configuration_is_refused_before_any_file(tmp_path):
     """``dataclasses.replace`` on a RunSpec skips every check of the configuration (0
