@@ -46,6 +46,8 @@ def check_beams(beams, n_beams, name="beams"):
     top = np.iinfo(np.int64).max if n_beams is None else n_beams
     if is_int(beams):
         beams = (beams,)
+    if isinstance(beams, (str, bytes)):        # "all" was read as 'a', 'l', 'l'
+        raise InputError(name, f"expected 0-based beam indices, got {beams!r}")
     try:
         beams = list(beams)
     except TypeError:

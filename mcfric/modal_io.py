@@ -48,6 +48,7 @@ UFF file is read or written.
 from __future__ import annotations
 
 import math
+import os
 import re
 import tomllib
 from collections.abc import Mapping
@@ -83,6 +84,8 @@ def _position_map(positions, available, path, what="node"):
                  for lab, k in positions.items()]
     else:
         try:
+            if isinstance(positions, (str, bytes, set, frozenset)):    # "1" or no order
+                raise TypeError
             keys = [as_int(k, f"positions {what}", path) for k in positions]
         except TypeError:
             raise ValueError(f"{path}: positions: expected None, a list of {what} numbers "
@@ -107,6 +110,9 @@ def _select_modes(numbers, modes, path):
         raise ValueError(f"{path}: mode {dup} appears twice")
     if modes is None:
         return sorted(range(len(numbers)), key=numbers.__getitem__)
+    if isinstance(modes, (str, bytes, set, frozenset)) or not hasattr(modes, "__iter__"):
+        # modes=1 failed iterating an int (TypeError); a set has no order
+        raise ValueError(f"{path}: modes: expected a sequence of mode numbers, got {modes!r}")
     out = []
     for m in modes:
         m = as_int(m, "modes", path)
@@ -187,6 +193,8 @@ def read_modal_table(path, *, positions=None, direction=None, modes=None, max_im
     ImportError
         A UFF file without pyuff installed.
     """
+    if not isinstance(path, (str, os.PathLike)):      # Path(None): a TypeError from os
+        raise ValueError(f"path: expected a file's path, got {path!r}")
     path = Path(path)
     fmt = _format(path, format)
     if fmt != "uff":

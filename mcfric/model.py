@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .core.receptance import beam_receptances
-from .validators import F0_RANGE, InputError, choice, finite_array, integer, number, real
+from .validators import F0_RANGE, InputError, choice, finite_array, integer, number, real, string
 
 TOPOLOGIES = ("linear", "circular")
 #: Contact laws: Coulomb friction in series with a stiffness (the paper's), and a
@@ -79,9 +79,11 @@ class ModalTable:
             raise ValueError(f"shapes: the largest entry, {a.max():g} kg^-1/2 (mode {m + 1}, "
                              f"column {c + 1}), is outside {1 / SQUARABLE:g}..{SQUARABLE:g}, "
                              f"which double precision squares safely")
-        if isinstance(self.positions, str) or not hasattr(self.positions, "__len__"):
-            raise ValueError(f"positions: expected a sequence of integer labels, got "
-                             f"{self.positions!r}")
+        # a set has no order: its labels would name the shape columns in another order
+        if (isinstance(self.positions, (str, set, frozenset, dict))
+                or not hasattr(self.positions, "__len__")):
+            raise ValueError(f"positions: expected a sequence of integer labels, one per "
+                             f"shape column in order, got {self.positions!r}")
         pos = tuple(integer()(p, "positions") for p in self.positions)    # 1.5 is no label
         if len(pos) != u.shape[1]:
             raise ValueError(f"positions: expected {u.shape[1]} labels (one per shape column), "
@@ -191,6 +193,7 @@ class Excitation:
         ndarray of complex, shape (n_beams,)
             Force amplitudes, N.
         """
+        integer(1)(n_beams, "n_beams")       # 2.5 gave three forces, -1 none
         b = np.arange(1, n_beams + 1)
         if self.pattern == "single":
             if not 1 <= self.beam <= n_beams:
@@ -251,6 +254,7 @@ class Model:
         if self.topology == "circular" and len(beams) < 3:
             raise ValueError("topology: a circular array needs at least 3 beams")
         choice(*CONTACT_LAWS)(self.contact_law, "contact_law")
+        string(nonblank=True)(self.name, "name")      # as model.name: it goes into files
         if not isinstance(self.excitation, Excitation):
             raise ValueError("excitation: expected an Excitation")
         for name in ("contact", "output", "drive"):

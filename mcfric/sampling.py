@@ -32,7 +32,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import special
 
-from .validators import InputError, integer, real
+from .model import SQUARABLE
+from .validators import InputError, finite_array, integer, real
 
 #: Half the spacing of ``Generator.random``: maps its [0, 1) grid onto (0, 1).
 _HALF_ULP = 2.0 ** -54
@@ -250,6 +251,21 @@ class LogNormal:
         return self.median * np.exp(self.sigma * special.ndtri(np.asarray(u)))
 
 
+def _sample_numbers(index):
+    """``index`` as a 1-d int64 array of sample numbers >= 0, or an InputError (1.7 was
+    sample 1, 2**64 - 1 wrapped to -1, and a 2-d array was flattened)."""
+    given = np.asarray(index)
+    if given.ndim > 1:
+        raise InputError("index", f"expected a sequence of sample numbers, got shape "
+                                  f"{given.shape}")
+    if given.size and (given.dtype.kind not in "iu" or given.dtype == np.bool_):
+        raise InputError("index", f"expected integer sample numbers, got dtype {given.dtype}")
+    if given.size and (given.min() < 0 or given.max() > np.iinfo(np.int64).max):
+        raise InputError("index", f"sample numbers must be in 0..2**63 - 1, got "
+                                  f"{given.min() if given.min() < 0 else given.max()}")
+    return given.astype(np.int64).reshape(-1)
+
+
 def _truncnorm_ppf(u, mean, std, low, high):
     from scipy.stats import truncnorm  # scipy.stats costs ~0.3 s to import: only when used
 
@@ -377,10 +393,13 @@ class Sampler:
                              f"got {self.mistuning_per!r}")
         f = None
         if self.modal_freq_hz is not None:
-            f = np.array(self.modal_freq_hz, dtype=float)
-            if f.ndim != 2 or not np.all(f > 0):
-                raise ValueError("modal_freq_hz: expected a (n_beams, n_modes) array of "
-                                 "positive frequencies")
+            f = finite_array("modal_freq_hz", self.modal_freq_hz, 2, positive=True)
+            if f.size == 0 or f.max() > SQUARABLE:
+                raise InputError("modal_freq_hz", f"expected a (n_beams, n_modes) array of "
+                                                  f"frequencies in (0, {SQUARABLE:g}] Hz, "
+                                                  f"got shape {f.shape}, largest "
+                                                  f"{f.max() if f.size else float('nan'):g}")
+            f = np.array(f)
             f.setflags(write=False)
         elif m > 0:
             raise ValueError("modal_freq_hz: needed for mistuning")
@@ -406,7 +425,7 @@ class Sampler:
         ndarray, shape (len(index), n_uniforms)
             Uniforms in (0, 1), one row per sample, each from the sample's own seed.
         """
-        index = np.asarray(index, dtype=np.int64).reshape(-1)
+        index = _sample_numbers(index)
         u = np.empty((len(index), self.n_uniforms))
         n = self.n_uniforms
         for row, i in enumerate(index.tolist()):
@@ -428,12 +447,7 @@ class Sampler:
             Their friction coefficients, tangential stiffnesses (N/m), preloads (N) and,
             with mistuning, modal frequencies (Hz), one row per sample.
         """
-        given = np.asarray(index)
-        if given.size and not np.issubdtype(given.dtype, np.integer):
-            raise ValueError(f"index: expected integer sample numbers, got dtype {given.dtype}")
-        index = given.astype(np.int64).reshape(-1)
-        if np.any(index < 0):
-            raise ValueError("index: sample numbers must be >= 0")
+        index = _sample_numbers(index)
         u = self.uniforms(index)
         nd = self.n_dampers
         mu0 = self.mu0.ppf(u[:, :nd])

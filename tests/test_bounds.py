@@ -333,6 +333,8 @@ def test_bounds_scale_with_the_metric_quantity():
     (dict(k_max=K_MAX, k_max_im=1e300), "k_max_im: expected at most"),
     (dict(k_max=K_MAX, quantity="jerk"), "quantity"),
     (dict(k_max=K_MAX, n_starts=0), "n_starts"),
+    (dict(k_max=K_MAX, n_starts=10**12), "n_starts"),    # numpy's MemoryError (10.9 TiB)
+    (dict(k_max=K_MAX, beams="all"), "beams: .*got 'all'"),   # it said "got 'a'"
     (dict(k_max=K_MAX, max_sweeps=0), "max_sweeps"),
     (dict(k_max=K_MAX, seed=1.5), "seed"),
     (dict(k_max=K_MAX, certified="no"), "certified"),    # a truthy string ran it

@@ -94,6 +94,10 @@ def test_overrides_apply_and_name_their_flag():
     with pytest.raises(ConfigError) as e:
         config.load("two-beam", {"excitation.F0": (-1.0, "--F0")})
     assert e.value.key == "--F0"
+    # a bare value failed in tuple unpacking (TypeError); a list had no .items()
+    for bad in ({"sampling.samples": 5}, [1], {"sampling.samples": (5,)}):
+        with pytest.raises(ConfigError, match=r"^overrides: expected \{dotted key: "):
+            config.load("two-beam", bad)
 
 
 def test_a_vanishing_force_is_refused():

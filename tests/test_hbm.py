@@ -226,6 +226,8 @@ BAD = [
     (dict(indicator="no"), "indicator"),                     # truthy: computed before
     (dict(max_iter=True), "max_iter"),                       # one iteration before
     (dict(modal_freq_hz=np.full((1, 8, 2), 20.0 + 1j)), "modal_freq_hz"),  # imag dropped
+    # every response 0 and "converged" before (the receptance's squares overflowed)
+    (dict(modal_freq_hz=np.full((1, 8, 2), 1e160)), "modal_freq_hz: .*at most 1e\\+100 Hz"),
 ]
 
 
@@ -268,7 +270,16 @@ def test_bad_input_names_the_argument(eight_beam, change, name):
     (lambda: mcfric.ModalTable([16.2], [0.01], [[1, 2, 3]], positions=(1.5, 2, 3)),
      "positions"),                                                # truncated to 1 before
     (lambda: mcfric.ModalTable([16.2], [0.01], [[1, 2, 3]], positions="123"), "positions"),
+    # a set has no order: {30, 1, 2} labelled the columns 1, 2, 30
+    (lambda: mcfric.ModalTable([16.2], [0.01], [[1, 2, 3]], positions={30, 1, 2}),
+     "positions: expected a sequence"),
     (lambda: Model.identical(TABLE_1, 2, contact=1.9), "contact"),   # used position 1
+    # as the configuration's model.name: a newline broke one-line outputs and files
+    *[(lambda v=v: Model.identical(TABLE_1, 2, name=v), "name: expected")
+      for v in (None, 5, "a\nb", "  ")],
+    # three forces for 2.5 beams, none for -1, a TypeError for "2"
+    *[(lambda v=v: Excitation("mode", 1.0).force(v), "n_beams: expected an integer")
+      for v in (2.5, -1, "2")],
     # legal once, but every response zero: a wrong label or column, most likely
     (lambda: Model.identical(ZERO_AT_3, 3), "drive: every mode shape of the driven beams"),
     (lambda: Model.identical(ZERO_AT_3, 3, output=3, drive=2), "output: every mode shape"),

@@ -424,6 +424,25 @@ def test_bad_csv_tables(tmp_path, text, words):
     one_line(e, str(path), *words)
 
 
+@pytest.mark.parametrize("kw, words", [
+    # a set has no order ({3, 1} took the columns in the set's order); a string was read
+    # label by label ("1" as [1]); modes=1 was a TypeError from iterating an int
+    (dict(positions={3, 1}), "positions: expected None, a list of column numbers"),
+    (dict(positions="1"), "positions: expected None, a list of column numbers"),
+    (dict(modes=1), "modes: expected a sequence of mode numbers"),
+    (dict(modes={1}), "modes: expected a sequence of mode numbers"),
+])
+def test_selections_without_an_order_are_refused(tmp_path, kw, words):
+    path = tmp_path / "t.csv"
+    path.write_text("mode,freq_hz,zeta,u1,u2,u3\n1,16.2,0.0017,2.55,0.99,0.48\n")
+    with pytest.raises(ValueError) as e:
+        read_modal_table(path, **kw)
+    one_line(e, str(path), words)
+    with pytest.raises(ValueError) as e:         # Path(None): a TypeError from os
+        read_modal_table(None)
+    one_line(e, "path: expected a file's path, got None")
+
+
 def test_bad_toml_tables(tmp_path):
     path = tmp_path / "bad.toml"
     for text, words in ((TOML.replace("zeta = [0.0017, 0.0071]\n", ""), ["missing", "zeta"]),

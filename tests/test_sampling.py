@@ -30,6 +30,14 @@ def test_contract_spawned_children_and_block_layout():
     # a float index drew sample 1 for 1.5
     with pytest.raises(ValueError, match="index: expected integer sample numbers"):
         s.draw(np.array([1.5]))
+    # uniforms too (1.7 was sample 1); 2**64 - 1 wrapped to -1 ("must be >= 0"); a 2-d
+    # index was flattened
+    for bad, words in (([1.7], "integer sample numbers"), ([-1], "0..2\\*\\*63 - 1, got -1"),
+                       (np.array([2**64 - 1], np.uint64), "got 18446744073709551615"),
+                       ([[0, 1]], "shape \\(1, 2\\)"), ([True], "dtype bool")):
+        for call in (s.uniforms, s.draw):
+            with pytest.raises(ValueError, match="^index: .*" + words):
+                call(bad)
 
 
 def test_a_sample_does_not_depend_on_its_chunk_or_order():
@@ -152,6 +160,12 @@ def test_mistuning_zero_means_nominal():
     (lambda: Sampler(seed=0, n_dampers=1, modal_freq_hz=[[16.2]] * 2, mistuning=0.2),
      "mistuning: expected 0..0.1"),
     (lambda: Sampler(seed=0, n_dampers=1, mistuning=0.01), "modal_freq_hz: needed"),
+    # inf drawn as inf, text parsed, booleans read as 1 Hz, the imaginary part dropped, an
+    # empty table taken, and numpy's words for a ragged list (naming nothing), before
+    *[(lambda v=v: Sampler(seed=0, n_dampers=1, modal_freq_hz=v, mistuning=0.05),
+       "modal_freq_hz: ") for v in ([[16.2, np.inf]], [["16", "100"]], [[True, True]],
+                                    [[16.2 + 1j]], np.zeros((0, 2)), [[16.2], [1.0, 2.0]],
+                                    [[16.2, 1e300]])],
 ])
 def test_validation_messages_name_the_parameter(make, starts):
     with pytest.raises(ValueError) as e:

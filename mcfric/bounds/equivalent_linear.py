@@ -65,6 +65,8 @@ SCALE_MAX = 1e15
 #: ``limited_by`` codes: which constraint sets the upper bound.
 LIMITED_BY = ("box", "force")
 N_STARTS = 3
+#: The most starts per frequency (as the configuration's ``bounds.n_starts``).
+N_STARTS_MAX = 10000
 #: Starts over the whole frequency grid at least: the continuation along frequency shares
 #: what the starts find, so a coarse grid gets more starts per frequency (the total effort
 #: stays about that of a 1000-point grid).
@@ -382,7 +384,7 @@ def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity
         0-based beams of the metric (a set: order and repeats change nothing; kept as
         given in the result); default all.
     n_starts : int
-        Starts of the search for the minimum per frequency (at least
+        Starts of the search for the minimum per frequency, 1..10000 (at least
         ``MIN_TOTAL_STARTS / n_f``; the default 3 on a 1000-point grid: the centre and
         the uniform corners K = 0 and K = k_max); the maximum, sought beam by beam, uses
         half as many per beam, at least the four uniform corners.
@@ -434,8 +436,9 @@ def compute_bounds(model, freq_hz, k_max, *, k_max_im=None, F_lim=None, quantity
     check_quantity(quantity, "quantity")
     beams = (tuple(range(model.n_beams)) if beams is None
              else check_beams(beams, model.n_beams))
-    for name, v, lo in (("n_starts", n_starts, 1), ("max_sweeps", max_sweeps, 1),
-                        ("seed", seed, 0)):
+    # n_starts as the configuration's bounds.n_starts: 10**12 asked numpy for 10.9 TiB
+    integer(1, N_STARTS_MAX)(n_starts, "n_starts")
+    for name, v, lo in (("max_sweeps", max_sweeps, 1), ("seed", seed, 0)):
         integer(lo)(v, name)
     for name, v, lo in (("budget", budget, 1), ("split", split, 0)):
         if v is not None:       # None: the certificate's default

@@ -134,6 +134,12 @@ def load(source=None, overrides=None):
     n_preset = base["model"]["n_beams"]
     raw = _merge(base, user)
     labels = {}
+    if not isinstance(overrides, (dict, type(None))) or not all(
+            isinstance(v, tuple) and len(v) == 2 for v in (overrides or {}).values()):
+        # a bare value ({"sampling.samples": 5}) failed in tuple unpacking
+        raise InputError("overrides", f"expected {{dotted key: (value, label)}}, e.g. "
+                                      f"{{'sampling.samples': (500, '--samples')}}, got "
+                                      f"{overrides!r}")
     for key, (value, label) in (overrides or {}).items():
         if value is None:
             continue
