@@ -407,6 +407,21 @@ def test_bad_csv_files(tmp_path, text, words):
     one_line(e, str(path), *words)
 
 
+@pytest.mark.parametrize("kw, words", [
+    # float() took "2" and True as numbers; "x" failed with Python's words, naming nothing
+    (dict(scale="2"), "scale: expected a number > 0"),
+    (dict(scale=True), "scale: expected a number > 0"),
+    (dict(force_n="1"), "force_n: expected a force > 0 N"),
+    (dict(force_n="x"), "force_n: expected a force > 0 N"),
+])
+def test_arguments_that_are_not_numbers_are_named(tmp_path, kw, words):
+    path = tmp_path / "m.csv"
+    path.write_text("frequency_hz,beam1\n10,1e-5\n")
+    with pytest.raises(ValueError) as e:
+        read_measured(path, **kw)
+    one_line(e, str(path), words)
+
+
 # ---------------------------------------------------------------- fraction inside
 
 def test_log_linear_interpolation_is_exact_for_exponentials():

@@ -28,7 +28,7 @@ from ..uff import (
     UFF_SUFFIXES,
     read_datasets,
 )
-from ..validators import existing_file
+from ..validators import existing_file, is_num
 from .measurement import KINDS, Measurement
 
 
@@ -91,9 +91,11 @@ def read_measured(path, *, nodes=None, direction=None, quantity=None, force_n=No
         raise ValueError(f"{path}: quantity: expected one of {QUANTITIES}, got {quantity!r}")
     if kind is not None and kind not in KINDS:
         raise ValueError(f"{path}: kind: expected one of {KINDS}, got {kind!r}")
-    if force_n is not None and not (math.isfinite(float(force_n)) and float(force_n) > 0):
+    # is_num: float() took "2" and True as numbers, and "x" failed naming nothing
+    if force_n is not None and not (is_num(force_n) and math.isfinite(float(force_n))
+                                    and float(force_n) > 0):
         raise ValueError(f"{path}: force_n: expected a force > 0 N, got {force_n!r}")
-    if not (math.isfinite(float(scale)) and float(scale) > 0):
+    if not (is_num(scale) and math.isfinite(float(scale)) and float(scale) > 0):
         raise ValueError(f"{path}: scale: expected a number > 0, got {scale!r}")
     if format == "uff":
         return _read_uff58(path, nodes, direction, quantity, force_n, kind, float(scale))
