@@ -33,7 +33,7 @@ import numpy as np
 from scipy import special
 
 from .model import SQUARABLE
-from .validators import InputError, finite_array, integer, real
+from .validators import InputError, finite_array, integer, real, real_array
 
 #: Half the spacing of ``Generator.random``: maps its [0, 1) grid onto (0, 1).
 _HALF_ULP = 2.0 ** -54
@@ -74,7 +74,7 @@ class Fixed:
         ndarray
             The quantiles, shaped as ``u``, in the parameter's unit.
         """
-        return np.full(np.shape(u), self.value)
+        return np.full(np.shape(_unit(u)), self.value)
 
 
 @dataclass(frozen=True)
@@ -112,7 +112,7 @@ class Uniform:
         ndarray
             The quantiles, shaped as ``u``, in the parameter's unit.
         """
-        return self.low + (self.high - self.low) * np.asarray(u)
+        return self.low + (self.high - self.low) * _unit(u)
 
 
 @dataclass(frozen=True)
@@ -156,6 +156,7 @@ class Normal:
         ndarray
             The quantiles, shaped as ``u``, in the parameter's unit.
         """
+        u = _unit(u)
         if self.std == 0:
             return np.full(np.shape(u), self.mean)
         return _truncnorm_ppf(u, self.mean, self.std, 0.0, math.inf)
@@ -207,7 +208,7 @@ class TruncNormal:
         ndarray
             The quantiles, shaped as ``u``, in the parameter's unit.
         """
-        return _truncnorm_ppf(u, self.mean, self.std, self.low, self.high)
+        return _truncnorm_ppf(_unit(u), self.mean, self.std, self.low, self.high)
 
 
 @dataclass(frozen=True)
@@ -248,7 +249,16 @@ class LogNormal:
         ndarray
             The quantiles, shaped as ``u``, in the parameter's unit.
         """
-        return self.median * np.exp(self.sigma * special.ndtri(np.asarray(u)))
+        return self.median * np.exp(self.sigma * special.ndtri(_unit(u)))
+
+
+def _unit(u):
+    """``u`` as a float array of values in (0, 1), or an InputError (a uniform outside
+    it gave values outside the distribution: 2.0 on Uniform(0, 1) drew 2)."""
+    u = real_array("u", u)
+    if not np.all((u > 0) & (u < 1)):
+        raise InputError("u", "expected uniforms in (0, 1)")
+    return u
 
 
 def _sample_numbers(index):

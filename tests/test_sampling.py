@@ -171,3 +171,14 @@ def test_validation_messages_name_the_parameter(make, starts):
     with pytest.raises(ValueError) as e:
         make()
     assert str(e.value).startswith(starts)
+
+
+@pytest.mark.parametrize("dist", [Fixed(1.0), Uniform(0.0, 1.0), Normal(1.0, 0.1), Normal(1.0, 0.0),
+                                  TruncNormal(1.0, 0.1, 0.0, 2.0), LogNormal(1.0, 0.3)])
+def test_ppf_takes_uniforms_in_the_open_unit_interval_only(dist):
+    """A uniform outside (0, 1) gave a value outside the distribution (Uniform(0, 1) drew
+    2.0 for 2.0, Fixed drew its value for NaN)."""
+    assert np.all(np.isfinite(dist.ppf([1e-12, 0.5, 1 - 1e-12])))
+    for bad in ([2.0], [np.nan], [0.0], [1.0], [-0.5], ["0.5"]):
+        with pytest.raises(ValueError, match="^u: expected"):
+            dist.ppf(bad)
