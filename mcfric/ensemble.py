@@ -540,9 +540,16 @@ def _run_store(spec, final, what, found, progress, groups, t_start, cluster):
         if groups == "auto":
             groups = _bounds_groups(spec, progress, timing) if spec.bounds else None
         coords, variables, attrs, placeholders = layout(spec)
+        made = groups() if groups else None
+        if made is not None and not (isinstance(made, dict) and all(
+                isinstance(k, str) and isinstance(v, tuple) and len(v) == 2
+                for k, v in made.items())):
+            # a wrong shape failed inside the store ("too many values to unpack")
+            raise RunError(f"groups: the callable must return {{group name: (variables, "
+                           f"attrs)}}, got {made!r:.200}")
         store = Store.create(final, record_dim=RECORD, n_records=spec.samples, coords=coords,
                              variables=variables, attrs=attrs, placeholders=placeholders,
-                             groups=groups() if groups else None)
+                             groups=made)
         done = np.zeros(spec.samples, bool)
         not_conv_before = 0
     else:

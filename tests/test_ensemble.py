@@ -225,6 +225,16 @@ def test_a_directory_as_the_output_is_refused_before_the_work_even_with_force(tm
             run(cfg, bad)
 
 
+def test_a_groups_callable_of_the_wrong_shape_is_named_and_writes_nothing(tmp_path):
+    """Its result failed inside the store: "too many values to unpack (expected 2)"."""
+    cfg = two_beam(samples=4, n=5)
+    for made in ({"g": "bad"}, 5, {"g": ({}, {}, {})}):
+        with pytest.raises(RunError, match="^groups: the callable must return"):
+            run(cfg, tmp_path / "r.h5", groups=lambda made=made: made)
+        assert list(tmp_path.iterdir()) == []
+    assert run(cfg, tmp_path / "r.h5", groups=lambda: {}).complete
+
+
 
 def test_a_spec_changed_behind_its_configuration_is_refused_before_any_file(tmp_path):
     """``dataclasses.replace`` on a RunSpec skips every check of the configuration (0
