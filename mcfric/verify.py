@@ -219,24 +219,30 @@ def time_steps(model, freq_hz, kc, steps=None):
     return f, n
 
 
-def _integrate(args, max_periods, outputs):
+def _integrate(args, max_periods, outputs, progress=False):
     """The kernel's integration in calls of at most ``STEPS_PER_CALL`` steps.
 
     Ctrl-C acts between calls (a numba kernel cannot be stopped); the state carries over,
-    so the result is bit for bit that of one call. Returns the periods integrated
+    so the result is bit for bit that of one call. With ``progress``, an integration
+    that lasts over a second shows its periods on a bar. Returns the periods integrated
     (negative if not periodic) and the last relative change.
     """
+    from tqdm import tqdm
+
     n_steps = args[15]                    # the kernel's ``steps``
     per_call = max(1, STEPS_PER_CALL // n_steps)
     done, calm = 0, 0
-    while True:
-        periods, change, calm = integrate(*args, calm, min(per_call, max_periods - done),
-                                          *outputs)
-        done += abs(periods)
-        if periods > 0:
-            return done, change
-        if not math.isfinite(change) or done >= max_periods:
-            return -done, change
+    with tqdm(total=max_periods, unit="period", disable=not progress, leave=False, delay=1.0,
+              dynamic_ncols=True, file=sys.stderr, desc="to a periodic state") as bar:
+        while True:
+            periods, change, calm = integrate(*args, calm, min(per_call, max_periods - done),
+                                              *outputs)
+            done += abs(periods)
+            bar.update(abs(periods))
+            if periods > 0:
+                return done, change
+            if not math.isfinite(change) or done >= max_periods:
+                return -done, change
 
 
 def _single_harmonic_state(model, omega, mu0, kc, N0, s):
@@ -365,7 +371,7 @@ def verify(model, freq_hz, mu0, kc, N0=0.5, *, harmonics=9, start="single", tol=
         periods, change = _integrate(
             (w, np.ascontiguousarray(z), uc, uo, ud, force, omega, a, b, kc, mu0 * N0,
              eta0, vel0, f0, projected, n_steps, float(tol), int(settle)),
-            int(max_periods), (y_h, q_h, peak, hist))
+            int(max_periods), (y_h, q_h, peak, hist), progress)
         if mhb is not None:
             multi = mhb.response_harmonics[0, k]
             multi_peak = mhb.response_peak[0, k]
