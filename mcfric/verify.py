@@ -25,8 +25,8 @@ from .validators import InputError, flag, fraction, integer, residual_tol
 from .validators import frequencies as check_frequencies
 from .validators import per_damper as check_parameters
 
-#: Time steps per kernel call of the integration: a few tenths of a second on eight beams,
-#: the longest wait for Ctrl-C.
+#: Time steps per kernel call of the integration (a few tenths of a second on eight beams,
+#: the wait for Ctrl-C), or one period where a period has more (up to ``MAX_STEPS``).
 STEPS_PER_CALL = 200_000
 
 #: Defaults: relative change of the harmonics per period that counts as settled, the
@@ -292,7 +292,8 @@ def verify(model, freq_hz, mu0, kc, N0=0.5, *, harmonics=9, start="single", tol=
     steps : int, optional
         Time steps per period (default from the fastest mode; at least 64).
     progress : bool
-        Show a tqdm bar over the frequencies on stderr (an integration takes seconds).
+        Show a tqdm bar over the frequencies on stderr (an integration takes seconds),
+        and one of the periods integrated where a frequency takes over a second.
     hb_tol, hb_max_iter, hb_n_time : float, int, int, optional
         The harmonic-balance solver's residual tolerance, Newton iterations and AFT
         samples per period (default: :func:`mcfric.solve`'s), e.g. a results file's, to
