@@ -559,7 +559,7 @@ def _log_ylim(ax):
     if -300 < a - margin and b + margin < 300:        # every ordinary figure
         ax.autoscale(axis="y")
         return
-    a, b = max(a - margin, -307.0), min(b + margin, 308.0)
+    a, b = max(a - margin, -323.0), min(b + margin, 308.0)
     ax.set_ylim(10.0 ** a, 10.0 ** b)
     step = max(1, math.ceil((b - a) / 8))
     ax.yaxis.set_major_locator(FixedLocator(10.0 ** np.arange(math.ceil(a), b, step)))

@@ -234,7 +234,7 @@ def test_measured_outside_is_counted(results, tmp_path, capsys):
 
 def test_a_measured_amplitude_near_the_float_limit_is_drawn_on_the_axis(results, tmp_path,
                                                                           monkeypatch):
-    """A measured 1e308 m (and 1e-300 m): matplotlib's log margin overflowed (a numpy
+    """A measured 1e308 m (and a subnormal 1e-320 m): matplotlib's log margin overflowed (a numpy
     warning), the axis ran from 1 to 10 and showed nothing. Now no warning, and the axis
     holds every measured point and the bounds."""
     import warnings
@@ -243,7 +243,7 @@ def test_a_measured_amplitude_near_the_float_limit_is_drawn_on_the_axis(results,
     from mcfric.measured import read_measured
 
     data = tmp_path / "huge.csv"
-    data.write_text("frequency_hz,beam1,beam2\n30,1e308,1e-5\n40,1e-300,1e-300\n")
+    data.write_text("frequency_hz,beam1,beam2\n30,1e308,1e-5\n40,1e-320,1e-320\n")
     saved = []
     monkeypatch.setattr(plot, "_save", lambda fig, out, dpi: saved.append(fig) or
                         fig.savefig(tmp_path / "huge.png", dpi=dpi))
@@ -252,7 +252,7 @@ def test_a_measured_amplitude_near_the_float_limit_is_drawn_on_the_axis(results,
         plot.results_figure(results, tmp_path / "x.png",
                             measured=read_measured(data, force_n=0.22))
     bottom, top = saved[-1].axes[0].get_ylim()
-    assert 0 < bottom <= 1e-300 and top >= 1e308 and np.isfinite(top)
+    assert 0 < bottom <= 1e-320 and top >= 1e308 and np.isfinite(top)
     assert (tmp_path / "huge.png").stat().st_size > 10_000
 
 
