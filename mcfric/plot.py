@@ -546,7 +546,8 @@ def _log_ylim(ax):
     matplotlib adds its margin in linear space after ``10 **``, which overflows for data
     near 1e308 (a measured amplitude of 1e308 m left an empty axis from 1 to 10 and a
     numpy warning); the margin is added here to the exponents, clipped to the range, and
-    the ticks are decades chosen here (the log locator's reach past 1e308 and fail).
+    the ticks are decades chosen here (the log locator's ticks reach past 1e308, where
+    its formatter fails on inf).
     """
     from matplotlib.ticker import FixedLocator, NullLocator
 
