@@ -206,6 +206,15 @@ def _pending_chunks(done, chunk):
     return out
 
 
+def _check_output_place(final):
+    """Refuse an output whose directory is missing, or that is a directory itself (which
+    ``force`` cannot replace: the run would fail only at its final rename)."""
+    if not final.parent.is_dir():
+        raise RunError(f"{final.parent}: output directory does not exist")
+    if final.is_dir():
+        raise RunError(f"{final} is a directory, not a results file; choose another path")
+
+
 def prepare(spec, path, *, resume=False, force=False):
     """Decide what a run of ``spec`` (a :class:`~mcfric.spec.RunSpec`) must do with ``path``.
 
@@ -215,10 +224,7 @@ def prepare(spec, path, *, resume=False, force=False):
     """
     final = Path(path)
     part = partial_path(final)
-    if not final.parent.is_dir():
-        raise RunError(f"{final.parent}: output directory does not exist")
-    if final.is_dir():
-        raise RunError(f"{final} is a directory, not a results file; choose another path")
+    _check_output_place(final)
     if final.exists() and not force:
         try:
             attrs = read_attrs(final)
@@ -410,10 +416,7 @@ def run(spec, path, *, resume=False, force=False, progress=True, groups="auto",
         raise RunError(f"{final.name}: ends in {final.suffix}, the name of a run's "
                        f"{'lock' if final.suffix == '.lock' else 'interrupted'} file; "
                        f"choose another name")
-    if not final.parent.is_dir():
-        raise RunError(f"{final.parent}: output directory does not exist")
-    if final.is_dir():          # force=True cannot replace it: refused before the work
-        raise RunError(f"{final} is a directory, not a results file; choose another path")
+    _check_output_place(final)        # before the lock: a refusal writes nothing
     # one owner per output, from the first look at the files to the last rename
     lock = OutputLock(final, "mcfric run")
     try:

@@ -23,7 +23,7 @@ from .core.newton import NOT_CONVERGED
 from .core.receptance import D21
 from .memory import MemoryRefused, check_fits
 from .metric import check_beams, response_metric
-from .model import CONTACT_LAWS, SQUARABLE, Model
+from .model import CONTACT_LAWS, Model, check_squarable
 from .peaks import Peaks, PeakSettings, refine
 from .threads import threads
 from .validators import InputError, flag, integer, real_array, residual_tol
@@ -252,11 +252,7 @@ def solve(model, freq_hz, mu0, kc, N0=0.5, *, modal_freq_hz=None, tol=TOL,
         expect = (n_s, model.n_beams, max(t.n_modes for t in model.beams))
         if mf.shape != expect:
             raise ValueError(f"modal_freq_hz: expected shape {expect}, got {mf.shape}")
-        # past SQUARABLE the receptance's squares overflow to responses of 0, "converged"
-        if not (np.all(np.isfinite(mf)) and np.all(mf > 0) and mf.max() <= SQUARABLE):
-            raise InputError("modal_freq_hz", f"values must be finite, > 0 and at most "
-                                              f"{SQUARABLE:g} Hz (which double precision "
-                                              f"squares safely)")
+        check_squarable("modal_freq_hz", mf)
         modal_freq_hz = mf
     if isinstance(peaks, (int, np.integer)) and not isinstance(peaks, bool):
         peaks = PeakSettings(count=int(peaks))

@@ -28,6 +28,16 @@ PATTERNS = ("single", "mode", "travelling")
 SQUARABLE = 1e100
 
 
+def check_squarable(name, freq_hz):
+    """Refuse natural frequencies (Hz) that are not finite, not > 0 or above
+    :data:`SQUARABLE`, past which the receptance's squares overflow to responses of 0
+    reported as converged (an InputError naming ``name``)."""
+    f = np.asarray(freq_hz)
+    if f.size == 0 or not (np.all(np.isfinite(f)) and np.all(f > 0) and f.max() <= SQUARABLE):
+        raise InputError(name, f"values must be finite, > 0 and at most {SQUARABLE:g} Hz "
+                               f"(which double precision squares safely)")
+
+
 @dataclass(frozen=True)
 class ModalTable:
     """Modes of one beam (paper Table 1 layout).

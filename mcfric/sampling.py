@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import special
 
-from .model import SQUARABLE
+from .model import check_squarable
 from .validators import InputError, finite_array, integer, real, real_array
 
 #: Half the spacing of ``Generator.random``: maps its [0, 1) grid onto (0, 1).
@@ -270,9 +270,10 @@ def _sample_numbers(index):
                                   f"{given.shape}")
     if given.size and (given.dtype.kind not in "iu" or given.dtype == np.bool_):
         raise InputError("index", f"expected integer sample numbers, got dtype {given.dtype}")
-    if given.size and (given.min() < 0 or given.max() > np.iinfo(np.int64).max):
+    lo, hi = (given.min(), given.max()) if given.size else (0, 0)
+    if lo < 0 or hi > np.iinfo(np.int64).max:
         raise InputError("index", f"sample numbers must be in 0..2**63 - 1, got "
-                                  f"{given.min() if given.min() < 0 else given.max()}")
+                                  f"{lo if lo < 0 else hi}")
     return given.astype(np.int64).reshape(-1)
 
 
@@ -403,13 +404,8 @@ class Sampler:
                              f"got {self.mistuning_per!r}")
         f = None
         if self.modal_freq_hz is not None:
-            f = finite_array("modal_freq_hz", self.modal_freq_hz, 2, positive=True)
-            if f.size == 0 or f.max() > SQUARABLE:
-                raise InputError("modal_freq_hz", f"expected a (n_beams, n_modes) array of "
-                                                  f"frequencies in (0, {SQUARABLE:g}] Hz, "
-                                                  f"got shape {f.shape}, largest "
-                                                  f"{f.max() if f.size else float('nan'):g}")
-            f = np.array(f)
+            f = np.array(finite_array("modal_freq_hz", self.modal_freq_hz, 2))
+            check_squarable("modal_freq_hz", f)
             f.setflags(write=False)
         elif m > 0:
             raise ValueError("modal_freq_hz: needed for mistuning")
